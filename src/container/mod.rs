@@ -1,0 +1,11 @@
+//! The chunked container (spec §1): signature, chunk framing, preflight, chunk order.
+
+pub mod bytes;
+pub mod chunk;
+pub mod payload;
+pub mod preflight;
+pub mod signature;
+
+pub use chunk::{Chunk, ChunkReader, ChunkTag};
+pub use preflight::Preflight;
+pub use signature::{Signature, FORMAT_MAJOR, FORMAT_MINOR};

@@ -1,0 +1,545 @@
+//! The one public error type (spec §9: every failure names the rule it breaks).
+//!
+//! Every variant carries the values that broke the rule; `Display` is written by hand
+//! and ends with the spec section, e.g.
+//! `chunk AFEA: CRC-32C mismatch (stored 0x1234abcd, computed 0x0badf00d) [§1.3]`.
+
+use std::fmt;
+use std::path::PathBuf;
+
+use crate::container::chunk::ChunkTag;
+use crate::limits::LimitKind;
+use crate::model::Dtype;
+
+/// Which fixed-size structure the stream ended inside (spec §1.2, §1.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Structure {
+    /// The 12-byte file signature and version (§1.2).
+    Signature,
+    /// The 8-byte length + tag that opens a chunk (§1.3).
+    ChunkHeader,
+    /// The 4-byte CRC-32C that closes a chunk (§1.3).
+    ChunkCrc,
+    /// The fields inside a chunk payload (§1.4 onwards).
+    Payload(ChunkTag),
+}
+
+impl fmt::Display for Structure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Structure::Signature => f.write_str("file signature"),
+            Structure::ChunkHeader => f.write_str("chunk header"),
+            Structure::ChunkCrc => f.write_str("chunk CRC"),
+            Structure::Payload(tag) => write!(f, "{tag} payload"),
+        }
+    }
+}
+
+/// A header or model dimension whose value a rule constrains (spec §1.4, Table 1-4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Field {
+    FileFlags,
+    HeadFlags,
+    AnchorCount,
+    FeatDim,
+    OffsetCount,
+    ScalingDim,
+    RateCount,
+    CoordBits,
+    VoxelSize,
+    Origin,
+    GridChannels,
+    Levels3d,
+    Levels2d,
+    Log2Size3d,
+    Log2Size2d,
+    Resolution3d,
+    Resolution2d,
+    ContextInputDim,
+    ContextHidden,
+    ScaffoldHidden,
+    ViewDims,
+}
+
+impl Field {
+    /// The field's name as the spec's syntax tables spell it.
+    pub fn spec_name(self) -> &'static str {
+        match self {
+            Field::FileFlags => "file_flags",
+            Field::HeadFlags => "head_flags",
+            Field::AnchorCount => "anchor_count",
+            Field::FeatDim => "feat_dim",
+            Field::OffsetCount => "offset_count",
+            Field::ScalingDim => "scaling_dim",
+            Field::RateCount => "rate_count",
+            Field::CoordBits => "coord_bits",
+            Field::VoxelSize => "voxel_size",
+            Field::Origin => "origin",
+            Field::GridChannels => "grid_channels",
+            Field::Levels3d => "levels_3d",
+            Field::Levels2d => "levels_2d",
+            Field::Log2Size3d => "log2_size_3d",
+            Field::Log2Size2d => "log2_size_2d",
+            Field::Resolution3d => "resolution_3d",
+            Field::Resolution2d => "resolution_2d",
+            Field::ContextInputDim => "context_input_dim",
+            Field::ContextHidden => "context_hidden",
+            Field::ScaffoldHidden => "scaffold_hidden",
+            Field::ViewDims => "view_dims",
+        }
+    }
+}
+
+/// What a file operation was doing when it failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IoOp {
+    Read,
+    Write,
+    CreateTemp,
+    Rename,
+}
+
+/// Every error of the library: stream decoding, model validation and file I/O.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Error {
+    // ---- container (§1) ----
+    /// The first 8 bytes are not the SALVQ magic.
+    SignatureMismatch { found: [u8; 8] },
+    /// The stream ended inside a fixed-size structure, or before the `SEND` chunk.
+    Truncated {
+        structure: Structure,
+        needed: u64,
+        available: u64,
+    },
+    /// The stream's major version is not one this decoder implements.
+    UnsupportedMajorVersion { found: u8, supported: u8 },
+    /// A draft (major 0) stream whose minor version differs from the implemented one.
+    UnsupportedMinorVersion { major: u8, found: u8, supported: u8 },
+    /// A bit that the spec reserves is set.
+    ReservedBitsSet { field: Field, value: u32 },
+    /// A chunk's declared length runs past the end of the stream.
+    ChunkLengthPastEnd {
+        tag: ChunkTag,
+        length: u64,
+        available: u64,
+    },
+    /// The CRC-32C stored after a chunk does not match its tag and payload.
+    ChunkCrcMismatch {
+        tag: ChunkTag,
+        stored: u32,
+        computed: u32,
+    },
+    /// A chunk tag byte is outside the allowed characters.
+    ChunkTagInvalid { tag: [u8; 4] },
+    /// A critical chunk this decoder does not know.
+    UnknownCriticalChunk { tag: ChunkTag },
+    /// A critical chunk appeared where the chunk order rules require another.
+    ChunkOrder { found: ChunkTag, expected: ChunkTag },
+    /// Bytes follow the `SEND` chunk.
+    TrailingData { bytes: u64 },
+    /// A payload's length differs from the length the header implies.
+    ChunkSizeMismatch {
+        tag: ChunkTag,
+        expected: u64,
+        found: u64,
+    },
+    /// A payload's coding-method byte names no method of this version.
+    UnknownCodingMethod { tag: ChunkTag, method: u8 },
+    /// A header field or model dimension is outside its allowed range.
+    FieldOutOfRange {
+        field: Field,
+        value: u64,
+        min: u64,
+        max: u64,
+    },
+    /// The preflight's stated decoded size differs from the size its dimensions imply.
+    DecodedSizeMismatch { stated: u64, computed: u64 },
+    /// A decoder limit would be exceeded (checked before allocating).
+    LimitExceeded {
+        limit: LimitKind,
+        requested: u64,
+        allowed: u64,
+    },
+    /// Padding bits at the end of a bit-packed payload are not zero.
+    PaddingBitsSet { tag: ChunkTag },
+    /// An anchor voxel coordinate does not fit in `coord_bits` bits.
+    CoordinateOutOfRange {
+        anchor: u64,
+        axis: u8,
+        value: i64,
+        coord_bits: u8,
+    },
+    /// Anchors are not in non-decreasing Morton order.
+    AnchorOrder { anchor: u64 },
+
+    // ---- tensor values (§2, decoder and encoder alike) ----
+    /// A float value is NaN or infinite.
+    NonFiniteValue {
+        tensor: &'static str,
+        index: Vec<u64>,
+    },
+    /// A value that must be positive (step, gain, voxel size) is not.
+    ValueNotPositive {
+        tensor: &'static str,
+        index: Vec<u64>,
+        value: f32,
+    },
+    /// An integer tensor holds a value outside its allowed set.
+    ValueInvalid {
+        tensor: &'static str,
+        index: Vec<u64>,
+        value: i64,
+        allowed: &'static str,
+    },
+
+    // ---- model interchange and validation (Annex A, §2) ----
+    /// The model file is not a valid safetensors file.
+    InterchangeFormat { detail: String },
+    /// A required tensor is absent.
+    TensorMissing { tensor: &'static str },
+    /// The model holds a tensor the schema does not define.
+    TensorUnexpected { name: String },
+    /// A tensor has the wrong dtype.
+    TensorDtype {
+        tensor: &'static str,
+        expected: Dtype,
+        found: String,
+    },
+    /// A tensor has the wrong number of dimensions.
+    TensorRank {
+        tensor: &'static str,
+        expected: u8,
+        found: u8,
+    },
+    /// A tensor has the wrong shape.
+    TensorShape {
+        tensor: &'static str,
+        expected: Vec<u64>,
+        found: Vec<u64>,
+    },
+    /// A lattice basis has a zero singular value.
+    BasisSingular { tensor: &'static str, index: u64 },
+    /// A lattice basis' condition number max|s| / min|s| exceeds the limit.
+    BasisIllConditioned {
+        tensor: &'static str,
+        condition: f64,
+        max: f64,
+    },
+    /// A lattice basis factor U or V is not orthogonal within tolerance.
+    BasisNotOrthogonal {
+        tensor: &'static str,
+        index: [u64; 2],
+        deviation: f64,
+        tolerance: f64,
+    },
+
+    // ---- files ----
+    /// A file operation failed.
+    Io {
+        op: IoOp,
+        path: PathBuf,
+        kind: std::io::ErrorKind,
+    },
+}
+
+impl Error {
+    /// The spec section whose rule this error reports.
+    pub fn spec_section(&self) -> &'static str {
+        use Error::*;
+        match self {
+            SignatureMismatch { .. } | UnsupportedMajorVersion { .. } => "§1.2",
+            UnsupportedMinorVersion { .. } => "§1.2",
+            ReservedBitsSet {
+                field: Field::FileFlags,
+                ..
+            } => "§1.2",
+            ReservedBitsSet { .. } => "§1.4",
+            Truncated {
+                structure: Structure::Signature,
+                ..
+            } => "§1.2",
+            Truncated {
+                structure: Structure::Payload(_),
+                ..
+            } => "§1.4",
+            Truncated { .. } => "§1.3",
+            ChunkLengthPastEnd { .. } | ChunkCrcMismatch { .. } | ChunkTagInvalid { .. } => "§1.3",
+            UnknownCriticalChunk { .. } | ChunkOrder { .. } | TrailingData { .. } => "§1.5",
+            FieldOutOfRange { .. } | DecodedSizeMismatch { .. } => "§1.4",
+            ChunkSizeMismatch { tag, .. } if *tag == ChunkTag::HEAD => "§1.4",
+            ChunkSizeMismatch { tag, .. } if *tag == ChunkTag::SEND => "§1.5",
+            ChunkSizeMismatch { .. } | UnknownCodingMethod { .. } | PaddingBitsSet { .. } => "§1.6",
+            LimitExceeded { .. } => "§9.1",
+            CoordinateOutOfRange { .. } | AnchorOrder { .. } => "§2.2",
+            NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
+            BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
+            InterchangeFormat { .. }
+            | TensorMissing { .. }
+            | TensorUnexpected { .. }
+            | TensorDtype { .. }
+            | TensorRank { .. }
+            | TensorShape { .. } => "§A.1",
+            Io { .. } => "§9.2",
+        }
+    }
+
+    /// The variant's name, as conformance manifests and `salvq` stderr spell the error class.
+    pub fn class(&self) -> &'static str {
+        use Error::*;
+        match self {
+            SignatureMismatch { .. } => "SignatureMismatch",
+            Truncated { .. } => "Truncated",
+            UnsupportedMajorVersion { .. } => "UnsupportedMajorVersion",
+            UnsupportedMinorVersion { .. } => "UnsupportedMinorVersion",
+            ReservedBitsSet { .. } => "ReservedBitsSet",
+            ChunkLengthPastEnd { .. } => "ChunkLengthPastEnd",
+            ChunkCrcMismatch { .. } => "ChunkCrcMismatch",
+            ChunkTagInvalid { .. } => "ChunkTagInvalid",
+            UnknownCriticalChunk { .. } => "UnknownCriticalChunk",
+            ChunkOrder { .. } => "ChunkOrder",
+            TrailingData { .. } => "TrailingData",
+            ChunkSizeMismatch { .. } => "ChunkSizeMismatch",
+            UnknownCodingMethod { .. } => "UnknownCodingMethod",
+            FieldOutOfRange { .. } => "FieldOutOfRange",
+            DecodedSizeMismatch { .. } => "DecodedSizeMismatch",
+            LimitExceeded { .. } => "LimitExceeded",
+            PaddingBitsSet { .. } => "PaddingBitsSet",
+            CoordinateOutOfRange { .. } => "CoordinateOutOfRange",
+            AnchorOrder { .. } => "AnchorOrder",
+            NonFiniteValue { .. } => "NonFiniteValue",
+            ValueNotPositive { .. } => "ValueNotPositive",
+            ValueInvalid { .. } => "ValueInvalid",
+            InterchangeFormat { .. } => "InterchangeFormat",
+            TensorMissing { .. } => "TensorMissing",
+            TensorUnexpected { .. } => "TensorUnexpected",
+            TensorDtype { .. } => "TensorDtype",
+            TensorRank { .. } => "TensorRank",
+            TensorShape { .. } => "TensorShape",
+            BasisSingular { .. } => "BasisSingular",
+            BasisIllConditioned { .. } => "BasisIllConditioned",
+            BasisNotOrthogonal { .. } => "BasisNotOrthogonal",
+            Io { .. } => "Io",
+        }
+    }
+
+    pub(crate) fn io(op: IoOp, path: &std::path::Path, err: &std::io::Error) -> Error {
+        Error::Io {
+            op,
+            path: path.to_path_buf(),
+            kind: err.kind(),
+        }
+    }
+}
+
+/// Writes a multi-dimensional index as `[i, j, k]`.
+struct Index<'a>(&'a [u64]);
+
+impl fmt::Display for Index<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("[")?;
+        for (i, v) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            write!(f, "{v}")?;
+        }
+        f.write_str("]")
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use Error::*;
+        match self {
+            SignatureMismatch { found } => write!(
+                f,
+                "file signature: not a SALVQ stream (first bytes {:02x?})",
+                found
+            )?,
+            Truncated {
+                structure,
+                needed,
+                available,
+            } => write!(
+                f,
+                "{structure}: stream truncated ({needed} bytes needed, {available} available)"
+            )?,
+            UnsupportedMajorVersion { found, supported } => write!(
+                f,
+                "file signature: format major version {found} is not supported (this decoder implements major {supported})"
+            )?,
+            UnsupportedMinorVersion {
+                major,
+                found,
+                supported,
+            } => write!(
+                f,
+                "file signature: draft format {major}.{found} is not supported (a major-0 decoder reads only its own minor, {major}.{supported})"
+            )?,
+            ReservedBitsSet { field, value } => write!(
+                f,
+                "{}: reserved bits are set (value 0x{value:x})",
+                field.spec_name()
+            )?,
+            ChunkLengthPastEnd {
+                tag,
+                length,
+                available,
+            } => write!(
+                f,
+                "chunk {tag}: length {length} runs past the end of the stream ({available} bytes left)"
+            )?,
+            ChunkCrcMismatch {
+                tag,
+                stored,
+                computed,
+            } => write!(
+                f,
+                "chunk {tag}: CRC-32C mismatch (stored 0x{stored:08x}, computed 0x{computed:08x})"
+            )?,
+            ChunkTagInvalid { tag } => write!(
+                f,
+                "chunk tag {:02x?}: bytes must be ASCII letters (first) or letters and digits",
+                tag
+            )?,
+            UnknownCriticalChunk { tag } => write!(f, "chunk {tag}: unknown critical chunk")?,
+            ChunkOrder { found, expected } => write!(
+                f,
+                "chunk {found}: out of order (the next critical chunk must be {expected})"
+            )?,
+            TrailingData { bytes } => {
+                write!(f, "stream: {bytes} bytes follow the SEND chunk")?
+            }
+            ChunkSizeMismatch {
+                tag,
+                expected,
+                found,
+            } => write!(
+                f,
+                "chunk {tag}: payload is {found} bytes, the header implies {expected}"
+            )?,
+            UnknownCodingMethod { tag, method } => {
+                write!(f, "chunk {tag}: unknown coding method {method}")?
+            }
+            FieldOutOfRange {
+                field,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "{}: value {value} is outside {min}..={max}",
+                field.spec_name()
+            )?,
+            DecodedSizeMismatch { stated, computed } => write!(
+                f,
+                "HEAD: decoded_bytes is {stated}, the dimensions imply {computed}"
+            )?,
+            LimitExceeded {
+                limit,
+                requested,
+                allowed,
+            } => write!(
+                f,
+                "limits: {limit} of {requested} exceeds the decoder limit {allowed}"
+            )?,
+            PaddingBitsSet { tag } => write!(f, "chunk {tag}: padding bits are not zero")?,
+            CoordinateOutOfRange {
+                anchor,
+                axis,
+                value,
+                coord_bits,
+            } => write!(
+                f,
+                "anchor.voxel[{anchor}, {axis}]: coordinate {value} does not fit in coord_bits = {coord_bits}"
+            )?,
+            AnchorOrder { anchor } => write!(
+                f,
+                "anchor.voxel[{anchor}]: Morton code is smaller than the previous anchor's (anchors must be in Morton order)"
+            )?,
+            NonFiniteValue { tensor, index } => {
+                write!(f, "{tensor}{}: value is not finite", Index(index))?
+            }
+            ValueNotPositive {
+                tensor,
+                index,
+                value,
+            } => write!(f, "{tensor}{}: value {value} must be > 0", Index(index))?,
+            ValueInvalid {
+                tensor,
+                index,
+                value,
+                allowed,
+            } => write!(
+                f,
+                "{tensor}{}: value {value} is not allowed (allowed: {allowed})",
+                Index(index)
+            )?,
+            InterchangeFormat { detail } => {
+                write!(f, "model file: not a valid safetensors file ({detail})")?
+            }
+            TensorMissing { tensor } => write!(f, "{tensor}: required tensor is missing")?,
+            TensorUnexpected { name } => {
+                write!(f, "{name}: tensor is not part of the model schema")?
+            }
+            TensorDtype {
+                tensor,
+                expected,
+                found,
+            } => write!(f, "{tensor}: dtype is {found}, expected {expected}")?,
+            TensorRank {
+                tensor,
+                expected,
+                found,
+            } => write!(f, "{tensor}: has {found} dimensions, expected {expected}")?,
+            TensorShape {
+                tensor,
+                expected,
+                found,
+            } => write!(
+                f,
+                "{tensor}: shape is {}, expected {}",
+                Index(found),
+                Index(expected)
+            )?,
+            BasisSingular { tensor, index } => write!(
+                f,
+                "{tensor}[{index}]: singular value is zero (the lattice basis is singular)"
+            )?,
+            BasisIllConditioned {
+                tensor,
+                condition,
+                max,
+            } => write!(
+                f,
+                "{tensor}: lattice basis condition number {condition:.3e} exceeds {max:.0e}"
+            )?,
+            BasisNotOrthogonal {
+                tensor,
+                index,
+                deviation,
+                tolerance,
+            } => write!(
+                f,
+                "{tensor}: not orthogonal, (M^T M - I)[{}, {}] = {deviation:.3e} exceeds {tolerance:.0e}",
+                index[0], index[1]
+            )?,
+            Io { op, path, kind } => {
+                let verb = match op {
+                    IoOp::Read => "cannot read",
+                    IoOp::Write => "cannot write",
+                    IoOp::CreateTemp => "cannot create a temporary file beside",
+                    IoOp::Rename => "cannot move the finished file to",
+                };
+                write!(f, "{verb} {}: {kind}", path.display())?
+            }
+        }
+        write!(f, " [{}]", self.spec_section())
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// The crate's result type.
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,132 @@
+//! The binary hash grid (Annex B.4.1) and its interpolation at an anchor (B.4.2), indexed exactly
+//! as the spec's hyperprior (spec §5) indexes it.
+
+use super::rng::{tag, Stream};
+use crate::model::{level_entries, Dims, HashGrid};
+
+/// i.i.d. balanced +-1 values: bit b of draw k of stream GRID/t gives entry value 64k + b.
+pub fn grid(d: &Dims, seed: u64) -> HashGrid {
+    let c = u64::from(d.grid_channels);
+    let make = |t: u64, len: u64| -> Vec<i8> {
+        let mut s = Stream::new(seed, tag::GRID, t);
+        let mut out = Vec::with_capacity(len as usize);
+        while (out.len() as u64) < len {
+            let w = s.next_u64();
+            let take = (len - out.len() as u64).min(64);
+            out.extend((0..take).map(|b| if (w >> b) & 1 == 1 { 1i8 } else { -1i8 }));
+        }
+        out
+    };
+    HashGrid {
+        grid_3d: make(0, d.entries_3d() * c),
+        grid_xy: make(1, d.entries_2d() * c),
+        grid_xz: make(2, d.entries_2d() * c),
+        grid_yz: make(3, d.entries_2d() * c),
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Level {
+    res: u32,
+    dense: bool,
+    mask: u32,
+    /// First entry of the level in its tensor.
+    offset: usize,
+}
+
+fn levels(res: &[u16], dim: u32, log2: u8) -> Vec<Level> {
+    let mut offset = 0usize;
+    res.iter()
+        .map(|&r| {
+            let dense = (u64::from(r) + 1).saturating_pow(dim) <= 1u64 << log2;
+            let l = Level {
+                res: r.into(),
+                dense,
+                mask: ((1u64 << log2) - 1) as u32,
+                offset,
+            };
+            offset += level_entries(r, dim, log2) as usize;
+            l
+        })
+        .collect()
+}
+
+/// Interpolation of the hash grid at voxel centres (Annex B.4.2).
+#[derive(Debug, Clone)]
+pub struct Interp {
+    l3: Vec<Level>,
+    l2: Vec<Level>,
+    c: usize,
+    scale: f64,
+}
+
+impl Interp {
+    pub fn new(d: &Dims, coord_bits: u8) -> Self {
+        Interp {
+            l3: levels(&d.res_3d, 3, d.log2_size_3d),
+            l2: levels(&d.res_2d, 2, d.log2_size_2d),
+            c: d.grid_channels.into(),
+            scale: 1.0 / (1u64 << coord_bits) as f64,
+        }
+    }
+
+    /// Context features of voxel `v`: [3D levels, xy, xz, yz levels], C channels each.
+    pub fn features(&self, g: &HashGrid, v: [u32; 3], out: &mut [f64]) {
+        out.fill(0.0);
+        let c = self.c;
+        let p = v.map(|x| (f64::from(x) + 0.5) * self.scale);
+        let corner = |q: f64, r: u32| {
+            let x = q * f64::from(r);
+            let i = x.floor();
+            (i as u32, x - i)
+        };
+        for (l, lv) in self.l3.iter().enumerate() {
+            let [(i, wx), (j, wy), (k, wz)] = p.map(|q| corner(q, lv.res));
+            let o = &mut out[l * c..(l + 1) * c];
+            for n in 0..8u32 {
+                let (dx, dy, dz) = (n & 1, (n >> 1) & 1, n >> 2);
+                let w = (if dx == 1 { wx } else { 1.0 - wx })
+                    * (if dy == 1 { wy } else { 1.0 - wy })
+                    * (if dz == 1 { wz } else { 1.0 - wz });
+                let (a, b, cc) = (i + dx, j + dy, k + dz);
+                let idx = if lv.dense {
+                    let r1 = u64::from(lv.res) + 1;
+                    (u64::from(a) + u64::from(b) * r1 + u64::from(cc) * r1 * r1) as usize
+                } else {
+                    ((a ^ b.wrapping_mul(2_654_435_761) ^ cc.wrapping_mul(805_459_861)) & lv.mask)
+                        as usize
+                };
+                let e = &g.grid_3d[(lv.offset + idx) * c..(lv.offset + idx + 1) * c];
+                for (acc, &val) in o.iter_mut().zip(e) {
+                    *acc += w * f64::from(val);
+                }
+            }
+        }
+        let base = self.l3.len() * c;
+        let planes: [(&[i8], usize, usize); 3] =
+            [(&g.grid_xy, 0, 1), (&g.grid_xz, 0, 2), (&g.grid_yz, 1, 2)];
+        for (pi, (tensor, ax, ay)) in planes.iter().enumerate() {
+            for (l, lv) in self.l2.iter().enumerate() {
+                let (i, wx) = corner(p[*ax], lv.res);
+                let (j, wy) = corner(p[*ay], lv.res);
+                let start = base + (pi * self.l2.len() + l) * c;
+                let o = &mut out[start..start + c];
+                for n in 0..4u32 {
+                    let (dx, dy) = (n & 1, n >> 1);
+                    let w = (if dx == 1 { wx } else { 1.0 - wx })
+                        * (if dy == 1 { wy } else { 1.0 - wy });
+                    let (a, b) = (i + dx, j + dy);
+                    let idx = if lv.dense {
+                        (u64::from(a) + u64::from(b) * (u64::from(lv.res) + 1)) as usize
+                    } else {
+                        ((a ^ b.wrapping_mul(2_654_435_761)) & lv.mask) as usize
+                    };
+                    let e = &tensor[(lv.offset + idx) * c..(lv.offset + idx + 1) * c];
+                    for (acc, &val) in o.iter_mut().zip(e) {
+                        *acc += w * f64::from(val);
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,247 @@
+//! `salvq info`: what a stream holds, chunk by chunk, without decoding the payloads, and
+//! the split into model bytes and anchor bytes (spec §1.3, §1.4).
+
+use serde::Serialize;
+
+use crate::container::chunk::{ChunkReader, ChunkTag, CHUNK_OVERHEAD};
+use crate::container::preflight::Preflight;
+use crate::container::signature::{Signature, SIGNATURE_LEN};
+use crate::error::Result;
+use crate::limits::Limits;
+
+/// What a chunk's bytes pay for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ByteClass {
+    /// Shared model: preflight, hash grid, MLPs, quantizers.
+    Model,
+    /// Per-anchor data: positions, masks, features, scalings, offsets.
+    Anchor,
+    /// Framing, end marker and ancillary chunks.
+    Other,
+}
+
+/// Which class a chunk type belongs to.
+pub fn byte_class(tag: ChunkTag) -> ByteClass {
+    match tag {
+        ChunkTag::HEAD | ChunkTag::GRID | ChunkTag::MLPS | ChunkTag::QUAN => ByteClass::Model,
+        ChunkTag::APOS | ChunkTag::AMSK | ChunkTag::AFEA | ChunkTag::ASCL | ChunkTag::AOFF => {
+            ByteClass::Anchor
+        }
+        _ => ByteClass::Other,
+    }
+}
+
+/// One chunk as `info` lists it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChunkInfo {
+    pub tag: String,
+    pub critical: bool,
+    pub class: ByteClass,
+    /// Offset of the chunk's length field.
+    pub offset: u64,
+    pub payload_bytes: u64,
+    /// Payload plus 12 bytes of framing.
+    pub total_bytes: u64,
+    pub crc32c: String,
+}
+
+/// The preflight as `info` shows it.
+#[derive(Debug, Clone, Serialize)]
+pub struct HeadInfo {
+    pub anchors: u32,
+    pub feat_dim: u16,
+    pub offsets: u16,
+    pub scaling_dim: u16,
+    pub rates: u8,
+    pub coord_bits: u8,
+    pub origin: [f32; 3],
+    pub voxel_size: f32,
+    pub grid_channels: u8,
+    pub resolutions_3d: Vec<u16>,
+    pub resolutions_2d: Vec<u16>,
+    pub log2_size_3d: u8,
+    pub log2_size_2d: u8,
+    pub context_hidden: u16,
+    pub scaffold_hidden: u16,
+    pub view_dims: u8,
+    pub feat_basis: bool,
+    pub scaling_basis: bool,
+    pub decoded_bytes: u64,
+}
+
+impl From<&Preflight> for HeadInfo {
+    fn from(p: &Preflight) -> Self {
+        let d = &p.dims;
+        HeadInfo {
+            anchors: d.anchors,
+            feat_dim: d.feat_dim,
+            offsets: d.offsets,
+            scaling_dim: d.scaling_dim,
+            rates: d.rates,
+            coord_bits: p.coord_bits,
+            origin: p.origin,
+            voxel_size: p.voxel_size,
+            grid_channels: d.grid_channels,
+            resolutions_3d: d.res_3d.clone(),
+            resolutions_2d: d.res_2d.clone(),
+            log2_size_3d: d.log2_size_3d,
+            log2_size_2d: d.log2_size_2d,
+            context_hidden: d.context_hidden,
+            scaffold_hidden: d.scaffold_hidden,
+            view_dims: d.view_dims,
+            feat_basis: d.feat_basis,
+            scaling_basis: d.scaling_basis,
+            decoded_bytes: p.decoded_bytes,
+        }
+    }
+}
+
+/// Bytes per class and per anchor.
+#[derive(Debug, Clone, Serialize)]
+pub struct Totals {
+    pub file_bytes: u64,
+    pub model_bytes: u64,
+    pub anchor_bytes: u64,
+    pub other_bytes: u64,
+    pub bits_per_anchor: f64,
+}
+
+/// Everything `salvq info` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct StreamInfo {
+    pub format_version: String,
+    pub file_flags: u16,
+    pub head: Option<HeadInfo>,
+    pub chunks: Vec<ChunkInfo>,
+    pub totals: Totals,
+}
+
+/// Lists a stream's chunks (checking framing and CRCs) and its preflight.
+pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
+    let (sig, rest) = Signature::parse(data)?;
+    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
+    let mut chunks = Vec::new();
+    let mut head = None;
+    let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
+    while let Some(c) = reader.next_chunk()? {
+        if c.tag == ChunkTag::HEAD && head.is_none() {
+            head = Some(HeadInfo::from(&Preflight::parse(c.payload, limits)?));
+        }
+        let total = c.payload.len() as u64 + CHUNK_OVERHEAD;
+        let class = byte_class(c.tag);
+        match class {
+            ByteClass::Model => model += total,
+            ByteClass::Anchor => anchor += total,
+            ByteClass::Other => other += total,
+        }
+        chunks.push(ChunkInfo {
+            tag: c.tag.to_string(),
+            critical: c.tag.is_critical(),
+            class,
+            offset: c.offset,
+            payload_bytes: c.payload.len() as u64,
+            total_bytes: total,
+            crc32c: format!("{:08x}", c.crc),
+        });
+    }
+    let file_bytes = data.len() as u64;
+    let anchors = head.as_ref().map_or(0, |h| h.anchors);
+    Ok(StreamInfo {
+        format_version: format!("{}.{}", sig.major, sig.minor),
+        file_flags: sig.flags,
+        head,
+        chunks,
+        totals: Totals {
+            file_bytes,
+            model_bytes: model,
+            anchor_bytes: anchor,
+            other_bytes: other,
+            bits_per_anchor: if anchors == 0 {
+                0.0
+            } else {
+                file_bytes as f64 * 8.0 / f64::from(anchors)
+            },
+        },
+    })
+}
+
+impl StreamInfo {
+    /// The human-readable report of `salvq info`.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(s, "SALVQ stream, format {}", self.format_version);
+        if let Some(h) = &self.head {
+            let _ = writeln!(
+                s,
+                "anchors {}  feat_dim {}  offsets {}  scaling_dim {}  rates {}  coord_bits {}",
+                h.anchors, h.feat_dim, h.offsets, h.scaling_dim, h.rates, h.coord_bits
+            );
+            let _ = writeln!(
+                s,
+                "origin ({}, {}, {})  voxel_size {}",
+                h.origin[0], h.origin[1], h.origin[2], h.voxel_size
+            );
+            let _ = writeln!(
+                s,
+                "hash grid: {} channels, 3D res {:?} (log2 {}), 2D res {:?} (log2 {})",
+                h.grid_channels, h.resolutions_3d, h.log2_size_3d, h.resolutions_2d, h.log2_size_2d
+            );
+            let _ = writeln!(
+                s,
+                "MLPs: context hidden {}, scaffold hidden {}, view dims {}",
+                h.context_hidden, h.scaffold_hidden, h.view_dims
+            );
+            let _ = writeln!(
+                s,
+                "quantizers: feature basis {}, scaling basis {}",
+                if h.feat_basis { "general" } else { "identity" },
+                if h.scaling_basis {
+                    "general"
+                } else {
+                    "identity"
+                }
+            );
+            let _ = writeln!(s, "decoded size {} bytes", h.decoded_bytes);
+        }
+        let _ = writeln!(
+            s,
+            "{:<6} {:>10} {:>12} {:>8}  crc32c",
+            "chunk", "offset", "payload", "class"
+        );
+        for c in &self.chunks {
+            let class = match c.class {
+                ByteClass::Model => "model",
+                ByteClass::Anchor => "anchor",
+                ByteClass::Other => "other",
+            };
+            let _ = writeln!(
+                s,
+                "{:<6} {:>10} {:>12} {:>8}  {}",
+                c.tag, c.offset, c.payload_bytes, class, c.crc32c
+            );
+        }
+        let t = &self.totals;
+        let _ = writeln!(
+            s,
+            "total {} bytes: model {} ({:.1}%), anchors {} ({:.1}%), other {}; {:.2} bits/anchor",
+            t.file_bytes,
+            t.model_bytes,
+            pct(t.model_bytes, t.file_bytes),
+            t.anchor_bytes,
+            pct(t.anchor_bytes, t.file_bytes),
+            t.other_bytes,
+            t.bits_per_anchor
+        );
+        s
+    }
+}
+
+fn pct(a: u64, b: u64) -> f64 {
+    if b == 0 {
+        0.0
+    } else {
+        100.0 * a as f64 / b as f64
+    }
+}

@@ -1,0 +1,53 @@
+//! # salvq — reference encoder and decoder of the SALVQ scene format
+//!
+//! SALVQ streams carry compressed anchor-based 3D Gaussian Splatting scenes (Scaffold-GS
+//! anchors with a HAC-style hash-grid hyperprior, quantized by scene-adaptive lattice vector
+//! quantization with per-rate gains). The normative text is `spec/` in this repository; every
+//! module cites the section it implements.
+//!
+//! ## Map of a stream (format 0.1)
+//!
+//! | stream part | spec | module |
+//! |---|---|---|
+//! | signature: magic, major.minor, file flags | §1.2 | [`container::signature`] |
+//! | chunk framing: length, tag, payload, CRC-32C | §1.3 | [`container::chunk`] |
+//! | `HEAD` preflight: dimensions, geometry, decoded size | §1.4 | [`container::preflight`] |
+//! | chunk order, critical / ancillary, `SEND` | §1.5 | [`decoder`] |
+//! | payload chunks `GRID` `MLPS` `QUAN` `APOS` `AMSK` `AFEA` `ASCL` `AOFF` | §1.6 | [`container::payload`] |
+//! | the scene model: tensors, shapes, dtypes | §2 | [`model`] |
+//! | model validation (finite, masks, bases, gains) | §2.3, §2.6 | [`model::validate`] |
+//! | limits and errors | §9 | [`limits`], [`error`] |
+//! | safetensors interchange | Annex A | [`model::interchange`] |
+//! | synthetic scene generator | Annex B | [`gen`] |
+//!
+//! ## Use
+//!
+//! ```
+//! let model = salvq::gen::generate(&salvq::gen::GenParams::small(100, 1));
+//! let stream = salvq::encode(&model)?;
+//! let decoded = salvq::decode(&stream)?;
+//! assert_eq!(decoded, model); // 0.1 stores anchor attributes losslessly
+//! # Ok::<(), salvq::Error>(())
+//! ```
+//!
+//! The decoder never panics on any input: every failure is an [`Error`] variant that names
+//! the rule broken and its spec section, and [`Limits`] are checked against the preflight
+//! before anything is allocated.
+
+#![forbid(unsafe_code)]
+
+pub mod container;
+pub mod decoder;
+pub mod encoder;
+pub mod error;
+pub mod gen;
+pub mod info;
+pub mod io;
+pub mod limits;
+pub mod model;
+
+pub use decoder::{decode, decode_with_limits};
+pub use encoder::{encode, encode_with_options, EncodeOptions};
+pub use error::{Error, Result};
+pub use limits::Limits;
+pub use model::SceneModel;

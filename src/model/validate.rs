@@ -1,0 +1,342 @@
+//! Model validation (spec §2.3, §2.6): the checks the encoder runs before it writes a byte,
+//! and the dimension ranges (§1.4, Table 1-4) that the decoder also applies to `HEAD`.
+
+use super::{names, Basis, Dims, GroupQuantizer, Mlp, SceneModel};
+use crate::error::{Error, Field, Result};
+
+/// Largest accepted condition number max|s_i| / min|s_i| of a lattice basis (spec §2.6).
+///
+/// Reconstruction B u is computed in binary32 (unit roundoff 6e-8); at a condition number
+/// of 1e6 the encoder's B^-1 y already loses all but ~1 significant decimal digit of the
+/// smallest lattice direction, so larger values cannot be quantized meaningfully.
+pub const MAX_BASIS_CONDITION: f64 = 1e6;
+
+/// Largest accepted |(M^T M - I)_ij| for the orthogonal factors U and V (spec §2.6).
+pub const ORTHOGONALITY_TOLERANCE: f64 = 1e-3;
+
+/// Largest voxel coordinate bit depth (spec §1.4): 3 x 21 bits fill a 63-bit Morton code.
+pub const MAX_COORD_BITS: u8 = 21;
+
+/// The allowed range of each header field / model dimension (spec Table 1-4).
+pub fn field_range(field: Field) -> (u64, u64) {
+    match field {
+        Field::AnchorCount => (1, u32::MAX as u64),
+        Field::FeatDim => (1, 1024),
+        Field::OffsetCount => (1, 256),
+        Field::ScalingDim => (1, 64),
+        Field::RateCount => (1, 64),
+        Field::CoordBits => (1, MAX_COORD_BITS as u64),
+        Field::GridChannels => (1, 16),
+        Field::Levels3d | Field::Levels2d => (0, 32),
+        Field::Log2Size3d | Field::Log2Size2d => (1, 24),
+        Field::Resolution3d | Field::Resolution2d => (1, u16::MAX as u64),
+        Field::ContextInputDim => (1, 16 * 128),
+        Field::ContextHidden | Field::ScaffoldHidden => (1, 4096),
+        Field::ViewDims => (0, 8),
+        Field::FileFlags | Field::HeadFlags | Field::VoxelSize | Field::Origin => (0, u64::MAX),
+    }
+}
+
+/// Checks `value` against the field's range and returns it.
+pub fn check_field(field: Field, value: u64) -> Result<u64> {
+    let (min, max) = field_range(field);
+    if value < min || value > max {
+        return Err(Error::FieldOutOfRange {
+            field,
+            value,
+            min,
+            max,
+        });
+    }
+    Ok(value)
+}
+
+/// Checks every dimension against spec Table 1-4.
+pub fn check_dims(d: &Dims) -> Result<()> {
+    check_field(Field::AnchorCount, d.anchors.into())?;
+    check_field(Field::FeatDim, d.feat_dim.into())?;
+    check_field(Field::OffsetCount, d.offsets.into())?;
+    check_field(Field::ScalingDim, d.scaling_dim.into())?;
+    check_field(Field::RateCount, d.rates.into())?;
+    check_field(Field::GridChannels, d.grid_channels.into())?;
+    check_field(Field::Levels3d, d.res_3d.len() as u64)?;
+    check_field(Field::Levels2d, d.res_2d.len() as u64)?;
+    check_field(Field::Log2Size3d, d.log2_size_3d.into())?;
+    check_field(Field::Log2Size2d, d.log2_size_2d.into())?;
+    for &r in &d.res_3d {
+        check_field(Field::Resolution3d, r.into())?;
+    }
+    for &r in &d.res_2d {
+        check_field(Field::Resolution2d, r.into())?;
+    }
+    check_field(Field::ContextInputDim, d.context_input())?;
+    check_field(Field::ContextHidden, d.context_hidden.into())?;
+    check_field(Field::ScaffoldHidden, d.scaffold_hidden.into())?;
+    check_field(Field::ViewDims, d.view_dims.into())?;
+    Ok(())
+}
+
+/// Checks the geometry header values (§1.4): finite origin, finite positive voxel size.
+pub fn check_geometry(origin: &[f32; 3], voxel_size: f32) -> Result<()> {
+    for (i, o) in origin.iter().enumerate() {
+        if !o.is_finite() {
+            return Err(Error::NonFiniteValue {
+                tensor: names::ORIGIN,
+                index: vec![i as u64],
+            });
+        }
+    }
+    if !voxel_size.is_finite() {
+        return Err(Error::NonFiniteValue {
+            tensor: names::VOXEL_SIZE,
+            index: vec![0],
+        });
+    }
+    if voxel_size <= 0.0 {
+        return Err(Error::ValueNotPositive {
+            tensor: names::VOXEL_SIZE,
+            index: vec![0],
+            value: voxel_size,
+        });
+    }
+    Ok(())
+}
+
+/// Converts a flat index into a multi-dimensional one for error messages.
+fn unflatten(flat: usize, shape: &[u64]) -> Vec<u64> {
+    let mut rest = flat as u64;
+    let mut idx = vec![0; shape.len()];
+    for (slot, &dim) in idx.iter_mut().zip(shape).rev() {
+        let dim = dim.max(1);
+        *slot = rest % dim;
+        rest /= dim;
+    }
+    idx
+}
+
+/// Every value finite; the first offender is named with its index.
+pub fn check_finite(tensor: &'static str, values: &[f32], shape: &[u64]) -> Result<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(Error::NonFiniteValue {
+            tensor,
+            index: unflatten(i, shape),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Every value finite and > 0 (steps, gains).
+pub fn check_positive(tensor: &'static str, values: &[f32]) -> Result<()> {
+    check_finite(tensor, values, &[values.len() as u64])?;
+    match values.iter().position(|&v| v <= 0.0) {
+        Some(i) => Err(Error::ValueNotPositive {
+            tensor,
+            index: vec![i as u64],
+            value: values[i],
+        }),
+        None => Ok(()),
+    }
+}
+
+fn check_len(tensor: &'static str, found: usize, shape: &[u64]) -> Result<()> {
+    let expected: u64 = shape.iter().product();
+    if found as u64 != expected {
+        return Err(Error::TensorShape {
+            tensor,
+            expected: shape.to_vec(),
+            found: vec![found as u64],
+        });
+    }
+    Ok(())
+}
+
+fn check_mlp(names: [&'static str; 4], mlp: &Mlp, i: u64, h: u64, o: u64) -> Result<()> {
+    let parts: [(&[f32], Vec<u64>); 4] = [
+        (&mlp.w0, vec![h, i]),
+        (&mlp.b0, vec![h]),
+        (&mlp.w1, vec![o, h]),
+        (&mlp.b1, vec![o]),
+    ];
+    for (name, (values, shape)) in names.iter().zip(parts.iter()) {
+        check_len(name, values.len(), shape)?;
+        check_finite(name, values, shape)?;
+    }
+    Ok(())
+}
+
+/// Checks that `m` is orthogonal: |(M^T M - I)_ij| <= tolerance for all i, j.
+fn check_orthogonal(tensor: &'static str, m: &[f32], n: usize) -> Result<()> {
+    for i in 0..n {
+        for j in 0..n {
+            let dot: f64 = (0..n)
+                .map(|r| f64::from(m[r * n + i]) * f64::from(m[r * n + j]))
+                .sum();
+            let deviation = (dot - if i == j { 1.0 } else { 0.0 }).abs();
+            if deviation > ORTHOGONALITY_TOLERANCE {
+                return Err(Error::BasisNotOrthogonal {
+                    tensor,
+                    index: [i as u64, j as u64],
+                    deviation,
+                    tolerance: ORTHOGONALITY_TOLERANCE,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks a lattice basis (spec §2.6): finite, U and V orthogonal, s non-zero, bounded condition.
+pub fn check_basis(names: &[&'static str; 5], basis: &Basis, dim: u64) -> Result<()> {
+    let n = dim as usize;
+    check_len(names[2], basis.u.len(), &[dim, dim])?;
+    check_len(names[3], basis.s.len(), &[dim])?;
+    check_len(names[4], basis.v.len(), &[dim, dim])?;
+    check_finite(names[2], &basis.u, &[dim, dim])?;
+    check_finite(names[3], &basis.s, &[dim])?;
+    check_finite(names[4], &basis.v, &[dim, dim])?;
+    if let Some(i) = basis.s.iter().position(|&s| s == 0.0) {
+        return Err(Error::BasisSingular {
+            tensor: names[3],
+            index: i as u64,
+        });
+    }
+    let abs = basis.s.iter().map(|s| f64::from(s.abs()));
+    let max = abs.clone().fold(0.0f64, f64::max);
+    let min = abs.fold(f64::INFINITY, f64::min);
+    let condition = max / min;
+    if condition > MAX_BASIS_CONDITION {
+        return Err(Error::BasisIllConditioned {
+            tensor: names[3],
+            condition,
+            max: MAX_BASIS_CONDITION,
+        });
+    }
+    check_orthogonal(names[2], &basis.u, n)?;
+    check_orthogonal(names[4], &basis.v, n)?;
+    Ok(())
+}
+
+fn check_group(
+    names: &[&'static str],
+    basis_names: Option<&[&'static str; 5]>,
+    q: &GroupQuantizer,
+    rates: u8,
+    dim: u64,
+    flagged: bool,
+) -> Result<()> {
+    check_positive(names[0], &[q.step])?;
+    check_len(names[1], q.gains.len(), &[rates.into()])?;
+    check_positive(names[1], &q.gains)?;
+    match (&q.basis, basis_names, flagged) {
+        (Some(b), Some(bn), true) => check_basis(bn, b, dim),
+        (None, Some(bn), true) => Err(Error::TensorMissing { tensor: bn[2] }),
+        (Some(_), _, _) => Err(Error::TensorUnexpected {
+            name: format!("{}.basis_u", names[0].trim_end_matches(".step")),
+        }),
+        (None, _, _) => Ok(()),
+    }
+}
+
+/// Validates a whole model (spec §2): shapes against its dimensions, then values,
+/// in Table 2-1 order, so the first broken rule is reported.
+pub fn validate_model(m: &SceneModel) -> Result<()> {
+    let d = &m.dims;
+    check_dims(d)?;
+    check_geometry(&m.origin, m.voxel_size)?;
+    let n = u64::from(d.anchors);
+    let k = u64::from(d.offsets);
+    let f = u64::from(d.feat_dim);
+    let s = u64::from(d.scaling_dim);
+    let a = &m.anchors;
+    check_len(names::VOXEL, a.voxel.len(), &[n])
+        .map_err(|_| shape_err(names::VOXEL, &[n, 3], a.voxel.len() as u64 * 3))?;
+    for (i, v) in a.voxel.iter().enumerate() {
+        for (axis, &c) in v.iter().enumerate() {
+            if c >> MAX_COORD_BITS != 0 {
+                return Err(Error::CoordinateOutOfRange {
+                    anchor: i as u64,
+                    axis: axis as u8,
+                    value: c.into(),
+                    coord_bits: MAX_COORD_BITS,
+                });
+            }
+        }
+    }
+    check_len(names::MASK, a.mask.len(), &[n, k])?;
+    if let Some(i) = a.mask.iter().position(|&b| b > 1) {
+        return Err(Error::ValueInvalid {
+            tensor: names::MASK,
+            index: unflatten(i, &[n, k]),
+            value: a.mask[i].into(),
+            allowed: "0 or 1",
+        });
+    }
+    for (name, values, shape) in [
+        (names::FEAT, &a.feat, vec![n, f]),
+        (names::SCALING, &a.scaling, vec![n, s]),
+        (names::OFFSETS, &a.offsets, vec![n, k, 3]),
+    ] {
+        check_len(name, values.len(), &shape)?;
+        check_finite(name, values, &shape)?;
+    }
+    let c = u64::from(d.grid_channels);
+    for (name, values, entries) in [
+        (names::GRID_3D, &m.grid.grid_3d, d.entries_3d()),
+        (names::GRID_XY, &m.grid.grid_xy, d.entries_2d()),
+        (names::GRID_XZ, &m.grid.grid_xz, d.entries_2d()),
+        (names::GRID_YZ, &m.grid.grid_yz, d.entries_2d()),
+    ] {
+        check_len(name, values.len(), &[entries, c])?;
+        if let Some(i) = values.iter().position(|&b| b != 1 && b != -1) {
+            return Err(Error::ValueInvalid {
+                tensor: name,
+                index: unflatten(i, &[entries, c]),
+                value: values[i].into(),
+                allowed: "-1 or +1",
+            });
+        }
+    }
+    let hs = u64::from(d.scaffold_hidden);
+    let si = d.scaffold_input();
+    check_mlp(
+        names::MLP_GRID,
+        &m.mlp_grid,
+        d.context_input(),
+        d.context_hidden.into(),
+        d.context_output(),
+    )?;
+    check_mlp(names::MLP_OPACITY, &m.mlp_opacity, si, hs, k)?;
+    check_mlp(names::MLP_COV, &m.mlp_cov, si, hs, 7 * k)?;
+    check_mlp(names::MLP_COLOR, &m.mlp_color, si, hs, 3 * k)?;
+    let (qf, qs) = (&names::QUANT_FEAT, &names::QUANT_SCALING);
+    check_group(qf, Some(qf), &m.quant_feat, d.rates, f, d.feat_basis)?;
+    check_group(qs, Some(qs), &m.quant_scaling, d.rates, s, d.scaling_basis)?;
+    check_group(
+        &names::QUANT_OFFSETS,
+        None,
+        &m.quant_offsets,
+        d.rates,
+        3,
+        false,
+    )
+}
+
+fn shape_err(tensor: &'static str, expected: &[u64], found: u64) -> Error {
+    Error::TensorShape {
+        tensor,
+        expected: expected.to_vec(),
+        found: vec![found],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unflatten_is_row_major() {
+        assert_eq!(unflatten(7, &[3, 4]), vec![1, 3]);
+        assert_eq!(unflatten(0, &[3, 4]), vec![0, 0]);
+        assert_eq!(unflatten(23, &[2, 3, 4]), vec![1, 2, 3]);
+    }
+}

@@ -1,0 +1,132 @@
+//! The CLI contract: gen / encode / decode / info work end to end; a failure prints one line
+//! on stderr, exits non-zero, and leaves no output file (not even a temporary one) behind.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn salvq(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_salvq"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn gen_encode_decode_info() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    let out = salvq(&[
+        "gen",
+        "--anchors",
+        "300",
+        "--seed",
+        "3",
+        "--small",
+        "-o",
+        &p("m.safetensors"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("sha256 "));
+    let out = salvq(&[
+        "encode",
+        &p("m.safetensors"),
+        "-o",
+        &p("s.salvq"),
+        "--note",
+        "cli test",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = salvq(&["decode", &p("s.salvq"), "-o", &p("d.safetensors")]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read(p("m.safetensors")).unwrap(),
+        std::fs::read(p("d.safetensors")).unwrap(),
+        "decoded model file equals the generated one byte for byte"
+    );
+    let out = salvq(&["info", &p("s.salvq"), "--json"]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["head"]["anchors"], 300);
+    assert_eq!(v["chunks"][1]["tag"], "encd");
+    assert_eq!(
+        files_in(dir.path()),
+        ["d.safetensors", "m.safetensors", "s.salvq"]
+    );
+}
+
+#[test]
+fn failed_decode_prints_one_line_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    assert!(salvq(&[
+        "gen",
+        "--anchors",
+        "50",
+        "--small",
+        "-o",
+        &p("m.safetensors")
+    ])
+    .status
+    .success());
+    assert!(salvq(&["encode", &p("m.safetensors"), "-o", &p("s.salvq")])
+        .status
+        .success());
+    let mut s = std::fs::read(p("s.salvq")).unwrap();
+    let n = s.len();
+    s[n - 20] ^= 4; // inside the last anchor chunk: a CRC mismatch
+    std::fs::write(p("bad.salvq"), &s).unwrap();
+    let out = salvq(&["decode", &p("bad.salvq"), "-o", &p("out.safetensors")]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    assert!(stderr.starts_with("salvq: error[ChunkCrcMismatch]: chunk AOFF: CRC-32C mismatch"));
+    assert!(stderr.trim_end().ends_with("[§1.3]"));
+    assert_eq!(
+        files_in(dir.path()),
+        ["bad.salvq", "m.safetensors", "s.salvq"]
+    );
+}
+
+#[test]
+fn failed_encode_of_a_bad_model_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    std::fs::write(p("bad.safetensors"), b"\x08\0\0\0\0\0\0\0{}      ").unwrap();
+    let out = salvq(&["encode", &p("bad.safetensors"), "-o", &p("s.salvq")]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1);
+    assert!(
+        stderr.contains("error[TensorMissing]: anchor.feat"),
+        "{stderr}"
+    );
+    assert_eq!(files_in(dir.path()), ["bad.safetensors"]);
+}
+
+#[test]
+fn missing_input_is_an_io_error() {
+    let out = salvq(&["info", "/nonexistent/x.salvq"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).starts_with("salvq: error[Io]: cannot read"));
+}

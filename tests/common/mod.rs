@@ -1,0 +1,57 @@
+//! Helpers shared by the integration tests: a small valid stream, and chunk surgery that
+//! keeps CRCs valid so a test reaches the rule it targets.
+#![allow(dead_code)]
+
+use salvq::container::chunk::{write_chunk, ChunkReader, ChunkTag};
+use salvq::gen::{generate, GenParams};
+use salvq::{Limits, SceneModel};
+
+/// 13 anchors of the small configuration: 13 x 4 = 52 mask bits, so `AMSK` has padding.
+pub fn small_model() -> SceneModel {
+    generate(&GenParams::small(13, 1))
+}
+
+pub fn small_stream() -> Vec<u8> {
+    salvq::encode(&small_model()).expect("valid model encodes")
+}
+
+/// The stream's chunks as (tag, payload).
+pub fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
+    let mut r = ChunkReader::new(&stream[12..], 12, &Limits::default());
+    let mut out = Vec::new();
+    while let Some(c) = r.next_chunk().expect("valid stream") {
+        out.push((c.tag, c.payload.to_vec()));
+    }
+    out
+}
+
+/// Re-assembles a stream from its signature and (tag, payload) pairs, with valid CRCs.
+pub fn assemble(signature: &[u8], chunks: &[(ChunkTag, Vec<u8>)]) -> Vec<u8> {
+    let mut out = signature[..12].to_vec();
+    for (tag, payload) in chunks {
+        write_chunk(&mut out, *tag, payload);
+    }
+    out
+}
+
+/// The stream with one chunk's payload changed by `f` (CRC recomputed).
+pub fn edit_payload(stream: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
+    let mut cs = chunks(stream);
+    let c = cs
+        .iter_mut()
+        .find(|(t, _)| *t == tag)
+        .expect("chunk present");
+    f(&mut c.1);
+    assemble(stream, &cs)
+}
+
+/// Byte offset of a chunk's length field.
+pub fn chunk_offset(stream: &[u8], tag: ChunkTag) -> usize {
+    let mut r = ChunkReader::new(&stream[12..], 12, &Limits::default());
+    while let Some(c) = r.next_chunk().expect("valid stream") {
+        if c.tag == tag {
+            return c.offset as usize;
+        }
+    }
+    panic!("no chunk {tag}");
+}

@@ -1,0 +1,236 @@
+//! The code mirrors the spec's tables: error classes (Table 9-1), chunk order (Table 1-3),
+//! tensor names (Table 2-1). A change to one without the other fails here.
+
+use std::path::PathBuf;
+
+use salvq::container::chunk::ChunkTag;
+use salvq::error::{Field, IoOp, Structure};
+use salvq::limits::LimitKind;
+use salvq::model::Dtype;
+use salvq::Error;
+
+fn spec(file: &str) -> String {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("spec")
+        .join(file);
+    std::fs::read_to_string(path).expect("spec file present")
+}
+
+/// First-column backticked names of the rows of the table that follows `caption`.
+fn table_names(text: &str, caption: &str) -> Vec<String> {
+    let start = text.find(caption).expect("table caption present");
+    text[start..]
+        .lines()
+        .skip_while(|l| !l.starts_with('|'))
+        .take_while(|l| l.starts_with('|'))
+        .filter_map(|l| {
+            let cell = l.split('|').nth(1)?.trim();
+            let cell = cell.split('|').next()?;
+            cell.strip_prefix('`')?
+                .split('`')
+                .next()
+                .map(str::to_string)
+        })
+        .collect()
+}
+
+/// One value of every variant of the error enum.
+fn every_error() -> Vec<Error> {
+    let t = ChunkTag::HEAD;
+    vec![
+        Error::SignatureMismatch { found: [0; 8] },
+        Error::Truncated {
+            structure: Structure::Signature,
+            needed: 12,
+            available: 0,
+        },
+        Error::UnsupportedMajorVersion {
+            found: 1,
+            supported: 0,
+        },
+        Error::UnsupportedMinorVersion {
+            major: 0,
+            found: 2,
+            supported: 1,
+        },
+        Error::ReservedBitsSet {
+            field: Field::FileFlags,
+            value: 1,
+        },
+        Error::ChunkLengthPastEnd {
+            tag: t,
+            length: 1,
+            available: 0,
+        },
+        Error::ChunkCrcMismatch {
+            tag: t,
+            stored: 0,
+            computed: 1,
+        },
+        Error::ChunkTagInvalid { tag: [0; 4] },
+        Error::UnknownCriticalChunk { tag: t },
+        Error::ChunkOrder {
+            found: t,
+            expected: t,
+        },
+        Error::TrailingData { bytes: 1 },
+        Error::ChunkSizeMismatch {
+            tag: t,
+            expected: 1,
+            found: 2,
+        },
+        Error::UnknownCodingMethod { tag: t, method: 9 },
+        Error::FieldOutOfRange {
+            field: Field::FeatDim,
+            value: 0,
+            min: 1,
+            max: 2,
+        },
+        Error::DecodedSizeMismatch {
+            stated: 1,
+            computed: 2,
+        },
+        Error::LimitExceeded {
+            limit: LimitKind::Anchors,
+            requested: 2,
+            allowed: 1,
+        },
+        Error::PaddingBitsSet { tag: t },
+        Error::CoordinateOutOfRange {
+            anchor: 0,
+            axis: 0,
+            value: 9,
+            coord_bits: 1,
+        },
+        Error::AnchorOrder { anchor: 1 },
+        Error::NonFiniteValue {
+            tensor: "x",
+            index: vec![0],
+        },
+        Error::ValueNotPositive {
+            tensor: "x",
+            index: vec![0],
+            value: 0.0,
+        },
+        Error::ValueInvalid {
+            tensor: "x",
+            index: vec![0],
+            value: 2,
+            allowed: "0 or 1",
+        },
+        Error::InterchangeFormat { detail: "x".into() },
+        Error::TensorMissing { tensor: "x" },
+        Error::TensorUnexpected { name: "x".into() },
+        Error::TensorDtype {
+            tensor: "x",
+            expected: Dtype::F32,
+            found: "I8".into(),
+        },
+        Error::TensorRank {
+            tensor: "x",
+            expected: 2,
+            found: 1,
+        },
+        Error::TensorShape {
+            tensor: "x",
+            expected: vec![1],
+            found: vec![2],
+        },
+        Error::BasisSingular {
+            tensor: "x",
+            index: 0,
+        },
+        Error::BasisIllConditioned {
+            tensor: "x",
+            condition: 1e9,
+            max: 1e6,
+        },
+        Error::BasisNotOrthogonal {
+            tensor: "x",
+            index: [0, 1],
+            deviation: 0.1,
+            tolerance: 1e-3,
+        },
+        Error::Io {
+            op: IoOp::Read,
+            path: "x".into(),
+            kind: std::io::ErrorKind::NotFound,
+        },
+    ]
+}
+
+#[test]
+fn error_classes_match_table_9_1() {
+    let mut spec_classes = table_names(&spec("09-limits-errors.md"), "Table 9-1:");
+    let mut code: Vec<String> = every_error()
+        .iter()
+        .map(|e| e.class().to_string())
+        .collect();
+    spec_classes.sort();
+    code.sort();
+    assert_eq!(spec_classes, code);
+}
+
+#[test]
+fn every_message_ends_with_its_section() {
+    for e in every_error() {
+        let msg = e.to_string();
+        assert!(msg.ends_with(&format!("[{}]", e.spec_section())), "{msg}");
+        assert!(!msg.contains("{ "), "Display must not be Debug: {msg}");
+    }
+}
+
+#[test]
+fn critical_chunks_match_table_1_3() {
+    let spec_tags = table_names(&spec("01-container.md"), "Table 1-3:");
+    let mut code: Vec<String> = ChunkTag::CRITICAL_ORDER
+        .iter()
+        .map(|t| t.to_string())
+        .collect();
+    code.push(ChunkTag::ENCD.to_string());
+    assert_eq!(spec_tags, code);
+}
+
+#[test]
+fn tensor_names_match_table_2_1() {
+    let text = spec("02-scene-model.md");
+    let start = text.find("Table 2-1:").unwrap();
+    let rows: Vec<&str> = text[start..]
+        .lines()
+        .skip_while(|l| !l.starts_with('|'))
+        .take_while(|l| l.starts_with('|'))
+        .skip(2)
+        .collect();
+    // Expand the spec's brace shorthand, e.g. `mlp_cov.{0,2}.{weight,bias}`.
+    let mut spec_names = Vec::new();
+    for row in rows {
+        let name = row.split('|').nth(2).unwrap().trim().trim_matches('`');
+        let mut names = vec![String::new()];
+        let mut rest = name;
+        while let Some(open) = rest.find('{') {
+            let close = rest.find('}').unwrap();
+            let prefix = &rest[..open];
+            let options: Vec<&str> = rest[open + 1..close].split(',').collect();
+            names = names
+                .iter()
+                .flat_map(|n| options.iter().map(move |o| format!("{n}{prefix}{o}")))
+                .collect();
+            rest = &rest[close + 1..];
+        }
+        spec_names.extend(names.into_iter().map(|n| format!("{n}{rest}")));
+    }
+    let mut dims = salvq::gen::generate(&salvq::gen::GenParams::small(1, 1)).dims;
+    dims.feat_basis = true;
+    dims.scaling_basis = true;
+    let code: Vec<String> = salvq::model::tensor_table(&dims)
+        .iter()
+        .map(|e| e.name.to_string())
+        .collect();
+    // The spec lists each MLP as {0,2} x {weight,bias}: 0.weight, 0.bias, 2.weight, 2.bias.
+    let mut spec_sorted = spec_names.clone();
+    let mut code_sorted = code.clone();
+    spec_sorted.sort();
+    code_sorted.sort();
+    assert_eq!(spec_sorted, code_sorted);
+    assert_eq!(code.len(), 42);
+}
