@@ -90,6 +90,33 @@ impl Field {
     }
 }
 
+/// How an entropy-coded (ANS) payload broke the coder's rules (spec §6.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AnsFault {
+    /// The payload's word count is odd, or it is too short to hold the initial state.
+    Framing,
+    /// The initial state's top word is zero: the encoder never writes that.
+    ZeroTopWord,
+    /// Decoding needed more words than the payload holds.
+    OutOfWords,
+    /// Words are left over after the last symbol.
+    WordsLeftOver,
+    /// The state after the last symbol is not the encoder's initial state.
+    StateNotFinal,
+}
+
+impl AnsFault {
+    fn describe(self) -> &'static str {
+        match self {
+            AnsFault::Framing => "the payload is not a whole number of coder words holding a state",
+            AnsFault::ZeroTopWord => "the coder state's top word is zero",
+            AnsFault::OutOfWords => "decoding ran past the end of the coded words",
+            AnsFault::WordsLeftOver => "coded words are left over after the last symbol",
+            AnsFault::StateNotFinal => "the coder's final state is not the initial state",
+        }
+    }
+}
+
 /// What a file operation was doing when it failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum IoOp {
@@ -172,6 +199,23 @@ pub enum Error {
     },
     /// Anchors are not in non-decreasing Morton order.
     AnchorOrder { anchor: u64 },
+
+    // ---- entropy coding (§6) ----
+    /// The ANS-coded words of a chunk are malformed.
+    AnsStreamInvalid { tag: ChunkTag, fault: AnsFault },
+    /// An escaped symbol's Exp-Golomb prefix is longer than the spec allows.
+    EscapeOverflow {
+        tag: ChunkTag,
+        symbol: u64,
+        prefix_bits: u32,
+    },
+    /// A computed scale index lies outside the frequency tables.
+    ScaleIndexOutOfRange {
+        tag: ChunkTag,
+        symbol: u64,
+        scale_index: i64,
+        max: u64,
+    },
 
     // ---- tensor values (§2, decoder and encoder alike) ----
     /// A float value is NaN or infinite.
@@ -272,6 +316,9 @@ impl Error {
             ChunkSizeMismatch { .. } | UnknownCodingMethod { .. } | PaddingBitsSet { .. } => "§1.6",
             LimitExceeded { .. } => "§9.1",
             CoordinateOutOfRange { .. } | AnchorOrder { .. } => "§2.2",
+            AnsStreamInvalid { .. } => "§6.2",
+            EscapeOverflow { .. } => "§6.4",
+            ScaleIndexOutOfRange { .. } => "§6.3",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
             InterchangeFormat { .. }
@@ -307,6 +354,9 @@ impl Error {
             PaddingBitsSet { .. } => "PaddingBitsSet",
             CoordinateOutOfRange { .. } => "CoordinateOutOfRange",
             AnchorOrder { .. } => "AnchorOrder",
+            AnsStreamInvalid { .. } => "AnsStreamInvalid",
+            EscapeOverflow { .. } => "EscapeOverflow",
+            ScaleIndexOutOfRange { .. } => "ScaleIndexOutOfRange",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",
@@ -457,6 +507,26 @@ impl fmt::Display for Error {
             AnchorOrder { anchor } => write!(
                 f,
                 "anchor.voxel[{anchor}]: Morton code is smaller than the previous anchor's (anchors must be in Morton order)"
+            )?,
+            AnsStreamInvalid { tag, fault } => {
+                write!(f, "chunk {tag}: entropy-coded data invalid: {}", fault.describe())?
+            }
+            EscapeOverflow {
+                tag,
+                symbol,
+                prefix_bits,
+            } => write!(
+                f,
+                "chunk {tag}: symbol {symbol}: escape prefix of {prefix_bits} bits exceeds the maximum"
+            )?,
+            ScaleIndexOutOfRange {
+                tag,
+                symbol,
+                scale_index,
+                max,
+            } => write!(
+                f,
+                "chunk {tag}: symbol {symbol}: scale index {scale_index} is outside 0..={max}"
             )?,
             NonFiniteValue { tensor, index } => {
                 write!(f, "{tensor}{}: value is not finite", Index(index))?

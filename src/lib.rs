@@ -39,8 +39,10 @@
 pub mod container;
 pub mod decoder;
 pub mod encoder;
+pub mod entropy;
 pub mod error;
 pub mod gen;
+pub mod hyperprior;
 pub mod info;
 pub mod io;
 pub mod limits;

@@ -103,6 +103,21 @@ fn every_error() -> Vec<Error> {
             coord_bits: 1,
         },
         Error::AnchorOrder { anchor: 1 },
+        Error::AnsStreamInvalid {
+            tag: t,
+            fault: salvq::error::AnsFault::OutOfWords,
+        },
+        Error::EscapeOverflow {
+            tag: t,
+            symbol: 0,
+            prefix_bits: 33,
+        },
+        Error::ScaleIndexOutOfRange {
+            tag: t,
+            symbol: 0,
+            scale_index: -1,
+            max: 63,
+        },
         Error::NonFiniteValue {
             tensor: "x",
             index: vec![0],

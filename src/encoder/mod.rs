@@ -1,6 +1,8 @@
 //! The encoder: validates a model, puts its anchors in canonical order, writes the chunks
 //! in the order of spec Table 1-3. Encoding choices never change what a decoder must do.
 
+pub mod convert;
+
 use crate::container::chunk::{write_chunk, ChunkTag};
 use crate::container::payload;
 use crate::container::preflight::Preflight;

@@ -1,0 +1,1 @@
+//! Entropy coding (spec §6): discretized-Gaussian frequency tables, escapes, ANS.

@@ -1,0 +1,242 @@
+//! Hash-grid interpolation in integer arithmetic (spec §5.1) and the set of grid entries that
+//! some anchor touches (§5.2).
+
+use crate::model::{level_entries, Dims, HashGrid};
+
+/// Bits of each per-axis interpolation weight (spec §5.1): weights are in units of 2^-10.
+pub const WEIGHT_BITS: u32 = 10;
+/// MLP input precision: grid features are in units of 2^-8 (|x| <= 256).
+pub const INPUT_FRAC_BITS: u32 = 8;
+
+/// The hash multipliers of spec §2.4 for the second and third coordinate.
+const PRIME_Y: u32 = 2_654_435_761;
+const PRIME_Z: u32 = 805_459_861;
+
+/// One level of a grid tensor (spec §2.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Level {
+    pub res: u32,
+    pub dense: bool,
+    /// 2^T - 1: the hash mask of a hashed level.
+    pub mask: u32,
+    /// First entry of the level in its tensor.
+    pub offset: u64,
+}
+
+/// The levels of one tensor, level 0 first.
+pub fn levels(res: &[u16], dim: u32, log2: u8) -> Vec<Level> {
+    let mut offset = 0u64;
+    res.iter()
+        .map(|&r| {
+            let entries = level_entries(r, dim, log2);
+            let l = Level {
+                res: r.into(),
+                dense: entries == (u64::from(r) + 1).saturating_pow(dim),
+                mask: ((1u64 << log2) - 1) as u32,
+                offset,
+            };
+            offset += entries;
+            l
+        })
+        .collect()
+}
+
+/// §5.1 step 1: the cell and the upper weight of one coordinate on a level of resolution r.
+/// The normalized position is p = (2v + 1) / 2^(B+1); p * r splits into the cell
+/// floor(p r) and a fraction, truncated to WEIGHT_BITS bits.
+#[inline]
+fn axis(v: u32, r: u32, coord_bits: u32) -> (u32, u32) {
+    let x = (2 * u64::from(v) + 1) * u64::from(r);
+    let b = coord_bits + 1;
+    let cell = (x >> b) as u32;
+    let frac = x & ((1u64 << b) - 1);
+    let w1 = if b >= WEIGHT_BITS {
+        frac >> (b - WEIGHT_BITS)
+    } else {
+        frac << (WEIGHT_BITS - b)
+    };
+    (cell, w1 as u32)
+}
+
+/// §2.4: entry of 3D vertex (i, j, k).
+#[inline]
+fn index3(l: &Level, i: u32, j: u32, k: u32) -> u64 {
+    let local = if l.dense {
+        let n = u64::from(l.res) + 1;
+        u64::from(i) + u64::from(j) * n + u64::from(k) * n * n
+    } else {
+        u64::from((i ^ j.wrapping_mul(PRIME_Y) ^ k.wrapping_mul(PRIME_Z)) & l.mask)
+    };
+    l.offset + local
+}
+
+/// §2.4: entry of 2D vertex (i, j).
+#[inline]
+fn index2(l: &Level, i: u32, j: u32) -> u64 {
+    let local = if l.dense {
+        u64::from(i) + u64::from(j) * (u64::from(l.res) + 1)
+    } else {
+        u64::from((i ^ j.wrapping_mul(PRIME_Y)) & l.mask)
+    };
+    l.offset + local
+}
+
+/// The grid layout of a model: its levels and channel count.
+#[derive(Debug, Clone)]
+pub struct GridLayout {
+    pub l3: Vec<Level>,
+    pub l2: Vec<Level>,
+    pub channels: usize,
+    pub coord_bits: u32,
+}
+
+/// The three planes of spec §2.4: which coordinates each one takes.
+const PLANES: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+impl GridLayout {
+    pub fn new(d: &Dims, coord_bits: u8) -> Self {
+        GridLayout {
+            l3: levels(&d.res_3d, 3, d.log2_size_3d),
+            l2: levels(&d.res_2d, 2, d.log2_size_2d),
+            channels: d.grid_channels.into(),
+            coord_bits: coord_bits.into(),
+        }
+    }
+
+    /// Width of the feature vector: C (L3 + 3 L2).
+    pub fn features(&self) -> usize {
+        self.channels * (self.l3.len() + 3 * self.l2.len())
+    }
+
+    /// Calls `f(entry, weight)` for the 8 corners of every 3D level; weights are in units of
+    /// 2^-30 and sum to 2^30 per level.
+    fn corners3(&self, v: [u32; 3], mut f: impl FnMut(usize, u64, i64)) {
+        for (li, l) in self.l3.iter().enumerate() {
+            let (cx, wx) = axis(v[0], l.res, self.coord_bits);
+            let (cy, wy) = axis(v[1], l.res, self.coord_bits);
+            let (cz, wz) = axis(v[2], l.res, self.coord_bits);
+            let one = 1i64 << WEIGHT_BITS;
+            let ws = |w: u32| [one - i64::from(w), i64::from(w)];
+            let (ax, ay, az) = (ws(wx), ws(wy), ws(wz));
+            for corner in 0..8u32 {
+                let (dx, dy, dz) = (corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+                let e = index3(l, cx + dx, cy + dy, cz + dz);
+                f(li, e, ax[dx as usize] * ay[dy as usize] * az[dz as usize]);
+            }
+        }
+    }
+
+    /// Calls `f(plane, level, entry, weight)` for the 4 corners of every 2D level of every
+    /// plane; weights in units of 2^-20.
+    fn corners2(&self, v: [u32; 3], mut f: impl FnMut(usize, usize, u64, i64)) {
+        for (pi, &(a, b)) in PLANES.iter().enumerate() {
+            for (li, l) in self.l2.iter().enumerate() {
+                let (ci, wi) = axis(v[a], l.res, self.coord_bits);
+                let (cj, wj) = axis(v[b], l.res, self.coord_bits);
+                let one = 1i64 << WEIGHT_BITS;
+                let (ai, aj) = (
+                    [one - i64::from(wi), i64::from(wi)],
+                    [one - i64::from(wj), i64::from(wj)],
+                );
+                for corner in 0..4u32 {
+                    let (di, dj) = (corner & 1, corner >> 1);
+                    let e = index2(l, ci + di, cj + dj);
+                    f(pi, li, e, ai[di as usize] * aj[dj as usize]);
+                }
+            }
+        }
+    }
+
+    /// §5.1: the integer grid features of voxel `v` (units of 2^-8), written to `out`
+    /// (length [`GridLayout::features`]) in the order 3D levels, xy, xz, yz levels, C each.
+    pub fn interpolate(&self, g: &HashGrid, v: [u32; 3], out: &mut [i16]) {
+        let c = self.channels;
+        let mut acc = vec![0i64; out.len()];
+        self.corners3(v, |li, e, w| {
+            let base = e as usize * c;
+            for ch in 0..c {
+                acc[li * c + ch] += w * i64::from(g.grid_3d[base + ch]);
+            }
+        });
+        let n3 = self.l3.len() * c;
+        let planes = [&g.grid_xy, &g.grid_xz, &g.grid_yz];
+        let per_plane = self.l2.len() * c;
+        self.corners2(v, |pi, li, e, w| {
+            let base = e as usize * c;
+            for ch in 0..c {
+                acc[n3 + pi * per_plane + li * c + ch] += w * i64::from(planes[pi][base + ch]);
+            }
+        });
+        // §5.1 step 3: round to units of 2^-8 (half away from -inf: add half, shift).
+        let s3 = 3 * WEIGHT_BITS - INPUT_FRAC_BITS;
+        let s2 = 2 * WEIGHT_BITS - INPUT_FRAC_BITS;
+        for (i, (o, a)) in out.iter_mut().zip(&acc).enumerate() {
+            let s = if i < n3 { s3 } else { s2 };
+            *o = ((a + (1 << (s - 1))) >> s) as i16;
+        }
+    }
+
+    /// §5.2: which entries of each grid tensor (3D, xy, xz, yz) some anchor touches.
+    pub fn touched(&self, voxels: &[[u32; 3]], entries_3d: u64, entries_2d: u64) -> [Vec<bool>; 4] {
+        let mut t = [
+            vec![false; entries_3d as usize],
+            vec![false; entries_2d as usize],
+            vec![false; entries_2d as usize],
+            vec![false; entries_2d as usize],
+        ];
+        for &v in voxels {
+            self.corners3(v, |_, e, _| t[0][e as usize] = true);
+            self.corners2(v, |pi, _, e, _| t[pi + 1][e as usize] = true);
+        }
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axis_splits_position_into_cell_and_weight() {
+        // coord_bits 1: voxels 0 and 1 sit at p = 1/4 and 3/4.
+        assert_eq!(axis(0, 2, 1), (0, 512)); // p r = 0.5
+        assert_eq!(axis(1, 2, 1), (1, 512)); // p r = 1.5
+        assert_eq!(axis(1, 4, 1), (3, 0)); // p r = 3.0
+                                           // Deep coordinates: weight truncated to 10 bits.
+        let (cell, w) = axis((1 << 20) - 1, 514, 20);
+        assert!(cell < 514 && w < 1024);
+    }
+
+    #[test]
+    fn weights_sum_to_one_and_features_stay_in_range() {
+        let m = crate::gen::generate(&crate::gen::GenParams::small(50, 3));
+        let layout = GridLayout::new(&m.dims, m.coord_bits());
+        let mut out = vec![0i16; layout.features()];
+        for &v in &m.anchors.voxel {
+            let mut sums = vec![0i64; layout.l3.len()];
+            layout.corners3(v, |li, _, w| sums[li] += w);
+            assert!(sums.iter().all(|&s| s == 1 << 30));
+            layout.interpolate(&m.grid, v, &mut out);
+            assert!(out.iter().all(|&x| (-256..=256).contains(&x)));
+        }
+    }
+
+    #[test]
+    fn integer_features_match_float_interpolation() {
+        let m = crate::gen::generate(&crate::gen::GenParams::new(200, 2));
+        let layout = GridLayout::new(&m.dims, m.coord_bits());
+        let interp = crate::gen::grid::Interp::new(&m.dims, m.coord_bits());
+        let mut int = vec![0i16; layout.features()];
+        let mut flt = vec![0f64; layout.features()];
+        let mut worst = 0f64;
+        for &v in &m.anchors.voxel {
+            layout.interpolate(&m.grid, v, &mut int);
+            interp.features(&m.grid, v, &mut flt);
+            for (a, b) in int.iter().zip(&flt) {
+                worst = worst.max((f64::from(*a) / 256.0 - b).abs());
+            }
+        }
+        // 10-bit weights and 8-bit output: within a few units of 2^-8.
+        assert!(worst < 4.0 / 256.0, "worst {worst}");
+    }
+}

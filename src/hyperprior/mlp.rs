@@ -1,0 +1,147 @@
+//! The context MLP in fixed point (spec §5.3): i16 weights, i32 wrapping accumulation,
+//! rounding shifts and a clamped ReLU. Every decoder computes bit-identical outputs.
+
+use crate::model::Mlp;
+
+/// Largest hidden activation (i16).
+pub const HIDDEN_MAX: i32 = i16::MAX as i32;
+
+/// The integer context MLP as a stream carries it (spec §5.3, Table 5-1).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IntMlp {
+    pub cin: usize,
+    pub hidden: usize,
+    pub cout: usize,
+    /// Layer 0 weights [hidden, cin] in units of 2^-w0_frac_bits.
+    pub w0: Vec<i16>,
+    /// Layer 0 biases in units of 2^-(8 + w0_frac_bits).
+    pub b0: Vec<i32>,
+    pub w0_frac_bits: u8,
+    /// Right shift from layer-0 sums to hidden activations.
+    pub shift0: u8,
+    /// Layer 1 weights [cout, hidden] in units of 2^-w1_frac_bits.
+    pub w1: Vec<i16>,
+    /// Layer 1 biases in units of 2^-out_frac_bits().
+    pub b1: Vec<i32>,
+    pub w1_frac_bits: u8,
+}
+
+/// 2^e exactly, for -1022 <= e <= 1023 (built from its bits: no library call).
+pub fn pow2(e: i32) -> f64 {
+    f64::from_bits(((1023 + e.clamp(-1022, 1023)) as u64) << 52)
+}
+
+/// Rounds `acc / 2^s` to nearest, ties toward +infinity (spec §0.5 `rshr`).
+#[inline]
+pub fn round_shift(acc: i32, s: u8) -> i32 {
+    if s == 0 {
+        acc
+    } else {
+        ((i64::from(acc) + (1i64 << (s - 1))) >> s) as i32
+    }
+}
+
+/// Wrapping dot product of i16 vectors in i32 (spec §5.3: sums are modulo 2^32).
+#[inline]
+fn dot(w: &[i16], x: &[i16]) -> i32 {
+    w.iter().zip(x).fold(0i32, |a, (&w, &x)| {
+        a.wrapping_add(i32::from(w) * i32::from(x))
+    })
+}
+
+impl IntMlp {
+    /// Fraction bits of the hidden activations: 8 + w0_frac_bits - shift0.
+    pub fn hidden_frac_bits(&self) -> i32 {
+        8 + i32::from(self.w0_frac_bits) - i32::from(self.shift0)
+    }
+
+    /// Fraction bits of the outputs: hidden_frac_bits + w1_frac_bits.
+    pub fn out_frac_bits(&self) -> i32 {
+        self.hidden_frac_bits() + i32::from(self.w1_frac_bits)
+    }
+
+    /// §5.3 steps 1-3: outputs `y` (units of 2^-out_frac_bits) of input `x` (units of 2^-8).
+    /// `h` is scratch of length `hidden`.
+    pub fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        for ((hv, row), &b) in h
+            .iter_mut()
+            .zip(self.w0.chunks_exact(self.cin))
+            .zip(&self.b0)
+        {
+            let acc = b.wrapping_add(dot(row, x));
+            *hv = round_shift(acc, self.shift0).clamp(0, HIDDEN_MAX) as i16;
+        }
+        for ((yv, row), &b) in y
+            .iter_mut()
+            .zip(self.w1.chunks_exact(self.hidden))
+            .zip(&self.b1)
+        {
+            *yv = b.wrapping_add(dot(row, h));
+        }
+    }
+
+    /// The float MLP these integers stand for (the decoded model's `mlp_grid.*`), exactly:
+    /// every value is an integer times a power of two.
+    pub fn to_float(&self) -> Mlp {
+        let s_w0 = pow2(-i32::from(self.w0_frac_bits));
+        let s_b0 = pow2(-8 - i32::from(self.w0_frac_bits));
+        let s_w1 = pow2(-i32::from(self.w1_frac_bits));
+        let s_b1 = pow2(-self.out_frac_bits());
+        Mlp {
+            w0: self
+                .w0
+                .iter()
+                .map(|&w| (f64::from(w) * s_w0) as f32)
+                .collect(),
+            b0: self
+                .b0
+                .iter()
+                .map(|&b| (f64::from(b) * s_b0) as f32)
+                .collect(),
+            w1: self
+                .w1
+                .iter()
+                .map(|&w| (f64::from(w) * s_w1) as f32)
+                .collect(),
+            b1: self
+                .b1
+                .iter()
+                .map(|&b| (f64::from(b) * s_b1) as f32)
+                .collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_shift_rounds_half_up() {
+        assert_eq!(round_shift(5, 1), 3);
+        assert_eq!(round_shift(-5, 1), -2);
+        assert_eq!(round_shift(-6, 2), -1);
+        assert_eq!(round_shift(i32::MAX, 1), 1 << 30);
+        assert_eq!(round_shift(7, 0), 7);
+    }
+
+    #[test]
+    fn accumulation_wraps_instead_of_overflowing() {
+        let m = IntMlp {
+            cin: 2,
+            hidden: 1,
+            cout: 1,
+            w0: vec![i16::MAX, i16::MAX],
+            b0: vec![i32::MAX],
+            w0_frac_bits: 0,
+            shift0: 0,
+            w1: vec![1],
+            b1: vec![0],
+            w1_frac_bits: 0,
+        };
+        let (mut h, mut y) = ([0i16; 1], [0i32; 1]);
+        m.eval(&[i16::MAX, i16::MAX], &mut h, &mut y);
+        let expect = i32::MAX.wrapping_add(2 * (32767 * 32767));
+        assert_eq!(h[0] as i32, expect.clamp(0, HIDDEN_MAX));
+    }
+}
