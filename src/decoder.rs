@@ -1,14 +1,19 @@
 //! The decoder (spec §1.5 decoding process): signature, then chunks in order, each payload
-//! decoded against the preflight. It never panics on any input, sizes every allocation from
-//! a preflight that passed [`Limits`], and reports the first broken rule.
+//! decoded against the preflight; the anchor attributes are decoded together once `SEND`
+//! has been read (§6.6.2). It never panics on any input, sizes every allocation from a
+//! preflight that passed [`Limits`], and reports the first broken rule.
 
+use crate::attributes::{read_attributes, read_masks};
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::payload;
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
+use crate::entropy::GaussianTables;
 use crate::error::{Error, Result, Structure};
+use crate::hyperprior::prior::Prior;
+use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
-use crate::model::{names, Anchors, SceneModel};
+use crate::model::{Anchors, GroupQuantizer, HashGrid, Mlp, SceneModel};
 
 /// Decodes a whole stream with the default [`Limits`].
 pub fn decode(data: &[u8]) -> Result<SceneModel> {
@@ -17,16 +22,22 @@ pub fn decode(data: &[u8]) -> Result<SceneModel> {
 
 /// Parts of the model decoded so far, filled chunk by chunk.
 #[derive(Default)]
-struct Partial {
+struct Partial<'a> {
     head: Option<Preflight>,
-    grid: Option<crate::model::HashGrid>,
-    mlps: Option<[crate::model::Mlp; 4]>,
-    quan: Option<[crate::model::GroupQuantizer; 3]>,
+    mlps: Option<(IntMlp, [Mlp; 3])>,
+    quan: Option<[GroupQuantizer; 3]>,
     voxel: Option<Vec<[u32; 3]>>,
+    touched: Option<[Vec<bool>; 4]>,
+    grid: Option<HashGrid>,
     mask: Option<Vec<u8>>,
-    feat: Option<Vec<f32>>,
-    scaling: Option<Vec<f32>>,
-    offsets: Option<Vec<f32>>,
+    attributes: [&'a [u8]; 3],
+}
+
+fn missing(tag: ChunkTag) -> Error {
+    Error::ChunkOrder {
+        found: ChunkTag::SEND,
+        expected: tag,
+    }
 }
 
 /// Decodes a whole stream under `limits`.
@@ -36,6 +47,7 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut next_critical = 0usize;
     let mut p = Partial::default();
+    let tables = GaussianTables::standard();
     loop {
         let Some(chunk) = reader.next_chunk()? else {
             // §1.5 rule 4: the stream ends only with SEND.
@@ -46,13 +58,8 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
             });
         };
         let tag = chunk.tag;
-        let expected = ChunkTag::CRITICAL_ORDER
-            .get(next_critical)
-            .copied()
-            .unwrap_or(ChunkTag::SEND);
         if !tag.is_critical() {
-            // §1.5 rule 2: ancillary chunks may stand anywhere after HEAD; unknown ones
-            // are skipped (0.1 defines `encd`, which a decoder may also skip).
+            // §1.5 rules 1-2: ancillary chunks after HEAD are skipped.
             if p.head.is_none() {
                 return Err(Error::ChunkOrder {
                     found: tag,
@@ -61,9 +68,14 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
             }
             continue;
         }
+        // §1.5 rules 0 and 3.
         if !ChunkTag::CRITICAL_ORDER.contains(&tag) {
             return Err(Error::UnknownCriticalChunk { tag });
         }
+        let expected = ChunkTag::CRITICAL_ORDER
+            .get(next_critical)
+            .copied()
+            .unwrap_or(ChunkTag::SEND);
         if tag != expected {
             return Err(Error::ChunkOrder {
                 found: tag,
@@ -71,57 +83,38 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
             });
         }
         next_critical += 1;
-        let payload_bytes = chunk.payload;
+        let bytes = chunk.payload;
         if tag == ChunkTag::HEAD {
-            p.head = Some(Preflight::parse(payload_bytes, limits)?);
+            p.head = Some(Preflight::parse(bytes, limits)?);
             continue;
         }
-        let Some(head) = p.head.as_ref() else {
-            return Err(Error::ChunkOrder {
-                found: tag,
-                expected: ChunkTag::HEAD,
-            });
-        };
+        let head = p.head.as_ref().ok_or(missing(ChunkTag::HEAD))?;
         let d = &head.dims;
-        let n = u64::from(d.anchors);
-        let k = u64::from(d.offsets);
         match tag {
-            ChunkTag::GRID => p.grid = Some(payload::read_grid(payload_bytes, d)?),
-            ChunkTag::MLPS => p.mlps = Some(payload::read_mlps(payload_bytes, d)?),
-            ChunkTag::QUAN => p.quan = Some(payload::read_quan(payload_bytes, d)?),
-            ChunkTag::APOS => p.voxel = Some(payload::read_apos(payload_bytes, head)?),
-            ChunkTag::AMSK => p.mask = Some(payload::read_amsk(payload_bytes, d)?),
-            ChunkTag::AFEA => {
-                p.feat = Some(payload::read_f32_chunk(
-                    tag,
-                    names::FEAT,
-                    payload_bytes,
-                    &[n, d.feat_dim.into()],
-                )?)
+            ChunkTag::MLPS => p.mlps = Some(payload::read_mlps(bytes, d)?),
+            ChunkTag::QUAN => p.quan = Some(payload::read_quan(bytes, d)?),
+            ChunkTag::APOS => {
+                let voxel = payload::read_apos(bytes, head)?;
+                // §5.2: the touched grid entries follow from the voxels.
+                let layout = GridLayout::new(d, head.coord_bits);
+                p.touched = Some(layout.touched(&voxel, d.entries_3d(), d.entries_2d()));
+                p.voxel = Some(voxel);
             }
-            ChunkTag::ASCL => {
-                p.scaling = Some(payload::read_f32_chunk(
-                    tag,
-                    names::SCALING,
-                    payload_bytes,
-                    &[n, d.scaling_dim.into()],
-                )?)
+            ChunkTag::GRID => {
+                let touched = p.touched.as_ref().ok_or(missing(ChunkTag::APOS))?;
+                p.grid = Some(payload::read_grid(bytes, d, touched)?);
             }
-            ChunkTag::AOFF => {
-                p.offsets = Some(payload::read_f32_chunk(
-                    tag,
-                    names::OFFSETS,
-                    payload_bytes,
-                    &[n, k, 3],
-                )?)
-            }
+            ChunkTag::AMSK => p.mask = Some(read_masks(bytes, d, tables)?),
+            ChunkTag::AFEA => p.attributes[0] = bytes,
+            ChunkTag::ASCL => p.attributes[1] = bytes,
+            ChunkTag::AOFF => p.attributes[2] = bytes,
             _ => {
                 // SEND: empty, last, nothing after it (§1.5 rules 4-5).
-                if !payload_bytes.is_empty() {
+                if !bytes.is_empty() {
                     return Err(Error::ChunkSizeMismatch {
                         tag,
                         expected: 0,
-                        found: payload_bytes.len() as u64,
+                        found: bytes.len() as u64,
                     });
                 }
                 let trailing = reader.remaining().len();
@@ -130,39 +123,48 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
                         bytes: trailing as u64,
                     });
                 }
-                return assemble(p);
+                return assemble(p, tables);
             }
         }
     }
 }
 
-/// Builds the model once every critical chunk has been read (the order rules guarantee it).
-fn assemble(p: Partial) -> Result<SceneModel> {
-    let missing = |tag| Error::ChunkOrder {
-        found: ChunkTag::SEND,
-        expected: tag,
-    };
+/// §6.6.2: decodes the attributes and builds the model once every critical chunk has been
+/// read (the order rules guarantee each part is present).
+fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
     let head = p.head.ok_or(missing(ChunkTag::HEAD))?;
-    let [mlp_grid, mlp_opacity, mlp_cov, mlp_color] = p.mlps.ok_or(missing(ChunkTag::MLPS))?;
+    let (int_mlp, [mlp_opacity, mlp_cov, mlp_color]) = p.mlps.ok_or(missing(ChunkTag::MLPS))?;
     let [quant_feat, quant_scaling, quant_offsets] = p.quan.ok_or(missing(ChunkTag::QUAN))?;
+    let voxel = p.voxel.ok_or(missing(ChunkTag::APOS))?;
+    let grid = p.grid.ok_or(missing(ChunkTag::GRID))?;
+    let mask = p.mask.ok_or(missing(ChunkTag::AMSK))?;
+    let d = &head.dims;
+    let prior = Prior::new(
+        d,
+        head.coord_bits,
+        int_mlp,
+        [&quant_feat, &quant_scaling, &quant_offsets],
+        usize::from(head.coded_rate),
+    );
+    let attrs = read_attributes(p.attributes, d, &voxel, &mask, &grid, &prior, tables)?;
     Ok(SceneModel {
         origin: head.origin,
         voxel_size: head.voxel_size,
-        dims: head.dims,
         anchors: Anchors {
-            voxel: p.voxel.ok_or(missing(ChunkTag::APOS))?,
-            mask: p.mask.ok_or(missing(ChunkTag::AMSK))?,
-            feat: p.feat.ok_or(missing(ChunkTag::AFEA))?,
-            scaling: p.scaling.ok_or(missing(ChunkTag::ASCL))?,
-            offsets: p.offsets.ok_or(missing(ChunkTag::AOFF))?,
+            voxel,
+            mask,
+            feat: attrs.feat,
+            scaling: attrs.scaling,
+            offsets: attrs.offsets,
         },
-        grid: p.grid.ok_or(missing(ChunkTag::GRID))?,
-        mlp_grid,
+        grid,
+        mlp_grid: prior.mlp.to_float(),
         mlp_opacity,
         mlp_cov,
         mlp_color,
         quant_feat,
         quant_scaling,
         quant_offsets,
+        dims: head.dims,
     })
 }

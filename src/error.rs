@@ -59,6 +59,10 @@ pub enum Field {
     ContextHidden,
     ScaffoldHidden,
     ViewDims,
+    CodedRate,
+    W0FracBits,
+    Shift0,
+    W1FracBits,
 }
 
 impl Field {
@@ -86,6 +90,10 @@ impl Field {
             Field::ContextHidden => "context_hidden",
             Field::ScaffoldHidden => "scaffold_hidden",
             Field::ViewDims => "view_dims",
+            Field::CodedRate => "coded_rate",
+            Field::W0FracBits => "w0_frac_bits",
+            Field::Shift0 => "shift0",
+            Field::W1FracBits => "w1_frac_bits",
         }
     }
 }
@@ -93,7 +101,7 @@ impl Field {
 /// How an entropy-coded (ANS) payload broke the coder's rules (spec §6.2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AnsFault {
-    /// The payload's word count is odd, or it is too short to hold the initial state.
+    /// The body's length is not a multiple of 4 bytes, or it is shorter than the 8-byte state.
     Framing,
     /// The initial state's top word is zero: the encoder never writes that.
     ZeroTopWord,
@@ -217,6 +225,9 @@ pub enum Error {
         max: u64,
     },
 
+    /// The encoder cannot code this quantizer in this format version.
+    QuantizerUnsupported { tensor: &'static str },
+
     // ---- tensor values (§2, decoder and encoder alike) ----
     /// A float value is NaN or infinite.
     NonFiniteValue {
@@ -319,6 +330,7 @@ impl Error {
             AnsStreamInvalid { .. } => "§6.2",
             EscapeOverflow { .. } => "§6.4",
             ScaleIndexOutOfRange { .. } => "§6.3",
+            QuantizerUnsupported { .. } => "§6.6",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
             InterchangeFormat { .. }
@@ -357,6 +369,7 @@ impl Error {
             AnsStreamInvalid { .. } => "AnsStreamInvalid",
             EscapeOverflow { .. } => "EscapeOverflow",
             ScaleIndexOutOfRange { .. } => "ScaleIndexOutOfRange",
+            QuantizerUnsupported { .. } => "QuantizerUnsupported",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",
@@ -527,6 +540,10 @@ impl fmt::Display for Error {
             } => write!(
                 f,
                 "chunk {tag}: symbol {symbol}: scale index {scale_index} is outside 0..={max}"
+            )?,
+            QuantizerUnsupported { tensor } => write!(
+                f,
+                "{tensor}: format 0.2 codes anchors with the identity basis only (lattice bases come with §7)"
             )?,
             NonFiniteValue { tensor, index } => {
                 write!(f, "{tensor}{}: value is not finite", Index(index))?

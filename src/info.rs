@@ -6,6 +6,7 @@ use serde::Serialize;
 use crate::container::chunk::{ChunkReader, ChunkTag, CHUNK_OVERHEAD};
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
+use crate::encoder::EncodeReport;
 use crate::error::Result;
 use crate::limits::Limits;
 
@@ -24,7 +25,7 @@ pub enum ByteClass {
 /// Which class a chunk type belongs to.
 pub fn byte_class(tag: ChunkTag) -> ByteClass {
     match tag {
-        ChunkTag::HEAD | ChunkTag::GRID | ChunkTag::MLPS | ChunkTag::QUAN => ByteClass::Model,
+        ChunkTag::HEAD | ChunkTag::MLPS | ChunkTag::QUAN | ChunkTag::GRID => ByteClass::Model,
         ChunkTag::APOS | ChunkTag::AMSK | ChunkTag::AFEA | ChunkTag::ASCL | ChunkTag::AOFF => {
             ByteClass::Anchor
         }
@@ -68,6 +69,7 @@ pub struct HeadInfo {
     pub feat_basis: bool,
     pub scaling_basis: bool,
     pub decoded_bytes: u64,
+    pub coded_rate: u8,
 }
 
 impl From<&Preflight> for HeadInfo {
@@ -93,6 +95,7 @@ impl From<&Preflight> for HeadInfo {
             feat_basis: d.feat_basis,
             scaling_basis: d.scaling_basis,
             decoded_bytes: p.decoded_bytes,
+            coded_rate: p.coded_rate,
         }
     }
 }
@@ -115,6 +118,48 @@ pub struct StreamInfo {
     pub head: Option<HeadInfo>,
     pub chunks: Vec<ChunkInfo>,
     pub totals: Totals,
+    /// The encoder's measurements, from the `ests` chunk when the stream has one.
+    pub encoder: Option<EncodeReport>,
+}
+
+/// The per-group table of an encoder report.
+pub fn groups_text(r: &EncodeReport) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<8} {:>10} {:>8} {:>12} {:>14} {:>14} {:>9} {:>9}",
+        "group",
+        "symbols",
+        "escapes",
+        "coded bytes",
+        "ideal int (B)",
+        "ideal float (B)",
+        "coded/int",
+        "int/float"
+    );
+    for g in &r.groups {
+        let int_bytes = g.ideal_bits_integer / 8.0;
+        let float_bytes = g.ideal_bits_float / 8.0;
+        let _ = writeln!(
+            s,
+            "{:<8} {:>10} {:>8} {:>12} {:>14.0} {:>14.0} {:>9.4} {:>9.4}",
+            g.group,
+            g.symbols,
+            g.escapes,
+            g.coded_bytes,
+            int_bytes,
+            float_bytes,
+            g.coded_bytes as f64 / int_bytes.max(1e-9),
+            int_bytes / float_bytes.max(1e-9)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "masks: {} bits in {} bytes; hash grid: {} of {} entries stored (touched)",
+        r.mask_bits, r.mask_bytes, r.grid_entries_stored, r.grid_entries_total
+    );
+    s
 }
 
 /// Lists a stream's chunks (checking framing and CRCs) and its preflight.
@@ -123,10 +168,14 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut chunks = Vec::new();
     let mut head = None;
+    let mut encoder = None;
     let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
     while let Some(c) = reader.next_chunk()? {
         if c.tag == ChunkTag::HEAD && head.is_none() {
             head = Some(HeadInfo::from(&Preflight::parse(c.payload, limits)?));
+        }
+        if c.tag == ChunkTag::ESTS {
+            encoder = serde_json::from_slice(c.payload).ok();
         }
         let total = c.payload.len() as u64 + CHUNK_OVERHEAD;
         let class = byte_class(c.tag);
@@ -152,6 +201,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
         file_flags: sig.flags,
         head,
         chunks,
+        encoder,
         totals: Totals {
             file_bytes,
             model_bytes: model,
@@ -203,7 +253,11 @@ impl StreamInfo {
                     "identity"
                 }
             );
-            let _ = writeln!(s, "decoded size {} bytes", h.decoded_bytes);
+            let _ = writeln!(
+                s,
+                "coded rate {}; decoded size {} bytes",
+                h.coded_rate, h.decoded_bytes
+            );
         }
         let _ = writeln!(
             s,
@@ -221,6 +275,10 @@ impl StreamInfo {
                 "{:<6} {:>10} {:>12} {:>8}  {}",
                 c.tag, c.offset, c.payload_bytes, class, c.crc32c
             );
+        }
+        if let Some(r) = &self.encoder {
+            let _ = writeln!(s, "encoder statistics (ests), rate {}:", r.rate);
+            s.push_str(&groups_text(r));
         }
         let t = &self.totals;
         let _ = writeln!(

@@ -5,7 +5,7 @@
 //! quantization with per-rate gains). The normative text is `spec/` in this repository; every
 //! module cites the section it implements.
 //!
-//! ## Map of a stream (format 0.1)
+//! ## Map of a stream (format 0.2)
 //!
 //! | stream part | spec | module |
 //! |---|---|---|
@@ -13,7 +13,10 @@
 //! | chunk framing: length, tag, payload, CRC-32C | §1.3 | [`container::chunk`] |
 //! | `HEAD` preflight: dimensions, geometry, decoded size | §1.4 | [`container::preflight`] |
 //! | chunk order, critical / ancillary, `SEND` | §1.5 | [`decoder`] |
-//! | payload chunks `GRID` `MLPS` `QUAN` `APOS` `AMSK` `AFEA` `ASCL` `AOFF` | §1.6 | [`container::payload`] |
+//! | model payload chunks `MLPS` `QUAN` `APOS` `GRID` | §1.6 | [`container::payload`] |
+//! | integer hyperprior: grid features, fixed-point MLP, steps, scale indices | §5 | [`hyperprior`] |
+//! | ANS, frequency tables, escapes | §6.1-§6.5 | [`entropy`] |
+//! | anchor attribute chunks `AMSK` `AFEA` `ASCL` `AOFF` | §6.6 | [`attributes`] (decoder), [`encoder::attributes`] |
 //! | the scene model: tensors, shapes, dtypes | §2 | [`model`] |
 //! | model validation (finite, masks, bases, gains) | §2.3, §2.6 | [`model::validate`] |
 //! | limits and errors | §9 | [`limits`], [`error`] |
@@ -23,10 +26,15 @@
 //! ## Use
 //!
 //! ```
-//! let model = salvq::gen::generate(&salvq::gen::GenParams::small(100, 1));
-//! let stream = salvq::encode(&model)?;
-//! let decoded = salvq::decode(&stream)?;
-//! assert_eq!(decoded, model); // 0.1 stores anchor attributes losslessly
+//! use salvq::gen::{generate, GenParams};
+//! // A small synthetic scene with the identity basis (uniform scalar quantization).
+//! let model = generate(&GenParams { feat_basis: false, ..GenParams::small(100, 1) });
+//! let encoded = salvq::encoder::encode_full(&model, &Default::default())?;
+//! let decoded = salvq::decode(&encoded.stream)?;
+//! // Decoding reproduces, bit for bit, the reconstruction the encoder predicted; positions
+//! // and masks are lossless, attributes lie within half a quantization step.
+//! assert_eq!(decoded, encoded.expected);
+//! assert_eq!(decoded.anchors.mask, model.anchors.mask);
 //! # Ok::<(), salvq::Error>(())
 //! ```
 //!
@@ -36,6 +44,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod attributes;
 pub mod container;
 pub mod decoder;
 pub mod encoder;

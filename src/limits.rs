@@ -30,7 +30,8 @@ impl fmt::Display for LimitKind {
 ///
 /// ```
 /// use salvq::{Limits, Error, limits::LimitKind};
-/// let model = salvq::gen::generate(&salvq::gen::GenParams::small(64, 7));
+/// use salvq::gen::{generate, GenParams};
+/// let model = generate(&GenParams { feat_basis: false, ..GenParams::small(64, 7) });
 /// let stream = salvq::encode(&model).unwrap();
 /// let tiny = Limits { max_anchors: 10, ..Limits::default() };
 /// let err = salvq::decode_with_limits(&stream, &tiny).unwrap_err();

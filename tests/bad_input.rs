@@ -15,7 +15,7 @@ fn err(stream: &[u8]) -> Error {
 
 #[test]
 fn valid_stream_decodes() {
-    assert_eq!(decode(&small_stream()).unwrap(), small_model());
+    assert_eq!(decode(&small_stream()).unwrap(), small_expected());
 }
 
 #[test]
@@ -93,16 +93,18 @@ fn unsupported_major_version() {
 
 #[test]
 fn unsupported_minor_version_in_draft_series() {
-    let mut s = small_stream();
-    s[9] = 2;
-    assert_eq!(
-        err(&s),
-        Error::UnsupportedMinorVersion {
-            major: 0,
-            found: 2,
-            supported: 1
-        }
-    );
+    for minor in [1, 3] {
+        let mut s = small_stream();
+        s[9] = minor;
+        assert_eq!(
+            err(&s),
+            Error::UnsupportedMinorVersion {
+                major: 0,
+                found: minor,
+                supported: 2
+            }
+        );
+    }
 }
 
 #[test]
@@ -211,29 +213,29 @@ fn unknown_ancillary_chunks_are_skipped() {
     cs.insert(1, (ChunkTag(*b"abcd"), vec![0xff; 100]));
     cs.insert(5, (ChunkTag(*b"zz99"), vec![]));
     cs.insert(cs.len() - 1, (ChunkTag::ENCD, b"hello".to_vec()));
-    assert_eq!(decode(&assemble(&s, &cs)).unwrap(), small_model());
+    assert_eq!(decode(&assemble(&s, &cs)).unwrap(), small_expected());
 }
 
 #[test]
 fn chunk_order() {
     let s = small_stream();
     let mut cs = chunks(&s);
-    cs.swap(1, 2); // MLPS before GRID
+    cs.swap(1, 2); // QUAN before MLPS
+    assert_eq!(
+        err(&assemble(&s, &cs)),
+        Error::ChunkOrder {
+            found: ChunkTag::QUAN,
+            expected: ChunkTag::MLPS
+        }
+    );
+    let mut cs = chunks(&s);
+    let mlps = cs[1].clone();
+    cs.insert(2, mlps); // MLPS twice
     assert_eq!(
         err(&assemble(&s, &cs)),
         Error::ChunkOrder {
             found: ChunkTag::MLPS,
-            expected: ChunkTag::GRID
-        }
-    );
-    let mut cs = chunks(&s);
-    let grid = cs[1].clone();
-    cs.insert(2, grid); // GRID twice
-    assert_eq!(
-        err(&assemble(&s, &cs)),
-        Error::ChunkOrder {
-            found: ChunkTag::GRID,
-            expected: ChunkTag::MLPS
+            expected: ChunkTag::QUAN
         }
     );
     let mut cs = chunks(&s);
@@ -256,13 +258,13 @@ fn trailing_data() {
 
 #[test]
 fn chunk_size_mismatch() {
-    let s = edit_payload(&small_stream(), ChunkTag::AFEA, |p| {
+    let s = edit_payload(&small_stream(), ChunkTag::QUAN, |p| {
         p.pop();
     });
     assert!(matches!(
         err(&s),
         Error::ChunkSizeMismatch {
-            tag: ChunkTag::AFEA,
+            tag: ChunkTag::QUAN,
             ..
         }
     ));
@@ -320,6 +322,74 @@ fn field_out_of_range() {
             field: Field::CoordBits,
             value: 22,
             ..
+        }
+    ));
+}
+
+#[test]
+fn coded_rate_out_of_range() {
+    // coded_rate is HEAD byte 23; the small model has 2 rates.
+    let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| p[23] = 2);
+    assert_eq!(
+        err(&s),
+        Error::FieldOutOfRange {
+            field: Field::CodedRate,
+            value: 2,
+            min: 0,
+            max: 1
+        }
+    );
+}
+
+#[test]
+fn mlp_shift_out_of_range() {
+    let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| p[1] = 31);
+    assert!(matches!(
+        err(&s),
+        Error::FieldOutOfRange {
+            field: Field::W0FracBits,
+            value: 31,
+            ..
+        }
+    ));
+}
+
+#[test]
+fn corrupt_entropy_coded_words() {
+    // A flipped bit inside AFEA's words (CRC recomputed): decoding goes astray and the end
+    // checks of §6.2 catch it (or an escape overflows); never a panic.
+    for byte in [5usize, 9, 17] {
+        let s = edit_payload(&small_stream(), ChunkTag::AFEA, |p| {
+            let at = byte.min(p.len() - 1);
+            p[at] ^= 0x40
+        });
+        assert!(
+            matches!(
+                err(&s),
+                Error::AnsStreamInvalid { .. } | Error::EscapeOverflow { .. }
+            ),
+            "byte {byte}: {}",
+            err(&s)
+        );
+    }
+    // Words dropped from the end: the coder runs out or ends in the wrong state.
+    let s = edit_payload(&small_stream(), ChunkTag::AOFF, |p| p.truncate(p.len() - 4));
+    assert!(matches!(
+        err(&s),
+        Error::AnsStreamInvalid {
+            tag: ChunkTag::AOFF,
+            ..
+        }
+    ));
+    // A body that is not whole words.
+    let s = edit_payload(&small_stream(), ChunkTag::ASCL, |p| {
+        p.pop();
+    });
+    assert!(matches!(
+        err(&s),
+        Error::AnsStreamInvalid {
+            tag: ChunkTag::ASCL,
+            fault: salvq::error::AnsFault::Framing
         }
     ));
 }
@@ -401,13 +471,35 @@ fn chunk_over_limit() {
 
 #[test]
 fn padding_bits_set() {
-    let s = edit_payload(&small_stream(), ChunkTag::AMSK, |p| {
-        *p.last_mut().unwrap() |= 0x80
-    });
+    // GRID holds C bits per touched entry: find a scene whose count leaves padding bits.
+    let (model, stream) = (14..40)
+        .map(|n| {
+            salvq::gen::generate(&salvq::gen::GenParams {
+                feat_basis: false,
+                ..salvq::gen::GenParams::small(n, 1)
+            })
+        })
+        .find_map(|m| {
+            let layout = salvq::hyperprior::GridLayout::new(&m.dims, m.coord_bits());
+            let touched =
+                layout.touched(&m.anchors.voxel, m.dims.entries_3d(), m.dims.entries_2d());
+            let bits: usize = touched
+                .iter()
+                .map(|t| t.iter().filter(|&&u| u).count())
+                .sum::<usize>()
+                * usize::from(m.dims.grid_channels);
+            (bits % 8 != 0).then(|| {
+                let s = salvq::encode(&m).unwrap();
+                (m, s)
+            })
+        })
+        .expect("a scene with padding bits");
+    assert!(decode(&stream).is_ok(), "{} anchors", model.n());
+    let s = edit_payload(&stream, ChunkTag::GRID, |p| *p.last_mut().unwrap() |= 0x80);
     assert_eq!(
         err(&s),
         Error::PaddingBitsSet {
-            tag: ChunkTag::AMSK
+            tag: ChunkTag::GRID
         }
     );
 }
@@ -446,31 +538,27 @@ fn anchor_order() {
 
 #[test]
 fn non_finite_values() {
-    let s = edit_payload(&small_stream(), ChunkTag::AFEA, |p| {
-        // anchor 2, dimension 3 (F = 8).
-        let at = 1 + 4 * (2 * 8 + 3);
-        p[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
-    });
-    assert_eq!(
-        err(&s),
-        Error::NonFiniteValue {
-            tensor: "anchor.feat",
-            index: vec![2, 3]
-        }
+    // MLPS: method byte, 2 + Cout shift bytes, the integer context MLP, then f32 Scaffold-GS MLPs.
+    let d = small_model().dims;
+    let (cin, h, cout) = (
+        d.context_input(),
+        u64::from(d.context_hidden),
+        d.context_output(),
     );
+    let scaffold = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize;
     let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| {
-        p[1..5].copy_from_slice(&f32::INFINITY.to_le_bytes());
+        p[scaffold + 4..scaffold + 8].copy_from_slice(&f32::INFINITY.to_le_bytes());
     });
     assert_eq!(
         err(&s),
         Error::NonFiniteValue {
-            tensor: "mlp_grid.0.weight",
-            index: vec![0, 0]
+            tensor: "mlp_opacity.0.weight",
+            index: vec![0, 1]
         }
     );
-    // origin.x is HEAD bytes 23..27.
+    // origin.x is HEAD bytes 24..28.
     let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
-        p[23..27].copy_from_slice(&f32::NAN.to_le_bytes());
+        p[24..28].copy_from_slice(&f32::NAN.to_le_bytes());
     });
     assert_eq!(
         err(&s),
@@ -505,9 +593,9 @@ fn values_not_positive() {
             value: -1.0
         }
     );
-    // voxel_size is HEAD bytes 35..39.
+    // voxel_size is HEAD bytes 36..40.
     let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
-        p[35..39].copy_from_slice(&0f32.to_le_bytes());
+        p[36..40].copy_from_slice(&0f32.to_le_bytes());
     });
     assert!(matches!(
         err(&s),

@@ -14,7 +14,7 @@ use salvq::{encode, Error};
 type Entry = (String, Dtype, Vec<usize>, Vec<u8>);
 
 fn entries() -> Vec<Entry> {
-    let bytes = model_to_safetensors(&small_model());
+    let bytes = model_to_safetensors(&small_salvq_model());
     let st = SafeTensors::deserialize(&bytes).unwrap();
     let mut out: Vec<Entry> = st
         .tensors()
@@ -46,7 +46,7 @@ fn set_f32(bytes: &mut [u8], index: usize, v: f32) {
 
 #[test]
 fn valid_file_round_trips() {
-    let m = small_model();
+    let m = small_salvq_model();
     assert_eq!(model_from_safetensors(&file(&entries())).unwrap(), m);
     assert_eq!(
         model_from_safetensors(&model_to_safetensors(&m)).unwrap(),
@@ -273,8 +273,18 @@ fn non_orthogonal_basis() {
 }
 
 #[test]
+fn format_0_2_codes_the_identity_basis_only() {
+    assert_eq!(
+        encode(&small_salvq_model()).unwrap_err(),
+        Error::QuantizerUnsupported {
+            tensor: "quant.feat.basis_u"
+        }
+    );
+}
+
+#[test]
 fn encoder_rejects_wrong_lengths_in_memory() {
-    let mut m = small_model();
+    let mut m = small_salvq_model();
     m.anchors.feat.pop();
     assert!(matches!(
         encode(&m).unwrap_err(),
@@ -283,7 +293,7 @@ fn encoder_rejects_wrong_lengths_in_memory() {
             ..
         }
     ));
-    let mut m = small_model();
+    let mut m = small_salvq_model();
     m.quant_feat.basis = None;
     assert_eq!(
         encode(&m).unwrap_err(),
@@ -291,7 +301,7 @@ fn encoder_rejects_wrong_lengths_in_memory() {
             tensor: "quant.feat.basis_u"
         }
     );
-    let mut m = small_model();
+    let mut m = small_salvq_model();
     m.anchors.scaling[7] = f32::NEG_INFINITY;
     assert_eq!(
         encode(&m).unwrap_err(),

@@ -118,6 +118,9 @@ fn every_error() -> Vec<Error> {
             scale_index: -1,
             max: 63,
         },
+        Error::QuantizerUnsupported {
+            tensor: "quant.feat.basis_u",
+        },
         Error::NonFiniteValue {
             tensor: "x",
             index: vec![0],
@@ -203,6 +206,7 @@ fn critical_chunks_match_table_1_3() {
         .map(|t| t.to_string())
         .collect();
     code.push(ChunkTag::ENCD.to_string());
+    code.push(ChunkTag::ESTS.to_string());
     assert_eq!(spec_tags, code);
 }
 

@@ -33,14 +33,16 @@ impl ChunkTag {
     pub const SEND: ChunkTag = ChunkTag(*b"SEND");
     /// Encoder identification, UTF-8 text (§1.7). Ancillary.
     pub const ENCD: ChunkTag = ChunkTag(*b"encd");
+    /// Encoder statistics, JSON (§1.7). Ancillary.
+    pub const ESTS: ChunkTag = ChunkTag(*b"ests");
 
     /// Critical chunks in the order a stream must carry them (spec Table 1-3).
     pub const CRITICAL_ORDER: [ChunkTag; 10] = [
         Self::HEAD,
-        Self::GRID,
         Self::MLPS,
         Self::QUAN,
         Self::APOS,
+        Self::GRID,
         Self::AMSK,
         Self::AFEA,
         Self::ASCL,

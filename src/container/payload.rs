@@ -1,10 +1,13 @@
-//! Payload chunks of format 0.1 (spec §1.6). Every payload opens with a `coding_method`
-//! byte; 0.1 defines method 0 only: values stored as they are (raw, lossless).
+//! Model payload chunks (spec §1.6): `MLPS`, `QUAN`, `APOS`, `GRID`. Every payload opens with
+//! a `coding_method` byte: method 0 stores values as they are (raw), method 1 is the coded
+//! form a chunk type defines. Anchor attribute chunks are in [`crate::attributes`].
 
 use crate::container::bytes::{pack_bits, packed_len, unpack_bits, PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::container::preflight::Preflight;
+use crate::error::Field;
 use crate::error::{Error, Result};
+use crate::hyperprior::IntMlp;
 use crate::model::validate::{check_finite, check_positive};
 use crate::model::{
     morton3, names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Mlp, SceneModel,
@@ -12,11 +15,13 @@ use crate::model::{
 
 /// `coding_method` 0: raw little-endian values (§1.6).
 pub const METHOD_RAW: u8 = 0;
+/// `coding_method` 1: the chunk type's coded form (§1.6, §6.6).
+pub const METHOD_CODED: u8 = 1;
 
-/// Splits off the method byte and checks it is a method of this version.
-fn body(tag: ChunkTag, payload: &[u8]) -> Result<&[u8]> {
+/// Splits off the method byte and checks it is the method this chunk type uses (§1.6 steps 1-2).
+pub fn body(tag: ChunkTag, payload: &[u8], method: u8) -> Result<&[u8]> {
     match payload {
-        [METHOD_RAW, rest @ ..] => Ok(rest),
+        [m, rest @ ..] if *m == method => Ok(rest),
         [method, ..] => Err(Error::UnknownCodingMethod {
             tag,
             method: *method,
@@ -29,8 +34,8 @@ fn body(tag: ChunkTag, payload: &[u8]) -> Result<&[u8]> {
     }
 }
 
-/// Checks the body length before anything is allocated from it.
-fn expect_len(tag: ChunkTag, body: &[u8], expected: u64) -> Result<()> {
+/// Checks the body length before anything is allocated from it (§1.6 step 3).
+pub fn expect_len(tag: ChunkTag, body: &[u8], expected: u64) -> Result<()> {
     if body.len() as u64 != expected {
         return Err(Error::ChunkSizeMismatch {
             tag,
@@ -41,71 +46,90 @@ fn expect_len(tag: ChunkTag, body: &[u8], expected: u64) -> Result<()> {
     Ok(())
 }
 
-fn f32s(bytes: &[u8]) -> Vec<f32> {
+pub fn f32s(bytes: &[u8]) -> Vec<f32> {
     bytes
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect()
 }
 
-fn raw_payload(values: &[f32]) -> Vec<u8> {
-    let mut w = PayloadWriter::default();
-    w.u8(METHOD_RAW);
-    w.f32s(values);
-    w.buf
-}
+// ---- GRID (§1.6.1): method 1, touched entries only (§5.2) ----
 
-// ---- GRID (§1.6.1) ----
-
-pub fn write_grid(grid: &HashGrid) -> Vec<u8> {
-    let mut out = vec![METHOD_RAW];
-    let all = [&grid.grid_3d, &grid.grid_xy, &grid.grid_xz, &grid.grid_yz];
-    pack_bits(all.into_iter().flatten().map(|&v| v > 0), &mut out);
+/// The grid's bits at the touched entries, tensor by tensor, entry by entry, C channels each.
+pub fn write_grid(grid: &HashGrid, touched: &[Vec<bool>; 4], c: usize) -> Vec<u8> {
+    let mut out = vec![METHOD_CODED];
+    let tensors = [&grid.grid_3d, &grid.grid_xy, &grid.grid_xz, &grid.grid_yz];
+    let bits = tensors.into_iter().zip(touched).flat_map(|(t, used)| {
+        used.iter()
+            .enumerate()
+            .filter(|(_, &u)| u)
+            .flat_map(move |(e, _)| t[e * c..(e + 1) * c].iter().map(|&v| v > 0))
+    });
+    pack_bits(bits, &mut out);
     out
 }
 
-pub fn read_grid(payload: &[u8], d: &Dims) -> Result<HashGrid> {
+/// Reads the touched entries' bits; untouched entries decode as +1 (§5.2).
+pub fn read_grid(payload: &[u8], d: &Dims, touched: &[Vec<bool>; 4]) -> Result<HashGrid> {
     let tag = ChunkTag::GRID;
-    let body = body(tag, payload)?;
-    let c = u64::from(d.grid_channels);
-    let n3 = d.entries_3d() * c;
-    let n2 = d.entries_2d() * c;
-    let total = n3 + 3 * n2;
-    expect_len(tag, body, packed_len(total))?;
-    let mut bits = unpack_bits(tag, body, total as usize)?.map(|b| if b { 1i8 } else { -1 });
-    let mut take = |n: u64| bits.by_ref().take(n as usize).collect::<Vec<i8>>();
+    let body = body(tag, payload, METHOD_CODED)?;
+    let c = usize::from(d.grid_channels);
+    let count: u64 = touched
+        .iter()
+        .map(|t| t.iter().filter(|&&u| u).count() as u64 * c as u64)
+        .sum();
+    expect_len(tag, body, packed_len(count))?;
+    let mut bits = unpack_bits(tag, body, count as usize)?;
+    let mut read = |used: &Vec<bool>| -> Vec<i8> {
+        let mut t = vec![1i8; used.len() * c];
+        for (e, _) in used.iter().enumerate().filter(|(_, &u)| u) {
+            for v in &mut t[e * c..(e + 1) * c] {
+                *v = if bits.next() == Some(true) { 1 } else { -1 };
+            }
+        }
+        t
+    };
     Ok(HashGrid {
-        grid_3d: take(n3),
-        grid_xy: take(n2),
-        grid_xz: take(n2),
-        grid_yz: take(n2),
+        grid_3d: read(&touched[0]),
+        grid_xy: read(&touched[1]),
+        grid_xz: read(&touched[2]),
+        grid_yz: read(&touched[3]),
     })
 }
 
-// ---- MLPS (§1.6.2) ----
+// ---- MLPS (§1.6.2): method 1, integer context MLP (§5.3) then raw Scaffold-GS MLPs ----
 
-/// The MLPs in stream order with their tensor names and (in, hidden, out) widths.
-fn mlp_layout(d: &Dims) -> [([&'static str; 4], u64, u64, u64); 4] {
+/// The Scaffold-GS MLPs in stream order with their tensor names and (in, hidden, out) widths.
+fn scaffold_layout(d: &Dims) -> [([&'static str; 4], u64, u64, u64); 3] {
     let k = u64::from(d.offsets);
     let si = d.scaffold_input();
     let hs = u64::from(d.scaffold_hidden);
     [
-        (
-            names::MLP_GRID,
-            d.context_input(),
-            u64::from(d.context_hidden),
-            d.context_output(),
-        ),
         (names::MLP_OPACITY, si, hs, k),
         (names::MLP_COV, si, hs, 7 * k),
         (names::MLP_COLOR, si, hs, 3 * k),
     ]
 }
 
-pub fn write_mlps(m: &SceneModel) -> Vec<u8> {
+pub fn write_mlps(ctx: &IntMlp, m: &SceneModel) -> Vec<u8> {
     let mut w = PayloadWriter::default();
-    w.u8(METHOD_RAW);
-    for mlp in [&m.mlp_grid, &m.mlp_opacity, &m.mlp_cov, &m.mlp_color] {
+    w.u8(METHOD_CODED);
+    w.u8(ctx.w0_frac_bits);
+    w.u8(ctx.shift0);
+    w.buf.extend_from_slice(&ctx.w1_frac_bits);
+    for v in &ctx.w0 {
+        w.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in &ctx.b0 {
+        w.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in &ctx.w1 {
+        w.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in &ctx.b1 {
+        w.buf.extend_from_slice(&v.to_le_bytes());
+    }
+    for mlp in [&m.mlp_opacity, &m.mlp_cov, &m.mlp_color] {
         for part in [&mlp.w0, &mlp.b0, &mlp.w1, &mlp.b1] {
             w.f32s(part);
         }
@@ -113,17 +137,69 @@ pub fn write_mlps(m: &SceneModel) -> Vec<u8> {
     w.buf
 }
 
-pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<[Mlp; 4]> {
+fn shift_field(field: Field, value: u8, max: u8) -> Result<()> {
+    if value > max {
+        return Err(Error::FieldOutOfRange {
+            field,
+            value: value.into(),
+            min: 0,
+            max: max.into(),
+        });
+    }
+    Ok(())
+}
+
+/// Reads `MLPS`: the integer context MLP and the three Scaffold-GS MLPs.
+pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
     let tag = ChunkTag::MLPS;
-    let body = body(tag, payload)?;
-    let layout = mlp_layout(d);
-    let count: u64 = layout
+    let body = body(tag, payload, METHOD_CODED)?;
+    let cin = d.context_input();
+    let h = u64::from(d.context_hidden);
+    let cout = d.context_output();
+    let layout = scaffold_layout(d);
+    let scaffold: u64 = layout
         .iter()
         .map(|&(_, i, h, o)| h * i + h + o * h + o)
         .sum();
-    expect_len(tag, body, 4 * count)?;
+    let context = 2 + cout + 2 * (h * cin) + 4 * h + 2 * (cout * h) + 4 * cout;
+    expect_len(tag, body, context + 4 * scaffold)?;
     let mut r = PayloadReader::new(tag, body);
-    let mut out = Vec::with_capacity(4);
+    let w0_frac_bits = r.u8()?;
+    let shift0 = r.u8()?;
+    let w1_frac_bits = r.take(cout as usize)?.to_vec();
+    // Table 5-1: a0 <= 30; shift0 <= 31 and no more than 8 + a0 (Qh >= 0); each a1 <= 30.
+    shift_field(Field::W0FracBits, w0_frac_bits, 30)?;
+    shift_field(Field::Shift0, shift0, (8 + w0_frac_bits).min(31))?;
+    for &a in &w1_frac_bits {
+        shift_field(Field::W1FracBits, a, 30)?;
+    }
+    let i16s = |b: &[u8]| -> Vec<i16> {
+        b.chunks_exact(2)
+            .map(|c| i16::from_le_bytes([c[0], c[1]]))
+            .collect()
+    };
+    let i32s = |b: &[u8]| -> Vec<i32> {
+        b.chunks_exact(4)
+            .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    };
+    let w0 = i16s(r.take(2 * (h * cin) as usize)?);
+    let b0 = i32s(r.take(4 * h as usize)?);
+    let w1 = i16s(r.take(2 * (cout * h) as usize)?);
+    let b1 = i32s(r.take(4 * cout as usize)?);
+    let ctx = IntMlp {
+        cin: cin as usize,
+        hidden: h as usize,
+        cout: cout as usize,
+        w0,
+        b0,
+        w0_frac_bits,
+        shift0,
+        w1,
+        b1,
+        w1_frac_bits,
+    };
+    let mut out = Vec::with_capacity(3);
     for (names, i, h, o) in layout {
         let shapes = [vec![h, i], vec![h], vec![o, h], vec![o]];
         let mut parts = Vec::with_capacity(4);
@@ -139,9 +215,10 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<[Mlp; 4]> {
         out.push(Mlp { w0, b0, w1, b1 });
     }
     r.finish()?;
-    out.try_into().map_err(|_| Error::TensorMissing {
-        tensor: names::MLP_GRID[0],
-    })
+    let scaffold: [Mlp; 3] = out.try_into().map_err(|_| Error::TensorMissing {
+        tensor: names::MLP_OPACITY[0],
+    })?;
+    Ok((ctx, scaffold))
 }
 
 // ---- QUAN (§1.6.3) ----
@@ -189,7 +266,7 @@ fn read_group(
 
 pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
     let tag = ChunkTag::QUAN;
-    let body = body(tag, payload)?;
+    let body = body(tag, payload, METHOD_RAW)?;
     let basis_len = |dim: u64, on: bool| if on { 2 * dim * dim + dim } else { 0 };
     let f = u64::from(d.feat_dim);
     let s = u64::from(d.scaling_dim);
@@ -219,7 +296,7 @@ pub fn write_apos(a: &Anchors) -> Vec<u8> {
 
 pub fn read_apos(payload: &[u8], p: &Preflight) -> Result<Vec<[u32; 3]>> {
     let tag = ChunkTag::APOS;
-    let body = body(tag, payload)?;
+    let body = body(tag, payload, METHOD_RAW)?;
     expect_len(tag, body, 12 * u64::from(p.dims.anchors))?;
     let mut prev = 0u64;
     let mut out = Vec::with_capacity(p.dims.anchors as usize);
@@ -248,43 +325,4 @@ pub fn read_apos(payload: &[u8], p: &Preflight) -> Result<Vec<[u32; 3]>> {
         out.push(v);
     }
     Ok(out)
-}
-
-// ---- AMSK (§1.6.5) ----
-
-pub fn write_amsk(a: &Anchors) -> Vec<u8> {
-    let mut out = vec![METHOD_RAW];
-    pack_bits(a.mask.iter().map(|&b| b != 0), &mut out);
-    out
-}
-
-pub fn read_amsk(payload: &[u8], d: &Dims) -> Result<Vec<u8>> {
-    let tag = ChunkTag::AMSK;
-    let body = body(tag, payload)?;
-    let count = u64::from(d.anchors) * u64::from(d.offsets);
-    expect_len(tag, body, packed_len(count))?;
-    Ok(unpack_bits(tag, body, count as usize)?
-        .map(u8::from)
-        .collect())
-}
-
-// ---- AFEA, ASCL, AOFF (§1.6.6) ----
-
-pub fn write_f32_chunk(values: &[f32]) -> Vec<u8> {
-    raw_payload(values)
-}
-
-/// Reads a raw float tensor of `shape` from a payload.
-pub fn read_f32_chunk(
-    tag: ChunkTag,
-    tensor: &'static str,
-    payload: &[u8],
-    shape: &[u64],
-) -> Result<Vec<f32>> {
-    let body = body(tag, payload)?;
-    let count: u64 = shape.iter().product();
-    expect_len(tag, body, 4 * count)?;
-    let values = f32s(body);
-    check_finite(tensor, &values, shape)?;
-    Ok(values)
 }

@@ -24,6 +24,8 @@ pub struct Preflight {
     pub voxel_size: f32,
     /// Sum of the sizes of every decoded tensor (spec Table 2-1).
     pub decoded_bytes: u64,
+    /// The rate whose symbols the stream carries (0 .. rate_count - 1).
+    pub coded_rate: u8,
 }
 
 impl Preflight {
@@ -53,6 +55,7 @@ impl Preflight {
         w.u16(d.context_hidden);
         w.u16(d.scaffold_hidden);
         w.u8(d.view_dims);
+        w.u8(self.coded_rate);
         for o in self.origin {
             w.f32(o);
         }
@@ -85,6 +88,7 @@ impl Preflight {
         let context_hidden = r.u16()?;
         let scaffold_hidden = r.u16()?;
         let view_dims = r.u8()?;
+        let coded_rate = r.u8()?;
         let origin = [r.f32()?, r.f32()?, r.f32()?];
         let voxel_size = r.f32()?;
         // Step 2: reserved flag bits.
@@ -126,6 +130,14 @@ impl Preflight {
         // Step 4: every field in its range (Table 1-4).
         check_dims(&dims)?;
         check_field(Field::CoordBits, coord_bits.into())?;
+        if coded_rate >= rates {
+            return Err(Error::FieldOutOfRange {
+                field: Field::CodedRate,
+                value: coded_rate.into(),
+                min: 0,
+                max: u64::from(rates) - 1,
+            });
+        }
         check_geometry(&origin, voxel_size)?;
         // Step 5: the stated size must be the size the dimensions imply.
         let computed = decoded_bytes(&dims);
@@ -141,6 +153,7 @@ impl Preflight {
             origin,
             voxel_size,
             decoded_bytes: computed,
+            coded_rate,
         })
     }
 }

@@ -97,53 +97,66 @@ pub fn convert_context_mlp(f: &Mlp, cin: usize, x: &[i16]) -> Result<IntMlp> {
         shift0,
         w1: vec![],
         b1: vec![],
-        w1_frac_bits: 0,
+        w1_frac_bits: vec![],
     };
-    // Layer 1: the largest |sum| of |w1| h over the scene's actual hidden activations bounds
-    // every layer-1 sum; the weight scale is the largest that keeps it within half of i32.
+    // Layer 1, per output row o: the largest sum of |w1[o]| h over the scene's actual hidden
+    // activations bounds the row's sums; the row's weight scale is the largest that keeps its
+    // weights in i16 and its sums within half of i32.
     let abs_w1: Vec<f64> = f.w1.iter().map(|&w| f64::from(w).abs()).collect();
-    let s_max = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let mut h = vec![0i16; hidden];
-            let mut acc = vec![0i32; 0];
-            let xi = &x[i * cin..(i + 1) * cin];
-            let probe = IntMlp {
-                cout: 0,
-                ..int.clone()
-            };
-            probe.eval(xi, &mut h, &mut acc);
-            abs_w1
-                .chunks_exact(hidden.max(1))
-                .map(|row| {
-                    row.iter()
-                        .zip(&h)
-                        .map(|(w, &h)| w * f64::from(h))
-                        .sum::<f64>()
-                })
-                .fold(0f64, f64::max)
-        })
-        .reduce(|| 0f64, f64::max);
+    let probe = IntMlp {
+        cout: 0,
+        ..int.clone()
+    };
+    let row_sums = |i: usize| -> Vec<f64> {
+        let mut h = vec![0i16; hidden];
+        probe.eval(&x[i * cin..(i + 1) * cin], &mut h, &mut []);
+        abs_w1
+            .chunks_exact(hidden.max(1))
+            .map(|row| {
+                row.iter()
+                    .zip(&h)
+                    .map(|(w, &h)| w * f64::from(h))
+                    .sum::<f64>()
+            })
+            .collect()
+    };
+    let s_max = (0..n).into_par_iter().map(row_sums).reduce(
+        || vec![0f64; cout],
+        |a, b| a.iter().zip(&b).map(|(x, y)| x.max(*y)).collect(),
+    );
     let qh = int.hidden_frac_bits();
-    let a1 = largest(30 - qh.max(0), |a| {
-        let b = quantize(&f.b1, qh + a);
-        let b_max = b.iter().map(|b| b.abs()).max().unwrap_or(0) as f64;
-        max_abs(&f.w1) * pow2(a) <= f64::from(i16::MAX)
-            && (s_max * pow2(a) + b_max) < I32_LIMIT * MARGIN
-    })
-    .ok_or(Error::ValueInvalid {
-        tensor: names::MLP_GRID[2],
-        index: vec![],
-        value: max_abs(&f.w1) as i64,
-        allowed: "weights whose fixed-point form fits i16 (|w| < 32768)",
-    })?;
+    let mut w1_frac_bits = Vec::with_capacity(cout);
+    for (o, (&row_max, &bias)) in s_max.iter().zip(&f.b1).enumerate() {
+        let row = &f.w1[o * hidden..(o + 1) * hidden];
+        let b = f64::from(bias).abs();
+        let a1 = largest(30, |a| {
+            max_abs(row) * pow2(a) <= f64::from(i16::MAX)
+                && (row_max * pow2(a) + b * pow2(qh + a)) < I32_LIMIT * MARGIN
+        })
+        .ok_or(Error::ValueInvalid {
+            tensor: names::MLP_GRID[2],
+            index: vec![o as u64],
+            value: max_abs(row) as i64,
+            allowed: "weights whose fixed-point form fits i16 (|w| < 32768)",
+        })?;
+        w1_frac_bits.push(a1 as u8);
+    }
+    let w1 =
+        f.w1.iter()
+            .enumerate()
+            .map(|(i, &w)| {
+                (f64::from(w) * pow2(i32::from(w1_frac_bits[i / hidden.max(1)]))).round() as i16
+            })
+            .collect();
+    let b1 =
+        f.b1.iter()
+            .zip(&w1_frac_bits)
+            .map(|(&b, &a)| (f64::from(b) * pow2(qh + i32::from(a))).round() as i32)
+            .collect();
     Ok(IntMlp {
-        w1: quantize(&f.w1, a1).into_iter().map(|v| v as i16).collect(),
-        b1: quantize(&f.b1, qh + a1)
-            .into_iter()
-            .map(|v| v as i32)
-            .collect(),
-        w1_frac_bits: a1 as u8,
+        w1,
+        b1,
+        w1_frac_bits,
         ..int
     })
 }
@@ -178,7 +191,7 @@ mod tests {
                     .map(|j| f64::from(f.w1[o * int.hidden + j]) * hf[j])
                     .sum();
                 let yf = s + f64::from(f.b1[o]);
-                let yi = f64::from(yo) * pow2(-int.out_frac_bits());
+                let yi = f64::from(yo) * pow2(-int.out_frac_bits(o));
                 worst = worst.max((yf - yi).abs() / (1.0 + yf.abs()));
             }
         }

@@ -19,11 +19,13 @@ pub struct IntMlp {
     pub w0_frac_bits: u8,
     /// Right shift from layer-0 sums to hidden activations.
     pub shift0: u8,
-    /// Layer 1 weights [cout, hidden] in units of 2^-w1_frac_bits.
+    /// Layer 1 weights [cout, hidden]; row o in units of 2^-w1_frac_bits[o].
     pub w1: Vec<i16>,
-    /// Layer 1 biases in units of 2^-out_frac_bits().
+    /// Layer 1 biases; b1[o] in units of 2^-out_frac_bits(o).
     pub b1: Vec<i32>,
-    pub w1_frac_bits: u8,
+    /// Per output row: the fraction bits of its weights (per-channel scales keep outputs of
+    /// very different magnitude, e.g. feature means and scaling steps, equally precise).
+    pub w1_frac_bits: Vec<u8>,
 }
 
 /// 2^e exactly, for -1022 <= e <= 1023 (built from its bits: no library call).
@@ -55,12 +57,13 @@ impl IntMlp {
         8 + i32::from(self.w0_frac_bits) - i32::from(self.shift0)
     }
 
-    /// Fraction bits of the outputs: hidden_frac_bits + w1_frac_bits.
-    pub fn out_frac_bits(&self) -> i32 {
-        self.hidden_frac_bits() + i32::from(self.w1_frac_bits)
+    /// Fraction bits of output `o`: hidden_frac_bits + w1_frac_bits[o].
+    pub fn out_frac_bits(&self, o: usize) -> i32 {
+        self.hidden_frac_bits() + i32::from(self.w1_frac_bits.get(o).copied().unwrap_or(0))
     }
 
-    /// §5.3 steps 1-3: outputs `y` (units of 2^-out_frac_bits) of input `x` (units of 2^-8).
+    /// §5.3 steps 1-3: outputs `y` (y[o] in units of 2^-out_frac_bits(o)) of input `x`
+    /// (units of 2^-8).
     /// `h` is scratch of length `hidden`.
     pub fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
         for ((hv, row), &b) in h
@@ -85,8 +88,7 @@ impl IntMlp {
     pub fn to_float(&self) -> Mlp {
         let s_w0 = pow2(-i32::from(self.w0_frac_bits));
         let s_b0 = pow2(-8 - i32::from(self.w0_frac_bits));
-        let s_w1 = pow2(-i32::from(self.w1_frac_bits));
-        let s_b1 = pow2(-self.out_frac_bits());
+        let row = self.hidden.max(1);
         Mlp {
             w0: self
                 .w0
@@ -101,12 +103,17 @@ impl IntMlp {
             w1: self
                 .w1
                 .iter()
-                .map(|&w| (f64::from(w) * s_w1) as f32)
+                .enumerate()
+                .map(|(i, &w)| {
+                    let a = self.w1_frac_bits.get(i / row).copied().unwrap_or(0);
+                    (f64::from(w) * pow2(-i32::from(a))) as f32
+                })
                 .collect(),
             b1: self
                 .b1
                 .iter()
-                .map(|&b| (f64::from(b) * s_b1) as f32)
+                .enumerate()
+                .map(|(o, &b)| (f64::from(b) * pow2(-self.out_frac_bits(o))) as f32)
                 .collect(),
         }
     }
@@ -137,7 +144,7 @@ mod tests {
             shift0: 0,
             w1: vec![1],
             b1: vec![0],
-            w1_frac_bits: 0,
+            w1_frac_bits: vec![0],
         };
         let (mut h, mut y) = ([0i16; 1], [0i32; 1]);
         m.eval(&[i16::MAX, i16::MAX], &mut h, &mut y);

@@ -5,6 +5,7 @@
 
 pub mod grid;
 pub mod mlp;
+pub mod prior;
 pub mod step;
 
 pub use grid::GridLayout;

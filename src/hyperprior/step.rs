@@ -94,19 +94,55 @@ impl BaseStep {
     /// §5.4 step 3: the scale index of a scale output `y` (units of 2^-frac) at step factor
     /// `factor`: the number of thresholds theta_j with theta_j <= 2^16 sigma / Δ, where
     /// sigma = max(y, 1) 2^-frac.
-    pub fn scale_index(&self, y: i32, frac: i32, factor: u32, thresholds: &[u64]) -> u8 {
+    pub fn scale_index(&self, y: i32, frac: i32, factor: u32, thresholds: &[u32]) -> u8 {
         let y_s = y.max(1) as u64;
         // Thresholds increase: binary search for the first one above sigma / Δ.
         let (mut lo, mut hi) = (0usize, thresholds.len());
         while lo < hi {
             let mid = (lo + hi) / 2;
-            if self.at_least(y_s, frac, factor, thresholds[mid]) {
+            if self.at_least(y_s, frac, factor, thresholds[mid].into()) {
                 lo = mid + 1;
             } else {
                 hi = mid;
             }
         }
         lo as u8
+    }
+}
+
+/// Number of scale thresholds (spec §6.3: 64 scale indices).
+pub const THRESHOLDS: usize = 63;
+
+impl BaseStep {
+    /// The §5.4 step 3 thresholds moved into the domain of the scale outputs, for one anchor:
+    /// `y << lift >= T[j]` holds exactly when `y 2^(32 - E - e) >= theta_j m factor`, where
+    /// `lift = emax - E` (so every output of a group shares `emax`). Products stay in u64:
+    /// theta < 2^21 and m factor < 2^41.
+    pub fn y_thresholds(
+        &self,
+        factor: u32,
+        emax: i32,
+        theta: &[u32; THRESHOLDS],
+    ) -> [u64; THRESHOLDS] {
+        let d = self.mantissa * u64::from(factor);
+        let sh = 32 - emax - self.exponent;
+        theta.map(|t| {
+            let p = u64::from(t) * d;
+            if sh >= 0 {
+                if sh >= 64 {
+                    u64::from(p != 0)
+                } else {
+                    (p >> sh) + u64::from(p & ((1u64 << sh) - 1) != 0)
+                }
+            } else {
+                let s = (-sh) as u32;
+                if s >= 64 || p.leading_zeros() < s {
+                    u64::MAX
+                } else {
+                    p << s
+                }
+            }
+        })
     }
 }
 
@@ -157,11 +193,40 @@ mod tests {
     }
 
     #[test]
+    fn lifted_thresholds_match_the_exact_comparison() {
+        let theta: [u32; THRESHOLDS] = std::array::from_fn(|k| {
+            (((k as f64 + 1.0 - 24.5) / 8.0).exp2() * 65536.0).round() as u32
+        });
+        let mut seed = 12345u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            seed >> 33
+        };
+        for _ in 0..20_000 {
+            let step = f32::from_bits(0x3000_0000 + (next() as u32 % 0x1800_0000));
+            let b = BaseStep::new(step, 1.0 + (next() % 100) as f32 / 37.0);
+            let factor = STEP_FACTOR[(next() % 129) as usize];
+            let e = (next() % 40) as i32;
+            let lift = (next() % 20) as i32;
+            let y = (next() as i32).wrapping_sub(1 << 29);
+            let t = b.y_thresholds(factor, e + lift, &theta);
+            let fast = t.partition_point(|&t| t <= (y.max(1) as u64) << lift) as u8;
+            assert_eq!(
+                fast,
+                b.scale_index(y, e, factor, &theta),
+                "{b:?} f {factor} e {e} y {y}"
+            );
+        }
+    }
+
+    #[test]
     fn scale_index_matches_real_division() {
         // thresholds 2^((k - 24.5) / 8) in Q16, as the entropy tables define them.
-        let th: Vec<u64> = (1..64)
+        let th: Vec<u32> = (1..64)
             .map(|k| ((k as f64 - 24.5) / 8.0).exp2() * 65536.0)
-            .map(|t| t.round() as u64)
+            .map(|t| t.round() as u32)
             .collect();
         let b = BaseStep::new(0.5, 1.25);
         for y in [1, 7, 100, 1000, 12345, 1 << 20, i32::MAX] {
@@ -169,7 +234,7 @@ mod tests {
                 let frac = 12;
                 let sigma_u = (y as f64 / 4096.0) / (0.625 * factor as f64 / 65536.0);
                 let q16 = (sigma_u * 65536.0).floor() as u64;
-                let expect = th.iter().filter(|&&t| t <= q16).count() as u8;
+                let expect = th.iter().filter(|&&t| u64::from(t) <= q16).count() as u8;
                 assert_eq!(
                     b.scale_index(y, frac, factor, &th),
                     expect,

@@ -33,7 +33,13 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::ContextInputDim => (1, 16 * 128),
         Field::ContextHidden | Field::ScaffoldHidden => (1, 4096),
         Field::ViewDims => (0, 8),
-        Field::FileFlags | Field::HeadFlags | Field::VoxelSize | Field::Origin => (0, u64::MAX),
+        Field::W0FracBits | Field::W1FracBits => (0, 30),
+        Field::Shift0 => (0, 31),
+        Field::CodedRate
+        | Field::FileFlags
+        | Field::HeadFlags
+        | Field::VoxelSize
+        | Field::Origin => (0, u64::MAX),
     }
 }
 

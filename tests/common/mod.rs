@@ -6,13 +6,28 @@ use salvq::container::chunk::{write_chunk, ChunkReader, ChunkTag};
 use salvq::gen::{generate, GenParams};
 use salvq::{Limits, SceneModel};
 
-/// 13 anchors of the small configuration: 13 x 4 = 52 mask bits, so `AMSK` has padding.
+/// 13 anchors of the small configuration with the identity basis (what format 0.2 codes).
 pub fn small_model() -> SceneModel {
+    generate(&GenParams {
+        feat_basis: false,
+        ..GenParams::small(13, 1)
+    })
+}
+
+/// The same scene with a learned feature basis (SALVQ), for model-validation tests.
+pub fn small_salvq_model() -> SceneModel {
     generate(&GenParams::small(13, 1))
 }
 
 pub fn small_stream() -> Vec<u8> {
     salvq::encode(&small_model()).expect("valid model encodes")
+}
+
+/// What a decoder must output for `small_stream()`.
+pub fn small_expected() -> SceneModel {
+    salvq::encoder::encode_full(&small_model(), &Default::default())
+        .expect("valid model encodes")
+        .expected
 }
 
 /// The stream's chunks as (tag, payload).

@@ -1,0 +1,129 @@
+//! Anchor attribute chunks (spec §6.6), decoder side: masks (`AMSK`) and the entropy-coded
+//! features, scalings and offsets (`AFEA`, `ASCL`, `AOFF`), decoded anchor by anchor against
+//! the integer prior (§5) and reconstructed in binary32 (§5.5).
+
+use crate::container::bytes::PayloadReader;
+use crate::container::chunk::ChunkTag;
+use crate::container::payload::{body, METHOD_CODED};
+use crate::entropy::{GaussianTables, SymbolReader};
+use crate::error::{Error, Result};
+use crate::hyperprior::prior::{Group, Prior};
+use crate::model::{Dims, HashGrid};
+
+/// §6.6.1: the coder frequency of a mask bit being 1, from its 16-bit probability.
+pub fn mask_freq(p_one: u16, precision: u32) -> u32 {
+    let p = u32::from(p_one);
+    let f = if precision <= 16 {
+        p >> (16 - precision)
+    } else {
+        p << (precision - 16)
+    };
+    f.clamp(1, (1 << precision) - 1)
+}
+
+/// §6.6.1: decodes `AMSK`: K slot probabilities, then the N x K mask bits, anchor by anchor.
+pub fn read_masks(payload: &[u8], d: &Dims, tables: &GaussianTables) -> Result<Vec<u8>> {
+    let tag = ChunkTag::AMSK;
+    let body = body(tag, payload, METHOD_CODED)?;
+    let k = usize::from(d.offsets);
+    let mut r = PayloadReader::new(tag, body);
+    let mut freq = Vec::with_capacity(k);
+    for slot in 0..k {
+        let p = r.u16()?;
+        if p == 0 {
+            return Err(Error::ValueInvalid {
+                tensor: "AMSK.p_one",
+                index: vec![slot as u64],
+                value: 0,
+                allowed: "1..=65535",
+            });
+        }
+        freq.push(mask_freq(p, tables.precision()));
+    }
+    let words = &body[r.consumed()..];
+    let mut reader = SymbolReader::new(tag, words, tables)?;
+    let n = d.anchors as usize;
+    let mut mask = Vec::with_capacity(n * k);
+    for _ in 0..n {
+        for &f in &freq {
+            mask.push(u8::from(reader.bit(f)?));
+        }
+    }
+    reader.finish()?;
+    Ok(mask)
+}
+
+/// The decoded attributes: features [N, F], scalings [N, S], offsets [N, K, 3].
+pub struct Attributes {
+    pub feat: Vec<f32>,
+    pub scaling: Vec<f32>,
+    pub offsets: Vec<f32>,
+}
+
+/// §6.6.2: decodes `AFEA`, `ASCL` and `AOFF` together, anchor by anchor: for anchor i, its F
+/// feature symbols from `AFEA`, its S scaling symbols from `ASCL`, then 3 symbols from `AOFF`
+/// for each offset whose mask is 1 (masked offsets decode as 0.0).
+#[allow(clippy::too_many_arguments)]
+pub fn read_attributes(
+    payloads: [&[u8]; 3],
+    d: &Dims,
+    voxels: &[[u32; 3]],
+    masks: &[u8],
+    grid: &HashGrid,
+    prior: &Prior,
+    tables: &GaussianTables,
+) -> Result<Attributes> {
+    let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
+    let mut readers = Vec::with_capacity(3);
+    for (tag, payload) in tags.into_iter().zip(payloads) {
+        readers.push(SymbolReader::new(
+            tag,
+            body(tag, payload, METHOD_CODED)?,
+            tables,
+        )?);
+    }
+    let n = d.anchors as usize;
+    let f = usize::from(d.feat_dim);
+    let s = usize::from(d.scaling_dim);
+    let k = usize::from(d.offsets);
+    let mut out = Attributes {
+        feat: Vec::with_capacity(n * f),
+        scaling: Vec::with_capacity(n * s),
+        offsets: Vec::with_capacity(n * k * 3),
+    };
+    let mut ctx = prior.context();
+    for (i, &v) in voxels.iter().enumerate().take(n) {
+        prior.eval(grid, v, &mut ctx);
+        for (g, width, dst) in [
+            (Group::Feature, f, &mut out.feat),
+            (Group::Scaling, s, &mut out.scaling),
+        ] {
+            let step = prior.step(&ctx, g);
+            let reader = &mut readers[g as usize];
+            for j in 0..width {
+                let ki = prior.scale_index(&ctx, g, j, &step);
+                let u = reader.symbol(ki)?;
+                dst.push(prior.reconstruct(&ctx, g, j, &step, u));
+            }
+        }
+        let step = prior.step(&ctx, Group::Offsets);
+        let reader = &mut readers[2];
+        for slot in 0..k {
+            if masks[i * k + slot] == 0 {
+                out.offsets.extend_from_slice(&[0.0; 3]);
+                continue;
+            }
+            for c in 0..3 {
+                let j = 3 * slot + c;
+                let ki = prior.scale_index(&ctx, Group::Offsets, j, &step);
+                let u = reader.symbol(ki)?;
+                out.offsets
+                    .push(prior.reconstruct(&ctx, Group::Offsets, j, &step, u));
+            }
+        }
+    }
+    for r in readers {
+        r.finish()?;
+    }
+    Ok(out)
+}

@@ -1,0 +1,212 @@
+//! Encoder side of the anchor attribute chunks (spec §6.6): symbols u = round((x - μ) / Δ)
+//! against the integer prior, the masks' slot probabilities, and the statistics `info`
+//! reports (ideal information under the integer model and under the float model).
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::attributes::mask_freq;
+use crate::container::chunk::ChunkTag;
+use crate::container::payload::METHOD_CODED;
+use crate::entropy::{GaussianTables, SymbolWriter};
+use crate::error::Result;
+use crate::hyperprior::prior::{Group, Prior};
+use crate::model::SceneModel;
+
+use super::float_prior::FloatPrior;
+
+/// What coding one attribute group cost (spec §6.6; reported by `salvq info --json`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GroupStats {
+    pub group: String,
+    pub symbols: u64,
+    pub escapes: u64,
+    /// Bytes of the chunk's payload.
+    pub coded_bytes: u64,
+    /// Σ -log2 p(u) under the stream's integer model and tables.
+    pub ideal_bits_integer: f64,
+    /// Σ -log2 p(u) under the float model (float interpolation, float MLP, exact
+    /// discretized Gaussian), for the symbols that model would have chosen.
+    pub ideal_bits_float: f64,
+    /// Largest |x - x̂| / Δ over the group's coded values (≤ 0.5 up to binary32 rounding).
+    pub max_error_steps: f64,
+    /// Σ (x - x̂)^2 over the group's coded values.
+    pub squared_error: f64,
+}
+
+/// The coded chunks and their statistics.
+pub struct CodedAttributes {
+    pub amsk: Vec<u8>,
+    pub chunks: [Vec<u8>; 3],
+    pub stats: [GroupStats; 3],
+    pub mask_bits: u64,
+    /// What a decoder reconstructs: features [N, F], scalings [N, S], offsets [N, K, 3].
+    pub recon: [Vec<f32>; 3],
+}
+
+/// One anchor's symbols: (u, scale index) per coded value, per group, and the float model's
+/// ideal bits per group.
+struct AnchorSymbols {
+    groups: [Vec<(i64, u8)>; 3],
+    float_bits: [f64; 3],
+    max_error_steps: [f64; 3],
+    squared_error: [f64; 3],
+    /// The decoder's reconstruction of every value of the anchor, per group (offsets: 3K,
+    /// 0.0 where masked).
+    recon: [Vec<f32>; 3],
+}
+
+fn symbols_of(m: &SceneModel, i: usize, prior: &Prior, float: &FloatPrior) -> AnchorSymbols {
+    let d = &m.dims;
+    let (f, s, k) = (
+        usize::from(d.feat_dim),
+        usize::from(d.scaling_dim),
+        usize::from(d.offsets),
+    );
+    let mut ctx = prior.context();
+    prior.eval(&m.grid, m.anchors.voxel[i], &mut ctx);
+    let fctx = float.eval(m, m.anchors.voxel[i]);
+    let a = &m.anchors;
+    let mut out = AnchorSymbols {
+        groups: [
+            Vec::with_capacity(f),
+            Vec::with_capacity(s),
+            Vec::with_capacity(3 * k),
+        ],
+        float_bits: [0.0; 3],
+        max_error_steps: [0.0; 3],
+        squared_error: [0.0; 3],
+        recon: [vec![0.0; f], vec![0.0; s], vec![0.0; 3 * k]],
+    };
+    let values: [(Group, &[f32], Vec<usize>); 3] = [
+        (
+            Group::Feature,
+            &a.feat[i * f..(i + 1) * f],
+            (0..f).collect(),
+        ),
+        (
+            Group::Scaling,
+            &a.scaling[i * s..(i + 1) * s],
+            (0..s).collect(),
+        ),
+        (
+            Group::Offsets,
+            &a.offsets[i * 3 * k..(i + 1) * 3 * k],
+            (0..3 * k).filter(|j| a.mask[i * k + j / 3] != 0).collect(),
+        ),
+    ];
+    for (g, x, coded) in values {
+        let step = prior.step(&ctx, g);
+        for j in coded {
+            let mu = prior.reconstruct(&ctx, g, j, &step, 0);
+            let u = ((f64::from(x[j]) - f64::from(mu)) / f64::from(step.delta)).round();
+            let u = u.clamp(-9.0e18, 9.0e18) as i64;
+            let ki = prior.scale_index(&ctx, g, j, &step);
+            let x_hat = prior.reconstruct(&ctx, g, j, &step, u);
+            out.recon[g as usize][j] = x_hat;
+            let err = f64::from(x[j]) - f64::from(x_hat);
+            let gi = g as usize;
+            out.max_error_steps[gi] =
+                out.max_error_steps[gi].max(err.abs() / f64::from(step.delta));
+            out.squared_error[gi] += err * err;
+            out.groups[g as usize].push((u, ki));
+            out.float_bits[g as usize] += fctx.ideal_bits(g, j, x[j]);
+        }
+    }
+    out
+}
+
+/// §6.6.1: the slot probabilities P(mask = 1) in units of 2^-16, clamped to 1 ..= 65535.
+fn slot_probabilities(m: &SceneModel) -> Vec<u16> {
+    let k = usize::from(m.dims.offsets);
+    let n = m.n().max(1) as u64;
+    (0..k)
+        .map(|slot| {
+            let ones = (0..m.n())
+                .filter(|i| m.anchors.mask[i * k + slot] != 0)
+                .count() as u64;
+            ((ones * 65536 + n / 2) / n).clamp(1, 65535) as u16
+        })
+        .collect()
+}
+
+/// Codes the masks and the three attribute groups of a canonical-order model.
+pub fn code_attributes(
+    m: &SceneModel,
+    prior: &Prior,
+    float: &FloatPrior,
+    tables: &GaussianTables,
+) -> Result<CodedAttributes> {
+    // Masks (§6.6.1).
+    let p_one = slot_probabilities(m);
+    let mut amsk = vec![METHOD_CODED];
+    for p in &p_one {
+        amsk.extend_from_slice(&p.to_le_bytes());
+    }
+    let freq: Vec<u32> = p_one
+        .iter()
+        .map(|&p| mask_freq(p, tables.precision()))
+        .collect();
+    let mut w = SymbolWriter::new(ChunkTag::AMSK, tables);
+    for (i, &b) in m.anchors.mask.iter().enumerate() {
+        w.bit(b != 0, freq[i % freq.len()]);
+    }
+    amsk.extend_from_slice(&w.finish());
+
+    // Attributes (§6.6.2): symbols in parallel, coded in stream order.
+    let mut writers =
+        [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF].map(|tag| SymbolWriter::new(tag, tables));
+    let mut stats: [GroupStats; 3] = Group::ALL.map(|g| GroupStats {
+        group: g.name().to_string(),
+        ..GroupStats::default()
+    });
+    let d = &m.dims;
+    let widths = [
+        usize::from(d.feat_dim),
+        usize::from(d.scaling_dim),
+        3 * usize::from(d.offsets),
+    ];
+    let mut recon = widths.map(|w| Vec::with_capacity(m.n() * w));
+    const BLOCK: usize = 1 << 14;
+    for start in (0..m.n()).step_by(BLOCK) {
+        let end = (start + BLOCK).min(m.n());
+        let block: Vec<AnchorSymbols> = (start..end)
+            .into_par_iter()
+            .map(|i| symbols_of(m, i, prior, float))
+            .collect();
+        for a in block {
+            for (r, v) in recon.iter_mut().zip(&a.recon) {
+                r.extend_from_slice(v);
+            }
+            for g in 0..3 {
+                for &(u, ki) in &a.groups[g] {
+                    writers[g].symbol(u, ki)?;
+                    let st = &mut stats[g];
+                    st.symbols += 1;
+                    st.ideal_bits_integer += tables.ideal_bits(ki, u);
+                    if u.unsigned_abs() > u64::from(tables.radius(ki)) {
+                        st.escapes += 1;
+                    }
+                }
+                stats[g].ideal_bits_float += a.float_bits[g];
+                stats[g].max_error_steps = stats[g].max_error_steps.max(a.max_error_steps[g]);
+                stats[g].squared_error += a.squared_error[g];
+            }
+        }
+    }
+    let chunks = writers.map(|w| {
+        let mut c = vec![METHOD_CODED];
+        c.extend_from_slice(&w.finish());
+        c
+    });
+    for (st, c) in stats.iter_mut().zip(&chunks) {
+        st.coded_bytes = c.len() as u64;
+    }
+    Ok(CodedAttributes {
+        amsk,
+        chunks,
+        stats,
+        mask_bits: m.anchors.mask.len() as u64,
+        recon,
+    })
+}

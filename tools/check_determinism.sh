@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Decoded output must not depend on the build: encodes and decodes one generated scene with a
+# debug build (opt-level 0), a release build (opt-level 3) and a release build with
+# RUSTFLAGS="-C target-cpu=native", and compares the SHA-256 of the stream and of the decoded
+# model. Usage: tools/check_determinism.sh [ANCHORS]   (default 20000)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+n=${1:-20000}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+cargo build -q
+cargo build -q --release
+RUSTFLAGS="-C target-cpu=native" cargo build -q --release --target-dir target/native
+
+declare -A bins=(
+  [opt0]=target/debug/salvq
+  [opt3]=target/release/salvq
+  [native]=target/native/release/salvq
+)
+"${bins[opt3]}" gen --anchors "$n" --seed 3 -o "$work/model.safetensors" > /dev/null
+ref=""
+status=0
+for name in opt0 opt3 native; do
+  bin=${bins[$name]}
+  "$bin" encode "$work/model.safetensors" -o "$work/$name.salvq" > /dev/null
+  "$bin" decode "$work/$name.salvq" -o "$work/$name.decoded.safetensors" > /dev/null
+  line="$(sha256sum < "$work/$name.salvq" | cut -c1-16) $(sha256sum < "$work/$name.decoded.safetensors" | cut -c1-16)"
+  echo "$name: stream+decoded sha256 prefixes $line"
+  if [ -z "$ref" ]; then ref=$line; elif [ "$line" != "$ref" ]; then status=1; fi
+done
+if [ "$status" -eq 0 ]; then
+  echo "identical across opt-level 0, opt-level 3 and target-cpu=native ($n anchors)"
+else
+  echo "MISMATCH between builds" >&2
+fi
+exit "$status"
