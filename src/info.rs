@@ -110,6 +110,66 @@ pub struct Totals {
     pub bits_per_anchor: f64,
 }
 
+/// Bytes of one part of the shared model (`salvq info --json`: `model_parts`).
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelPart {
+    pub part: String,
+    pub chunk: String,
+    pub bytes: u64,
+}
+
+/// The model bytes per tensor group, from the preflight's dimensions and the chunk sizes
+/// (spec §1.4, §1.6.1-§1.6.3).
+fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<ModelPart> {
+    let d = &p.dims;
+    let (f, s, k) = (
+        u64::from(d.feat_dim),
+        u64::from(d.scaling_dim),
+        u64::from(d.offsets),
+    );
+    let (cin, h, cout) = (
+        d.context_input(),
+        u64::from(d.context_hidden),
+        d.context_output(),
+    );
+    let (si, hs) = (d.scaffold_input(), u64::from(d.scaffold_hidden));
+    let mlp = |o: u64| 4 * (hs * si + hs + o * hs + o);
+    let m = u64::from(d.rates);
+    let basis = |dim: u64, on: bool| if on { 4 * (2 * dim * dim + dim) } else { 0 };
+    let part = |part: &str, chunk: ChunkTag, bytes: u64| ModelPart {
+        part: part.to_string(),
+        chunk: chunk.to_string(),
+        bytes,
+    };
+    vec![
+        part("preflight", ChunkTag::HEAD, chunk_bytes(ChunkTag::HEAD)),
+        part(
+            "mlp_grid (integer, §5.3)",
+            ChunkTag::MLPS,
+            2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout,
+        ),
+        part("mlp_opacity", ChunkTag::MLPS, mlp(k)),
+        part("mlp_cov", ChunkTag::MLPS, mlp(7 * k)),
+        part("mlp_color", ChunkTag::MLPS, mlp(3 * k)),
+        part(
+            "quant.feat",
+            ChunkTag::QUAN,
+            4 * (1 + m) + basis(f, d.feat_basis),
+        ),
+        part(
+            "quant.scaling",
+            ChunkTag::QUAN,
+            4 * (1 + m) + basis(s, d.scaling_basis),
+        ),
+        part("quant.offsets", ChunkTag::QUAN, 4 * (1 + m)),
+        part(
+            "hyperprior.grid (touched entries)",
+            ChunkTag::GRID,
+            chunk_bytes(ChunkTag::GRID).saturating_sub(1),
+        ),
+    ]
+}
+
 /// Everything `salvq info` reports.
 #[derive(Debug, Clone, Serialize)]
 pub struct StreamInfo {
@@ -118,6 +178,8 @@ pub struct StreamInfo {
     pub head: Option<HeadInfo>,
     pub chunks: Vec<ChunkInfo>,
     pub totals: Totals,
+    /// Model bytes per part (framing and method bytes not included).
+    pub model_parts: Vec<ModelPart>,
     /// The encoder's measurements, from the `ests` chunk when the stream has one.
     pub encoder: Option<EncodeReport>,
 }
@@ -168,11 +230,14 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut chunks = Vec::new();
     let mut head = None;
+    let mut preflight = None;
     let mut encoder = None;
     let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
     while let Some(c) = reader.next_chunk()? {
         if c.tag == ChunkTag::HEAD && head.is_none() {
-            head = Some(HeadInfo::from(&Preflight::parse(c.payload, limits)?));
+            let p = Preflight::parse(c.payload, limits)?;
+            head = Some(HeadInfo::from(&p));
+            preflight = Some(p);
         }
         if c.tag == ChunkTag::ESTS {
             encoder = serde_json::from_slice(c.payload).ok();
@@ -196,7 +261,18 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     }
     let file_bytes = data.len() as u64;
     let anchors = head.as_ref().map_or(0, |h| h.anchors);
+    let bytes_of = |tag: ChunkTag| {
+        chunks
+            .iter()
+            .find(|c| c.tag == tag.to_string())
+            .map_or(0, |c| c.payload_bytes)
+    };
+    let model_parts = preflight
+        .as_ref()
+        .map(|p| model_parts(p, bytes_of))
+        .unwrap_or_default();
     Ok(StreamInfo {
+        model_parts,
         format_version: format!("{}.{}", sig.major, sig.minor),
         file_flags: sig.flags,
         head,
@@ -275,6 +351,12 @@ impl StreamInfo {
                 "{:<6} {:>10} {:>12} {:>8}  {}",
                 c.tag, c.offset, c.payload_bytes, class, c.crc32c
             );
+        }
+        if !self.model_parts.is_empty() {
+            let _ = writeln!(s, "model bytes by part:");
+            for p in &self.model_parts {
+                let _ = writeln!(s, "  {:<36} {:<5} {:>10}", p.part, p.chunk, p.bytes);
+            }
         }
         if let Some(r) = &self.encoder {
             let _ = writeln!(s, "encoder statistics (ests), rate {}:", r.rate);
