@@ -9,6 +9,7 @@ use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::encoder::EncodeReport;
 use crate::error::Result;
 use crate::limits::Limits;
+use crate::model::Dims;
 
 /// What a chunk's bytes pay for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -47,53 +48,25 @@ pub struct ChunkInfo {
     pub crc32c: String,
 }
 
-/// The preflight as `info` shows it.
+/// The preflight as `info` shows it: the dimensions (§2.1) and the other `HEAD` fields.
 #[derive(Debug, Clone, Serialize)]
 pub struct HeadInfo {
-    pub anchors: u32,
-    pub feat_dim: u16,
-    pub offsets: u16,
-    pub scaling_dim: u16,
-    pub rates: u8,
+    #[serde(flatten)]
+    pub dims: Dims,
     pub coord_bits: u8,
     pub origin: [f32; 3],
     pub voxel_size: f32,
-    pub grid_channels: u8,
-    pub resolutions_3d: Vec<u16>,
-    pub resolutions_2d: Vec<u16>,
-    pub log2_size_3d: u8,
-    pub log2_size_2d: u8,
-    pub context_hidden: u16,
-    pub scaffold_hidden: u16,
-    pub view_dims: u8,
-    pub feat_basis: bool,
-    pub scaling_basis: bool,
     pub decoded_bytes: u64,
     pub coded_rate: u8,
 }
 
 impl From<&Preflight> for HeadInfo {
     fn from(p: &Preflight) -> Self {
-        let d = &p.dims;
         HeadInfo {
-            anchors: d.anchors,
-            feat_dim: d.feat_dim,
-            offsets: d.offsets,
-            scaling_dim: d.scaling_dim,
-            rates: d.rates,
+            dims: p.dims.clone(),
             coord_bits: p.coord_bits,
             origin: p.origin,
             voxel_size: p.voxel_size,
-            grid_channels: d.grid_channels,
-            resolutions_3d: d.res_3d.clone(),
-            resolutions_2d: d.res_2d.clone(),
-            log2_size_3d: d.log2_size_3d,
-            log2_size_2d: d.log2_size_2d,
-            context_hidden: d.context_hidden,
-            scaffold_hidden: d.scaffold_hidden,
-            view_dims: d.view_dims,
-            feat_basis: d.feat_basis,
-            scaling_basis: d.scaling_basis,
             decoded_bytes: p.decoded_bytes,
             coded_rate: p.coded_rate,
         }
@@ -260,7 +233,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
         });
     }
     let file_bytes = data.len() as u64;
-    let anchors = head.as_ref().map_or(0, |h| h.anchors);
+    let anchors = head.as_ref().map_or(0, |h| h.dims.anchors);
     let bytes_of = |tag: ChunkTag| {
         chunks
             .iter()
@@ -299,10 +272,11 @@ impl StreamInfo {
         let mut s = String::new();
         let _ = writeln!(s, "SALVQ stream, format {}", self.format_version);
         if let Some(h) = &self.head {
+            let d = &h.dims;
             let _ = writeln!(
                 s,
                 "anchors {}  feat_dim {}  offsets {}  scaling_dim {}  rates {}  coord_bits {}",
-                h.anchors, h.feat_dim, h.offsets, h.scaling_dim, h.rates, h.coord_bits
+                d.anchors, d.feat_dim, d.offsets, d.scaling_dim, d.rates, h.coord_bits
             );
             let _ = writeln!(
                 s,
@@ -312,18 +286,18 @@ impl StreamInfo {
             let _ = writeln!(
                 s,
                 "hash grid: {} channels, 3D res {:?} (log2 {}), 2D res {:?} (log2 {})",
-                h.grid_channels, h.resolutions_3d, h.log2_size_3d, h.resolutions_2d, h.log2_size_2d
+                d.grid_channels, d.res_3d, d.log2_size_3d, d.res_2d, d.log2_size_2d
             );
             let _ = writeln!(
                 s,
                 "MLPs: context hidden {}, scaffold hidden {}, view dims {}",
-                h.context_hidden, h.scaffold_hidden, h.view_dims
+                d.context_hidden, d.scaffold_hidden, d.view_dims
             );
             let _ = writeln!(
                 s,
                 "quantizers: feature basis {}, scaling basis {}",
-                if h.feat_basis { "general" } else { "identity" },
-                if h.scaling_basis {
+                if d.feat_basis { "general" } else { "identity" },
+                if d.scaling_basis {
                     "general"
                 } else {
                     "identity"

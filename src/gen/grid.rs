@@ -2,7 +2,8 @@
 //! as the spec's hyperprior (spec §5) indexes it.
 
 use super::rng::{tag, Stream};
-use crate::model::{level_entries, Dims, HashGrid};
+use crate::hyperprior::grid::{index2, index3, levels, Level};
+use crate::model::{Dims, HashGrid};
 
 /// i.i.d. balanced +-1 values: bit b of draw k of stream GRID/t gives entry value 64k + b.
 pub fn grid(d: &Dims, seed: u64) -> HashGrid {
@@ -23,32 +24,6 @@ pub fn grid(d: &Dims, seed: u64) -> HashGrid {
         grid_xz: make(2, d.entries_2d() * c),
         grid_yz: make(3, d.entries_2d() * c),
     }
-}
-
-#[derive(Debug, Clone)]
-struct Level {
-    res: u32,
-    dense: bool,
-    mask: u32,
-    /// First entry of the level in its tensor.
-    offset: usize,
-}
-
-fn levels(res: &[u16], dim: u32, log2: u8) -> Vec<Level> {
-    let mut offset = 0usize;
-    res.iter()
-        .map(|&r| {
-            let dense = (u64::from(r) + 1).saturating_pow(dim) <= 1u64 << log2;
-            let l = Level {
-                res: r.into(),
-                dense,
-                mask: ((1u64 << log2) - 1) as u32,
-                offset,
-            };
-            offset += level_entries(r, dim, log2) as usize;
-            l
-        })
-        .collect()
 }
 
 /// Interpolation of the hash grid at voxel centres (Annex B.4.2).
@@ -89,14 +64,8 @@ impl Interp {
                     * (if dy == 1 { wy } else { 1.0 - wy })
                     * (if dz == 1 { wz } else { 1.0 - wz });
                 let (a, b, cc) = (i + dx, j + dy, k + dz);
-                let idx = if lv.dense {
-                    let r1 = u64::from(lv.res) + 1;
-                    (u64::from(a) + u64::from(b) * r1 + u64::from(cc) * r1 * r1) as usize
-                } else {
-                    ((a ^ b.wrapping_mul(2_654_435_761) ^ cc.wrapping_mul(805_459_861)) & lv.mask)
-                        as usize
-                };
-                let e = &g.grid_3d[(lv.offset + idx) * c..(lv.offset + idx + 1) * c];
+                let e = index3(lv, a, b, cc) as usize;
+                let e = &g.grid_3d[e * c..(e + 1) * c];
                 for (acc, &val) in o.iter_mut().zip(e) {
                     *acc += w * f64::from(val);
                 }
@@ -116,12 +85,8 @@ impl Interp {
                     let w = (if dx == 1 { wx } else { 1.0 - wx })
                         * (if dy == 1 { wy } else { 1.0 - wy });
                     let (a, b) = (i + dx, j + dy);
-                    let idx = if lv.dense {
-                        (u64::from(a) + u64::from(b) * (u64::from(lv.res) + 1)) as usize
-                    } else {
-                        ((a ^ b.wrapping_mul(2_654_435_761)) & lv.mask) as usize
-                    };
-                    let e = &tensor[(lv.offset + idx) * c..(lv.offset + idx + 1) * c];
+                    let e = index2(lv, a, b) as usize;
+                    let e = &tensor[e * c..(e + 1) * c];
                     for (acc, &val) in o.iter_mut().zip(e) {
                         *acc += w * f64::from(val);
                     }

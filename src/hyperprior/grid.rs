@@ -60,7 +60,7 @@ fn axis(v: u32, r: u32, coord_bits: u32) -> (u32, u32) {
 
 /// §2.4: entry of 3D vertex (i, j, k).
 #[inline]
-fn index3(l: &Level, i: u32, j: u32, k: u32) -> u64 {
+pub fn index3(l: &Level, i: u32, j: u32, k: u32) -> u64 {
     let local = if l.dense {
         let n = u64::from(l.res) + 1;
         u64::from(i) + u64::from(j) * n + u64::from(k) * n * n
@@ -72,7 +72,7 @@ fn index3(l: &Level, i: u32, j: u32, k: u32) -> u64 {
 
 /// §2.4: entry of 2D vertex (i, j).
 #[inline]
-fn index2(l: &Level, i: u32, j: u32) -> u64 {
+pub fn index2(l: &Level, i: u32, j: u32) -> u64 {
     let local = if l.dense {
         u64::from(i) + u64::from(j) * (u64::from(l.res) + 1)
     } else {

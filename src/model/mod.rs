@@ -41,7 +41,7 @@ impl fmt::Display for Dtype {
 }
 
 /// The dimensions that fix every tensor's shape (spec §2.1, carried by `HEAD`, §1.4).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct Dims {
     /// N: number of anchors.
     pub anchors: u32,
