@@ -120,15 +120,15 @@ fn main() {
         for (i, &v) in expected.anchors.voxel.iter().enumerate() {
             prior.eval(&expected.grid, v, &mut ctx);
             for (g, width) in [(Group::Feature, f), (Group::Scaling, s)] {
-                let step = prior.step(&ctx, g);
+                let step = prior.step(&ctx.y, g);
                 for j in 0..width {
-                    ks[g as usize].push(prior.scale_index(&ctx, g, j, &step));
+                    ks[g as usize].push(prior.scale_index(&ctx.y, g, j, &step));
                 }
             }
-            let step = prior.step(&ctx, Group::Offsets);
+            let step = prior.step(&ctx.y, Group::Offsets);
             for j in 0..3 * k {
                 if expected.anchors.mask[i * k + j / 3] != 0 {
-                    ks[2].push(prior.scale_index(&ctx, Group::Offsets, j, &step));
+                    ks[2].push(prior.scale_index(&ctx.y, Group::Offsets, j, &step));
                 }
             }
         }

@@ -2,6 +2,8 @@
 //! features, scalings and offsets (`AFEA`, `ASCL`, `AOFF`), decoded anchor by anchor against
 //! the integer prior (§5) and reconstructed in binary32 (§5.5).
 
+use rayon::prelude::*;
+
 use crate::container::bytes::PayloadReader;
 use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, METHOD_CODED};
@@ -91,34 +93,71 @@ pub fn read_attributes(
         scaling: Vec::with_capacity(n * s),
         offsets: Vec::with_capacity(n * k * 3),
     };
-    let mut ctx = prior.context();
-    for (i, &v) in voxels.iter().enumerate().take(n) {
-        prior.eval(grid, v, &mut ctx);
-        for (g, width, dst) in [
-            (Group::Feature, f, &mut out.feat),
-            (Group::Scaling, s, &mut out.scaling),
-        ] {
-            let step = prior.step(&ctx, g);
-            let reader = &mut readers[g as usize];
-            for j in 0..width {
-                let ki = prior.scale_index(&ctx, g, j, &step);
-                let u = reader.symbol(ki)?;
-                dst.push(prior.reconstruct(&ctx, g, j, &step, u));
+    // The prior of every anchor is independent of the symbols: it is computed for a block of
+    // anchors in parallel (the same values whatever the thread count), then the symbols are
+    // read anchor by anchor in the order of §6.6.2.
+    const BLOCK: usize = 2048;
+    let cout = prior.mlp.cout;
+    let width = f + s + 3 * k;
+    let mut ys = vec![0i32; BLOCK.min(n) * cout];
+    let mut ks = vec![0u8; BLOCK.min(n) * width];
+    let mut deltas = vec![[0f32; 3]; BLOCK.min(n)];
+    for (block, voxels) in voxels[..n.min(voxels.len())].chunks(BLOCK).enumerate() {
+        let m = voxels.len();
+        ys[..m * cout]
+            .par_chunks_mut(cout.max(1))
+            .zip(ks[..m * width].par_chunks_mut(width.max(1)))
+            .zip(deltas[..m].par_iter_mut())
+            .zip(voxels.par_iter())
+            .for_each_init(
+                || prior.context(),
+                |ctx, (((y, kk), delta), &v)| {
+                    prior.eval(grid, v, ctx);
+                    y.copy_from_slice(&ctx.y);
+                    let mut at = 0;
+                    for (gi, (g, w)) in [
+                        (Group::Feature, f),
+                        (Group::Scaling, s),
+                        (Group::Offsets, 3 * k),
+                    ]
+                    .into_iter()
+                    .enumerate()
+                    {
+                        let step = prior.step(y, g);
+                        delta[gi] = step.delta;
+                        for j in 0..w {
+                            kk[at + j] = prior.scale_index(y, g, j, &step);
+                        }
+                        at += w;
+                    }
+                },
+            );
+        for b in 0..m {
+            let i = block * BLOCK + b;
+            let y = &ys[b * cout..(b + 1) * cout];
+            let kk = &ks[b * width..(b + 1) * width];
+            for (g, w, at, dst) in [
+                (Group::Feature, f, 0, &mut out.feat),
+                (Group::Scaling, s, f, &mut out.scaling),
+            ] {
+                let reader = &mut readers[g as usize];
+                for j in 0..w {
+                    let u = reader.symbol(kk[at + j])?;
+                    dst.push(prior.reconstruct(y, g, j, deltas[b][g as usize], u));
+                }
             }
-        }
-        let step = prior.step(&ctx, Group::Offsets);
-        let reader = &mut readers[2];
-        for slot in 0..k {
-            if masks[i * k + slot] == 0 {
-                out.offsets.extend_from_slice(&[0.0; 3]);
-                continue;
-            }
-            for c in 0..3 {
-                let j = 3 * slot + c;
-                let ki = prior.scale_index(&ctx, Group::Offsets, j, &step);
-                let u = reader.symbol(ki)?;
-                out.offsets
-                    .push(prior.reconstruct(&ctx, Group::Offsets, j, &step, u));
+            let reader = &mut readers[2];
+            for slot in 0..k {
+                if masks[i * k + slot] == 0 {
+                    out.offsets.extend_from_slice(&[0.0; 3]);
+                    continue;
+                }
+                for c in 0..3 {
+                    let j = 3 * slot + c;
+                    let u = reader.symbol(kk[f + s + j])?;
+                    out.offsets
+                        .push(prior.reconstruct(y, Group::Offsets, j, deltas[b][2], u));
+                }
             }
         }
     }

@@ -96,13 +96,13 @@ fn symbols_of(m: &SceneModel, i: usize, prior: &Prior, float: &FloatPrior) -> An
         ),
     ];
     for (g, x, coded) in values {
-        let step = prior.step(&ctx, g);
+        let step = prior.step(&ctx.y, g);
         for j in coded {
-            let mu = prior.reconstruct(&ctx, g, j, &step, 0);
+            let mu = prior.reconstruct(&ctx.y, g, j, step.delta, 0);
             let u = ((f64::from(x[j]) - f64::from(mu)) / f64::from(step.delta)).round();
             let u = u.clamp(-9.0e18, 9.0e18) as i64;
-            let ki = prior.scale_index(&ctx, g, j, &step);
-            let x_hat = prior.reconstruct(&ctx, g, j, &step, u);
+            let ki = prior.scale_index(&ctx.y, g, j, &step);
+            let x_hat = prior.reconstruct(&ctx.y, g, j, step.delta, u);
             out.recon[g as usize][j] = x_hat;
             let err = f64::from(x[j]) - f64::from(x_hat);
             let gi = g as usize;

@@ -118,9 +118,9 @@ impl Prior {
     }
 
     /// §5.4 step 1: the group's step at this anchor.
-    pub fn step(&self, ctx: &AnchorContext, g: Group) -> GroupStep {
+    pub fn step(&self, y: &[i32], g: Group) -> GroupStep {
         let o = self.adj_at + g as usize;
-        let factor = STEP_FACTOR[factor_index(ctx.y[o], self.frac[o])];
+        let factor = STEP_FACTOR[factor_index(y[o], self.frac[o])];
         let base = &self.steps[g as usize];
         GroupStep {
             factor,
@@ -131,30 +131,23 @@ impl Prior {
 
     /// The mean output of value `j` of group `g` (units of 2^-E).
     #[inline]
-    pub fn mean(&self, ctx: &AnchorContext, g: Group, j: usize) -> i32 {
-        ctx.y[self.mean_at[g as usize] + j]
+    pub fn mean(&self, y: &[i32], g: Group, j: usize) -> i32 {
+        y[self.mean_at[g as usize] + j]
     }
 
     /// §5.4 step 3: the scale index of value `j` of group `g`.
     #[inline]
-    pub fn scale_index(&self, ctx: &AnchorContext, g: Group, j: usize, step: &GroupStep) -> u8 {
+    pub fn scale_index(&self, y: &[i32], g: Group, j: usize, step: &GroupStep) -> u8 {
         let o = self.scale_at[g as usize] + j;
-        let y = (ctx.y[o].max(1) as u64) << self.lift[o];
-        step.y_thresholds.partition_point(|&t| t <= y) as u8
+        let lifted = (y[o].max(1) as u64) << self.lift[o];
+        step.y_thresholds.partition_point(|&t| t <= lifted) as u8
     }
 
     /// §5.5: reconstruction of value `j` of group `g` from its symbol.
     #[inline]
-    pub fn reconstruct(
-        &self,
-        ctx: &AnchorContext,
-        g: Group,
-        j: usize,
-        step: &GroupStep,
-        u: i64,
-    ) -> f32 {
+    pub fn reconstruct(&self, y: &[i32], g: Group, j: usize, delta: f32, u: i64) -> f32 {
         let o = self.mean_at[g as usize] + j;
-        super::step::reconstruct(ctx.y[o], self.frac[o], step.delta, u)
+        super::step::reconstruct(y[o], self.frac[o], delta, u)
     }
 
     /// Fraction bits E_o of output `o`.
