@@ -203,3 +203,20 @@ fn golden_hashes() {
         )
     );
 }
+
+#[test]
+fn decoded_output_does_not_depend_on_the_thread_count() {
+    let m = usq(GenParams::new(5_000, 6));
+    let e = encode_full(&m, &EncodeOptions::default()).unwrap();
+    let with = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| decode(&e.stream).unwrap())
+    };
+    let one = with(1);
+    assert_eq!(one, e.expected);
+    assert_eq!(with(2), one);
+    assert_eq!(with(3), one);
+}
