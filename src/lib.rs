@@ -45,6 +45,7 @@
 #![forbid(unsafe_code)]
 
 pub mod attributes;
+pub mod bdrate;
 pub mod container;
 pub mod decoder;
 pub mod encoder;
