@@ -55,6 +55,7 @@ pub mod gen;
 pub mod hyperprior;
 pub mod info;
 pub mod io;
+pub mod lattice;
 pub mod limits;
 pub mod model;
 
