@@ -19,9 +19,9 @@ pub struct IntMlp {
     pub w0_frac_bits: u8,
     /// Right shift from layer-0 sums to hidden activations.
     pub shift0: u8,
-    /// Layer 1 weights [cout, hidden]; row o in units of 2^-w1_frac_bits[o].
+    /// Layer 1 weights [cout, hidden]; row o in units of `2^-w1_frac_bits[o]`.
     pub w1: Vec<i16>,
-    /// Layer 1 biases; b1[o] in units of 2^-out_frac_bits(o).
+    /// Layer 1 biases; `b1[o]` in units of `2^-out_frac_bits(o)`.
     pub b1: Vec<i32>,
     /// Per output row: the fraction bits of its weights (per-channel scales keep outputs of
     /// very different magnitude, e.g. feature means and scaling steps, equally precise).
@@ -57,12 +57,12 @@ impl IntMlp {
         8 + i32::from(self.w0_frac_bits) - i32::from(self.shift0)
     }
 
-    /// Fraction bits of output `o`: hidden_frac_bits + w1_frac_bits[o].
+    /// Fraction bits of output `o`: `hidden_frac_bits + w1_frac_bits[o]`.
     pub fn out_frac_bits(&self, o: usize) -> i32 {
         self.hidden_frac_bits() + i32::from(self.w1_frac_bits.get(o).copied().unwrap_or(0))
     }
 
-    /// §5.3 steps 1-3: outputs `y` (y[o] in units of 2^-out_frac_bits(o)) of input `x`
+    /// §5.3 steps 1-3: outputs `y` (`y[o]` in units of `2^-out_frac_bits(o)`) of input `x`
     /// (units of 2^-8).
     /// `h` is scratch of length `hidden`.
     pub fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
