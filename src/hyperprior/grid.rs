@@ -151,28 +151,54 @@ impl GridLayout {
     /// (length [`GridLayout::features`]) in the order 3D levels, xy, xz, yz levels, C each.
     pub fn interpolate(&self, g: &HashGrid, v: [u32; 3], out: &mut [i16]) {
         let c = self.channels;
-        let mut acc = vec![0i64; out.len()];
-        self.corners3(v, |li, e, w| {
-            let base = e as usize * c;
-            for ch in 0..c {
-                acc[li * c + ch] += w * i64::from(g.grid_3d[base + ch]);
-            }
-        });
-        let n3 = self.l3.len() * c;
-        let planes = [&g.grid_xy, &g.grid_xz, &g.grid_yz];
-        let per_plane = self.l2.len() * c;
-        self.corners2(v, |pi, li, e, w| {
-            let base = e as usize * c;
-            for ch in 0..c {
-                acc[n3 + pi * per_plane + li * c + ch] += w * i64::from(planes[pi][base + ch]);
-            }
-        });
-        // §5.1 step 3: round to units of 2^-8 (half away from -inf: add half, shift).
+        let one = 1i32 << WEIGHT_BITS;
+        // §5.1 step 3: round to units of 2^-8 (add half, arithmetic shift). The sums fit i32:
+        // the corner weights of a level add up to 2^30 (3D) or 2^20 (2D) and values are ±1.
         let s3 = 3 * WEIGHT_BITS - INPUT_FRAC_BITS;
         let s2 = 2 * WEIGHT_BITS - INPUT_FRAC_BITS;
-        for (i, (o, a)) in out.iter_mut().zip(&acc).enumerate() {
-            let s = if i < n3 { s3 } else { s2 };
-            *o = ((a + (1 << (s - 1))) >> s) as i16;
+        let mut at = 0;
+        for l in &self.l3 {
+            let (cx, wx) = axis(v[0], l.res, self.coord_bits);
+            let (cy, wy) = axis(v[1], l.res, self.coord_bits);
+            let (cz, wz) = axis(v[2], l.res, self.coord_bits);
+            let (ax, ay, az) = (
+                [one - wx as i32, wx as i32],
+                [one - wy as i32, wy as i32],
+                [one - wz as i32, wz as i32],
+            );
+            let mut acc = [0i32; 16];
+            for corner in 0..8u32 {
+                let (dx, dy, dz) = (corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+                let e = index3(l, cx + dx, cy + dy, cz + dz) as usize * c;
+                let w = ax[dx as usize] * ay[dy as usize] * az[dz as usize];
+                for (a, &s) in acc.iter_mut().zip(&g.grid_3d[e..e + c]) {
+                    *a += w * i32::from(s);
+                }
+            }
+            for (o, a) in out[at..at + c].iter_mut().zip(&acc) {
+                *o = ((a + (1 << (s3 - 1))) >> s3) as i16;
+            }
+            at += c;
+        }
+        for (&(pa, pb), tensor) in PLANES.iter().zip([&g.grid_xy, &g.grid_xz, &g.grid_yz]) {
+            for l in &self.l2 {
+                let (ci, wi) = axis(v[pa], l.res, self.coord_bits);
+                let (cj, wj) = axis(v[pb], l.res, self.coord_bits);
+                let (ai, aj) = ([one - wi as i32, wi as i32], [one - wj as i32, wj as i32]);
+                let mut acc = [0i32; 16];
+                for corner in 0..4u32 {
+                    let (di, dj) = (corner & 1, corner >> 1);
+                    let e = index2(l, ci + di, cj + dj) as usize * c;
+                    let w = ai[di as usize] * aj[dj as usize];
+                    for (a, &s) in acc.iter_mut().zip(&tensor[e..e + c]) {
+                        *a += w * i32::from(s);
+                    }
+                }
+                for (o, a) in out[at..at + c].iter_mut().zip(&acc) {
+                    *o = ((a + (1 << (s2 - 1))) >> s2) as i16;
+                }
+                at += c;
+            }
         }
     }
 
