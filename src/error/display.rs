@@ -1,0 +1,236 @@
+//! The hand-written messages of [`Error`]: the rule broken, the values, then the section.
+
+use std::fmt;
+
+use super::{Error, IoOp};
+
+/// Writes a multi-dimensional index as `[i, j, k]`.
+struct Index<'a>(&'a [u64]);
+
+impl fmt::Display for Index<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("[")?;
+        for (i, v) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            write!(f, "{v}")?;
+        }
+        f.write_str("]")
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use Error::*;
+        match self {
+            SignatureMismatch { found } => write!(
+                f,
+                "file signature: not a SALVQ stream (first bytes {:02x?})",
+                found
+            )?,
+            Truncated {
+                structure,
+                needed,
+                available,
+            } => write!(
+                f,
+                "{structure}: stream truncated ({needed} bytes needed, {available} available)"
+            )?,
+            UnsupportedMajorVersion { found, supported } => write!(
+                f,
+                "file signature: format major version {found} is not supported (this decoder implements major {supported})"
+            )?,
+            UnsupportedMinorVersion {
+                major,
+                found,
+                supported,
+            } => write!(
+                f,
+                "file signature: draft format {major}.{found} is not supported (a major-0 decoder reads only its own minor, {major}.{supported})"
+            )?,
+            ReservedBitsSet { field, value } => write!(
+                f,
+                "{}: reserved bits are set (value 0x{value:x})",
+                field.spec_name()
+            )?,
+            ChunkLengthPastEnd {
+                tag,
+                length,
+                available,
+            } => write!(
+                f,
+                "chunk {tag}: length {length} runs past the end of the stream ({available} bytes left)"
+            )?,
+            ChunkCrcMismatch {
+                tag,
+                stored,
+                computed,
+            } => write!(
+                f,
+                "chunk {tag}: CRC-32C mismatch (stored 0x{stored:08x}, computed 0x{computed:08x})"
+            )?,
+            ChunkTagInvalid { tag } => write!(
+                f,
+                "chunk tag {:02x?}: bytes must be ASCII letters (first) or letters and digits",
+                tag
+            )?,
+            UnknownCriticalChunk { tag } => write!(f, "chunk {tag}: unknown critical chunk")?,
+            ChunkOrder { found, expected } => write!(
+                f,
+                "chunk {found}: out of order (the next critical chunk must be {expected})"
+            )?,
+            TrailingData { bytes } => {
+                write!(f, "stream: {bytes} bytes follow the SEND chunk")?
+            }
+            ChunkSizeMismatch {
+                tag,
+                expected,
+                found,
+            } => write!(
+                f,
+                "chunk {tag}: payload is {found} bytes, the header implies {expected}"
+            )?,
+            UnknownCodingMethod { tag, method } => {
+                write!(f, "chunk {tag}: unknown coding method {method}")?
+            }
+            FieldOutOfRange {
+                field,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "{}: value {value} is outside {min}..={max}",
+                field.spec_name()
+            )?,
+            DecodedSizeMismatch { stated, computed } => write!(
+                f,
+                "HEAD: decoded_bytes is {stated}, the dimensions imply {computed}"
+            )?,
+            LimitExceeded {
+                limit,
+                requested,
+                allowed,
+            } => write!(
+                f,
+                "limits: {limit} of {requested} exceeds the decoder limit {allowed}"
+            )?,
+            PaddingBitsSet { tag } => write!(f, "chunk {tag}: padding bits are not zero")?,
+            CoordinateOutOfRange {
+                anchor,
+                axis,
+                value,
+                coord_bits,
+            } => write!(
+                f,
+                "anchor.voxel[{anchor}, {axis}]: coordinate {value} does not fit in coord_bits = {coord_bits}"
+            )?,
+            AnchorOrder { anchor } => write!(
+                f,
+                "anchor.voxel[{anchor}]: Morton code is smaller than the previous anchor's (anchors must be in Morton order)"
+            )?,
+            AnsStreamInvalid { tag, fault } => {
+                write!(f, "chunk {tag}: entropy-coded data invalid: {}", fault.describe())?
+            }
+            EscapeOverflow {
+                tag,
+                symbol,
+                prefix_bits,
+            } => write!(
+                f,
+                "chunk {tag}: symbol {symbol}: escape prefix of {prefix_bits} bits exceeds the maximum"
+            )?,
+            ScaleIndexOutOfRange {
+                tag,
+                symbol,
+                scale_index,
+                max,
+            } => write!(
+                f,
+                "chunk {tag}: symbol {symbol}: scale index {scale_index} is outside 0..={max}"
+            )?,
+            QuantizerUnsupported { tensor } => write!(
+                f,
+                "{tensor}: format 0.2 codes anchors with the identity basis only (lattice bases come with §7)"
+            )?,
+            NonFiniteValue { tensor, index } => {
+                write!(f, "{tensor}{}: value is not finite", Index(index))?
+            }
+            ValueNotPositive {
+                tensor,
+                index,
+                value,
+            } => write!(f, "{tensor}{}: value {value} must be > 0", Index(index))?,
+            ValueInvalid {
+                tensor,
+                index,
+                value,
+                allowed,
+            } => write!(
+                f,
+                "{tensor}{}: value {value} is not allowed (allowed: {allowed})",
+                Index(index)
+            )?,
+            InterchangeFormat { detail } => {
+                write!(f, "model file: not a valid safetensors file ({detail})")?
+            }
+            TensorMissing { tensor } => write!(f, "{tensor}: required tensor is missing")?,
+            TensorUnexpected { name } => {
+                write!(f, "{name}: tensor is not part of the model schema")?
+            }
+            TensorDtype {
+                tensor,
+                expected,
+                found,
+            } => write!(f, "{tensor}: dtype is {found}, expected {expected}")?,
+            TensorRank {
+                tensor,
+                expected,
+                found,
+            } => write!(f, "{tensor}: has {found} dimensions, expected {expected}")?,
+            TensorShape {
+                tensor,
+                expected,
+                found,
+            } => write!(
+                f,
+                "{tensor}: shape is {}, expected {}",
+                Index(found),
+                Index(expected)
+            )?,
+            BasisSingular { tensor, index } => write!(
+                f,
+                "{tensor}[{index}]: singular value is zero (the lattice basis is singular)"
+            )?,
+            BasisIllConditioned {
+                tensor,
+                condition,
+                max,
+            } => write!(
+                f,
+                "{tensor}: lattice basis condition number {condition:.3e} exceeds {max:.0e}"
+            )?,
+            BasisNotOrthogonal {
+                tensor,
+                index,
+                deviation,
+                tolerance,
+            } => write!(
+                f,
+                "{tensor}: not orthogonal, (M^T M - I)[{}, {}] = {deviation:.3e} exceeds {tolerance:.0e}",
+                index[0], index[1]
+            )?,
+            Io { op, path, kind } => {
+                let verb = match op {
+                    IoOp::Read => "cannot read",
+                    IoOp::Write => "cannot write",
+                    IoOp::CreateTemp => "cannot create a temporary file beside",
+                    IoOp::Rename => "cannot move the finished file to",
+                };
+                write!(f, "{verb} {}: {kind}", path.display())?
+            }
+        }
+        write!(f, " [{}]", self.spec_section())
+    }
+}

@@ -1,0 +1,242 @@
+//! Decoder errors inside payloads (spec §1.6, §2, §5, §6), and exhaustive truncation and
+//! bit-flip sweeps that must never panic.
+
+mod common;
+
+use common::*;
+use salvq::container::chunk::ChunkTag;
+use salvq::error::Field;
+use salvq::{decode, decode_with_limits, Error, Limits};
+
+fn err(stream: &[u8]) -> Error {
+    decode(stream).expect_err("stream must be rejected")
+}
+
+#[test]
+fn padding_bits_set() {
+    // GRID holds C bits per touched entry: find a scene whose count leaves padding bits.
+    let (model, stream) = (14..40)
+        .map(|n| {
+            salvq::gen::generate(&salvq::gen::GenParams {
+                feat_basis: false,
+                ..salvq::gen::GenParams::small(n, 1)
+            })
+        })
+        .find_map(|m| {
+            let layout = salvq::hyperprior::GridLayout::new(&m.dims, m.coord_bits());
+            let touched =
+                layout.touched(&m.anchors.voxel, m.dims.entries_3d(), m.dims.entries_2d());
+            let bits: usize = touched
+                .iter()
+                .map(|t| t.iter().filter(|&&u| u).count())
+                .sum::<usize>()
+                * usize::from(m.dims.grid_channels);
+            (bits % 8 != 0).then(|| {
+                let s = salvq::encode(&m).unwrap();
+                (m, s)
+            })
+        })
+        .expect("a scene with padding bits");
+    assert!(decode(&stream).is_ok(), "{} anchors", model.n());
+    let s = edit_payload(&stream, ChunkTag::GRID, |p| *p.last_mut().unwrap() |= 0x80);
+    assert_eq!(
+        err(&s),
+        Error::PaddingBitsSet {
+            tag: ChunkTag::GRID
+        }
+    );
+}
+
+#[test]
+fn coordinate_out_of_range() {
+    let s = small_stream();
+    let coord_bits = small_model().coord_bits();
+    let s = edit_payload(&s, ChunkTag::APOS, |p| {
+        let last = p.len() - 4;
+        p[last..].copy_from_slice(&(1u32 << coord_bits).to_le_bytes());
+    });
+    assert!(matches!(
+        err(&s),
+        Error::CoordinateOutOfRange {
+            anchor: 12,
+            axis: 2,
+            ..
+        }
+    ));
+}
+
+#[test]
+fn anchor_order() {
+    let model = small_model();
+    let s = edit_payload(&small_stream(), ChunkTag::APOS, |p| {
+        // Swap anchors 0 and 12 (different voxels, so their Morton codes differ).
+        let (a, b) = (1, 1 + 12 * 12);
+        for i in 0..12 {
+            p.swap(a + i, b + i);
+        }
+    });
+    assert_ne!(model.anchors.voxel[0], model.anchors.voxel[12]);
+    assert!(matches!(err(&s), Error::AnchorOrder { .. }));
+}
+
+#[test]
+fn non_finite_values() {
+    // MLPS: method byte, 2 + Cout shift bytes, the integer context MLP, then f32 Scaffold-GS MLPs.
+    let d = small_model().dims;
+    let (cin, h, cout) = (
+        d.context_input(),
+        u64::from(d.context_hidden),
+        d.context_output(),
+    );
+    let scaffold = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize;
+    let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| {
+        p[scaffold + 4..scaffold + 8].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    });
+    assert_eq!(
+        err(&s),
+        Error::NonFiniteValue {
+            tensor: "mlp_opacity.0.weight",
+            index: vec![0, 1]
+        }
+    );
+    // origin.x is HEAD bytes 24..28.
+    let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
+        p[24..28].copy_from_slice(&f32::NAN.to_le_bytes());
+    });
+    assert_eq!(
+        err(&s),
+        Error::NonFiniteValue {
+            tensor: "geometry.origin",
+            index: vec![0]
+        }
+    );
+}
+
+#[test]
+fn values_not_positive() {
+    // QUAN: method byte, then quant.feat.step.
+    let s = edit_payload(&small_stream(), ChunkTag::QUAN, |p| {
+        p[1..5].copy_from_slice(&0f32.to_le_bytes());
+    });
+    assert!(matches!(
+        err(&s),
+        Error::ValueNotPositive {
+            tensor: "quant.feat.step",
+            ..
+        }
+    ));
+    let s = edit_payload(&small_stream(), ChunkTag::QUAN, |p| {
+        p[9..13].copy_from_slice(&(-1f32).to_le_bytes());
+    });
+    assert_eq!(
+        err(&s),
+        Error::ValueNotPositive {
+            tensor: "quant.feat.gains",
+            index: vec![1],
+            value: -1.0
+        }
+    );
+    // voxel_size is HEAD bytes 36..40.
+    let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
+        p[36..40].copy_from_slice(&0f32.to_le_bytes());
+    });
+    assert!(matches!(
+        err(&s),
+        Error::ValueNotPositive {
+            tensor: "geometry.voxel_size",
+            ..
+        }
+    ));
+}
+
+#[test]
+fn corrupt_entropy_coded_words() {
+    // A flipped bit inside AFEA's words (CRC recomputed): decoding goes astray and the end
+    // checks of §6.2 catch it (or an escape overflows); never a panic.
+    for byte in [5usize, 9, 17] {
+        let s = edit_payload(&small_stream(), ChunkTag::AFEA, |p| {
+            let at = byte.min(p.len() - 1);
+            p[at] ^= 0x40
+        });
+        assert!(
+            matches!(
+                err(&s),
+                Error::AnsStreamInvalid { .. } | Error::EscapeOverflow { .. }
+            ),
+            "byte {byte}: {}",
+            err(&s)
+        );
+    }
+    // Words dropped from the end: the coder runs out or ends in the wrong state.
+    let s = edit_payload(&small_stream(), ChunkTag::AOFF, |p| p.truncate(p.len() - 4));
+    assert!(matches!(
+        err(&s),
+        Error::AnsStreamInvalid {
+            tag: ChunkTag::AOFF,
+            ..
+        }
+    ));
+    // A body that is not whole words.
+    let s = edit_payload(&small_stream(), ChunkTag::ASCL, |p| {
+        p.pop();
+    });
+    assert!(matches!(
+        err(&s),
+        Error::AnsStreamInvalid {
+            tag: ChunkTag::ASCL,
+            fault: salvq::error::AnsFault::Framing
+        }
+    ));
+}
+
+#[test]
+fn mlp_shift_out_of_range() {
+    let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| p[1] = 31);
+    assert!(matches!(
+        err(&s),
+        Error::FieldOutOfRange {
+            field: Field::W0FracBits,
+            value: 31,
+            ..
+        }
+    ));
+}
+
+#[test]
+fn coded_rate_out_of_range() {
+    // coded_rate is HEAD byte 23; the small model has 2 rates.
+    let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| p[23] = 2);
+    assert_eq!(
+        err(&s),
+        Error::FieldOutOfRange {
+            field: Field::CodedRate,
+            value: 2,
+            min: 0,
+            max: 1
+        }
+    );
+}
+
+#[test]
+fn every_truncation_is_an_error_not_a_panic() {
+    let s = small_stream();
+    for len in 0..s.len() {
+        assert!(decode(&s[..len]).is_err(), "prefix of {len} bytes decoded");
+    }
+}
+
+#[test]
+fn every_single_bit_flip_is_rejected_without_panic() {
+    let s = small_stream();
+    let mut accepted = 0;
+    for i in 0..s.len() * 8 {
+        let mut t = s.clone();
+        t[i / 8] ^= 1 << (i % 8);
+        if decode_with_limits(&t, &Limits::tight()).is_ok() {
+            accepted += 1;
+        }
+    }
+    // Every byte is covered by the signature checks, a CRC, or a length whose change breaks
+    // framing; only flips of the case bit in an ancillary tag could pass, and there is none.
+    assert_eq!(accepted, 0);
+}
