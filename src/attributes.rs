@@ -55,6 +55,58 @@ pub fn read_masks(payload: &[u8], d: &Dims, tables: &GaussianTables) -> Result<V
     Ok(mask)
 }
 
+/// The priors of a block of anchors: context MLP outputs, scale indices of every value
+/// (masked offsets included), and the three group steps.
+struct PriorBlock {
+    ys: Vec<i32>,
+    ks: Vec<u8>,
+    deltas: Vec<[f32; 3]>,
+}
+
+impl PriorBlock {
+    /// Computes the block's priors in parallel: every anchor's values are independent of the
+    /// others and of the symbols, so the result does not depend on the thread count.
+    fn fill(
+        &mut self,
+        prior: &Prior,
+        grid: &HashGrid,
+        voxels: &[[u32; 3]],
+        (f, s, k): (usize, usize, usize),
+    ) {
+        let cout = prior.mlp.cout;
+        let width = f + s + 3 * k;
+        let m = voxels.len();
+        self.ys[..m * cout]
+            .par_chunks_mut(cout.max(1))
+            .zip(self.ks[..m * width].par_chunks_mut(width.max(1)))
+            .zip(self.deltas[..m].par_iter_mut())
+            .zip(voxels.par_iter())
+            .for_each_init(
+                || prior.context(),
+                |ctx, (((y, kk), delta), &v)| {
+                    prior.eval(grid, v, ctx);
+                    y.copy_from_slice(&ctx.y);
+                    let mut at = 0;
+                    for (gi, (g, w)) in [
+                        (Group::Feature, f),
+                        (Group::Scaling, s),
+                        (Group::Offsets, 3 * k),
+                    ]
+                    .into_iter()
+                    .enumerate()
+                    {
+                        let step = prior.step(y, g);
+                        delta[gi] = step.delta;
+                        for j in 0..w {
+                            kk[at + j] = prior.scale_index(y, g, j, &step);
+                        }
+                        at += w;
+                    }
+                },
+            );
+    }
+}
+
 /// The decoded attributes: features [N, F], scalings [N, S], offsets [N, K, 3].
 pub struct Attributes {
     pub feat: Vec<f32>,
@@ -99,67 +151,62 @@ pub fn read_attributes(
     const BLOCK: usize = 2048;
     let cout = prior.mlp.cout;
     let width = f + s + 3 * k;
-    let mut ys = vec![0i32; BLOCK.min(n) * cout];
-    let mut ks = vec![0u8; BLOCK.min(n) * width];
-    let mut deltas = vec![[0f32; 3]; BLOCK.min(n)];
-    for (block, voxels) in voxels[..n.min(voxels.len())].chunks(BLOCK).enumerate() {
-        let m = voxels.len();
-        ys[..m * cout]
-            .par_chunks_mut(cout.max(1))
-            .zip(ks[..m * width].par_chunks_mut(width.max(1)))
-            .zip(deltas[..m].par_iter_mut())
-            .zip(voxels.par_iter())
-            .for_each_init(
-                || prior.context(),
-                |ctx, (((y, kk), delta), &v)| {
-                    prior.eval(grid, v, ctx);
-                    y.copy_from_slice(&ctx.y);
-                    let mut at = 0;
-                    for (gi, (g, w)) in [
-                        (Group::Feature, f),
-                        (Group::Scaling, s),
-                        (Group::Offsets, 3 * k),
-                    ]
-                    .into_iter()
-                    .enumerate()
-                    {
-                        let step = prior.step(y, g);
-                        delta[gi] = step.delta;
+    let blocks: Vec<&[[u32; 3]]> = voxels[..n.min(voxels.len())].chunks(BLOCK).collect();
+    let new_block = || PriorBlock {
+        ys: vec![0i32; BLOCK.min(n) * cout],
+        ks: vec![0u8; BLOCK.min(n) * width],
+        deltas: vec![[0f32; 3]; BLOCK.min(n)],
+    };
+    let (mut current, mut next) = (new_block(), new_block());
+    let dims = (f, s, k);
+    if let Some(first) = blocks.first() {
+        current.fill(prior, grid, first, dims);
+    }
+    // Pipeline: while one thread reads block b's symbols, the others compute block b + 1's
+    // priors. Symbols are still read in order, so errors are reported as §6.6.2 says.
+    for (bi, block) in blocks.iter().enumerate() {
+        let upcoming = blocks.get(bi + 1);
+        let (_, decoded) = rayon::join(
+            || {
+                if let Some(vs) = upcoming {
+                    next.fill(prior, grid, vs, dims);
+                }
+            },
+            || -> Result<()> {
+                for b in 0..block.len() {
+                    let i = bi * BLOCK + b;
+                    let y = &current.ys[b * cout..(b + 1) * cout];
+                    let kk = &current.ks[b * width..(b + 1) * width];
+                    let delta = current.deltas[b];
+                    for (g, w, at, dst) in [
+                        (Group::Feature, f, 0, &mut out.feat),
+                        (Group::Scaling, s, f, &mut out.scaling),
+                    ] {
+                        let reader = &mut readers[g as usize];
                         for j in 0..w {
-                            kk[at + j] = prior.scale_index(y, g, j, &step);
+                            let u = reader.symbol(kk[at + j])?;
+                            dst.push(prior.reconstruct(y, g, j, delta[g as usize], u));
                         }
-                        at += w;
                     }
-                },
-            );
-        for b in 0..m {
-            let i = block * BLOCK + b;
-            let y = &ys[b * cout..(b + 1) * cout];
-            let kk = &ks[b * width..(b + 1) * width];
-            for (g, w, at, dst) in [
-                (Group::Feature, f, 0, &mut out.feat),
-                (Group::Scaling, s, f, &mut out.scaling),
-            ] {
-                let reader = &mut readers[g as usize];
-                for j in 0..w {
-                    let u = reader.symbol(kk[at + j])?;
-                    dst.push(prior.reconstruct(y, g, j, deltas[b][g as usize], u));
+                    let reader = &mut readers[2];
+                    for slot in 0..k {
+                        if masks[i * k + slot] == 0 {
+                            out.offsets.extend_from_slice(&[0.0; 3]);
+                            continue;
+                        }
+                        for c in 0..3 {
+                            let j = 3 * slot + c;
+                            let u = reader.symbol(kk[f + s + j])?;
+                            out.offsets
+                                .push(prior.reconstruct(y, Group::Offsets, j, delta[2], u));
+                        }
+                    }
                 }
-            }
-            let reader = &mut readers[2];
-            for slot in 0..k {
-                if masks[i * k + slot] == 0 {
-                    out.offsets.extend_from_slice(&[0.0; 3]);
-                    continue;
-                }
-                for c in 0..3 {
-                    let j = 3 * slot + c;
-                    let u = reader.symbol(kk[f + s + j])?;
-                    out.offsets
-                        .push(prior.reconstruct(y, Group::Offsets, j, deltas[b][2], u));
-                }
-            }
-        }
+                Ok(())
+            },
+        );
+        decoded?;
+        std::mem::swap(&mut current, &mut next);
     }
     for r in readers {
         r.finish()?;
