@@ -43,32 +43,17 @@ pub fn round_shift(acc: i32, s: u8) -> i32 {
     }
 }
 
-/// Wrapping dot product of i16 vectors in i32 (spec §5.3: sums are modulo 2^32).
-///
-/// Sums modulo 2^32 do not depend on the order of their terms, so both forms below give the
-/// sequential result exactly; they differ only in the code the compiler makes of them. On the
-/// baseline x86-64 target, eight independent lanes vectorise best (measured by
-/// `benches/decode_throughput`); with AVX2 the plain fold does.
-#[cfg(not(target_feature = "avx2"))]
+/// Wrapping dot product of i16 vectors in i32 (spec §5.3: sums are modulo 2^32, so the
+/// order of the terms does not matter). On x86-64 it is SSE2's multiply-add
+/// ([`super::simd::dot`], the crate's one isolated `unsafe`); elsewhere the plain fold.
+#[cfg(target_arch = "x86_64")]
 #[inline]
 fn dot(w: &[i16], x: &[i16]) -> i32 {
-    let n = w.len().min(x.len());
-    let (wb, wt) = w[..n].split_at(n / 8 * 8);
-    let (xb, xt) = x[..n].split_at(n / 8 * 8);
-    let mut lanes = [0i32; 8];
-    for (a, b) in wb.chunks_exact(8).zip(xb.chunks_exact(8)) {
-        for i in 0..8 {
-            lanes[i] = lanes[i].wrapping_add(i32::from(a[i]) * i32::from(b[i]));
-        }
-    }
-    let tail = wt.iter().zip(xt).fold(0i32, |acc, (&w, &x)| {
-        acc.wrapping_add(i32::from(w) * i32::from(x))
-    });
-    lanes.iter().fold(tail, |acc, &l| acc.wrapping_add(l))
+    super::simd::dot(w, x)
 }
 
-/// See the baseline version above.
-#[cfg(target_feature = "avx2")]
+/// See the x86-64 version.
+#[cfg(not(target_arch = "x86_64"))]
 #[inline]
 fn dot(w: &[i16], x: &[i16]) -> i32 {
     w.iter().zip(x).fold(0i32, |a, (&w, &x)| {

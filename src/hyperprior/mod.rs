@@ -6,6 +6,7 @@
 pub mod grid;
 pub mod mlp;
 pub mod prior;
+mod simd;
 pub mod step;
 
 pub use grid::GridLayout;

@@ -140,7 +140,15 @@ impl Prior {
     pub fn scale_index(&self, y: &[i32], g: Group, j: usize, step: &GroupStep) -> u8 {
         let o = self.scale_at[g as usize] + j;
         let lifted = (y[o].max(1) as u64) << self.lift[o];
-        step.y_thresholds.partition_point(|&t| t <= lifted) as u8
+        // The number of thresholds <= lifted, by a branch-free binary search (the thresholds
+        // increase; the comparisons become conditional moves, with no mispredictions).
+        let t = &step.y_thresholds;
+        let mut k = 0usize;
+        for half in [32usize, 16, 8, 4, 2, 1] {
+            let probe = k + half - 1;
+            k += half * usize::from(probe < t.len() && t[probe] <= lifted);
+        }
+        k as u8
     }
 
     /// §5.5: reconstruction of value `j` of group `g` from its symbol.

@@ -146,11 +146,22 @@ impl BaseStep {
     }
 }
 
+/// §5.5 step 1: the mean in binary32, μ = y 2^-frac rounded once.
+#[inline]
+pub fn mean_f32(y_mean: i32, frac: i32) -> f32 {
+    (f64::from(y_mean) * super::mlp::pow2(-frac)) as f32
+}
+
+/// §5.5 steps 3-4: μ + Δ u in binary32, given μ from [`mean_f32`].
+#[inline]
+pub fn reconstruct_from(mu: f32, delta: f32, u: i64) -> f32 {
+    mu + delta * (u as f32)
+}
+
 /// §5.5: reconstruction of one attribute value in binary32: μ + Δ u, with μ = y 2^-frac.
 #[inline]
 pub fn reconstruct(y_mean: i32, frac: i32, delta: f32, u: i64) -> f32 {
-    let mu = (f64::from(y_mean) * super::mlp::pow2(-frac)) as f32;
-    mu + delta * (u as f32)
+    reconstruct_from(mean_f32(y_mean, frac), delta, u)
 }
 
 #[cfg(test)]
