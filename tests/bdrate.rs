@@ -1,7 +1,7 @@
 //! BD-rate / BD-PSNR against the values the PyPI package `bjontegaard` 1.3.0 computed
 //! (`shared/reference/bdrate_cases.csv`, inputs in `bdrate_inputs.csv`; see the "Expected BD
-//! values" section of `shared/reference/README.md`). The reference folder sits beside the
-//! repository; a missing file fails the test.
+//! values" section of `shared/reference/README.md`). Byte-identical copies live in
+//! `tests/data/reference/` (checked by SHA-256 below) so a fresh clone can run the test.
 
 use std::collections::HashMap;
 
@@ -9,12 +9,35 @@ use salvq::bdrate::{bd_psnr, bd_rate, overlap, Curve, Interpolation};
 
 const INPUTS: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../shared/reference/bdrate_inputs.csv"
+    "/tests/data/reference/bdrate_inputs.csv"
 );
 const CASES: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../shared/reference/bdrate_cases.csv"
+    "/tests/data/reference/bdrate_cases.csv"
 );
+
+/// The copies are the shared reference files byte for byte (shared/reference/SHA256SUMS).
+#[test]
+fn reference_copies_are_byte_identical() {
+    use sha2::{Digest, Sha256};
+    for (path, want) in [
+        (
+            CASES,
+            "603031876244f29708f03fc08ef658e029a2747a8099ef304e18194b6f22c9a7",
+        ),
+        (
+            INPUTS,
+            "4348c04f5714d6bd1d2f1ceacdf6e0386291fe12fc1e35c58e6e6cf527206c34",
+        ),
+    ] {
+        let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
+        let got: String = Sha256::digest(&bytes)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        assert_eq!(got, want, "{path}");
+    }
+}
 
 /// Number of cases (each computed with all three methods).
 const N_CASES: usize = 11;
@@ -23,8 +46,8 @@ const N_CASES: usize = 11;
 fn read_csv(path: &str) -> Vec<HashMap<String, String>> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| {
         panic!(
-            "cannot read {path}: {e}. The reference data must be at ../shared/reference \
-             beside the repository (the `shared` folder next to the checkout)."
+            "cannot read {path}: {e} (tests/data/reference holds copies of \
+             shared/reference/bdrate_*.csv)"
         )
     });
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
