@@ -201,7 +201,7 @@ pub fn generate(p: &GenParams) -> SceneModel {
     let quant_scaling = quant::group(
         seed,
         1,
-        quant::STEP_SCALING,
+        linalg::round_f32(quant::STEP_SCALING_PER_VOXEL * voxel),
         p.rates,
         SCALING_DIM.into(),
         p.scaling_basis,

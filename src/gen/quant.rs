@@ -5,10 +5,13 @@ use super::linalg::{orthogonal, round_f32};
 use super::rng::{tag, Stream};
 use crate::model::{Basis, GroupQuantizer};
 
-/// HAC's base steps: features 1, scalings 0.001 (world units), offsets 0.2.
+/// HAC's base steps: features 1, offsets 0.2 (in units of the anchor's scaling).
 pub const STEP_FEAT: f32 = 1.0;
-pub const STEP_SCALING: f32 = 0.001;
 pub const STEP_OFFSETS: f32 = 0.2;
+/// The scaling step in voxels: HAC's absolute 0.001 is about a tenth of its scenes' scalings
+/// (which are ~0.74 voxel, calibration); a step relative to the voxel keeps that ratio, and
+/// so about 7 steps per predicted sigma, at every scene size.
+pub const STEP_SCALING_PER_VOXEL: f64 = 0.1;
 /// g_0 = 1, g_i = g_(i-1) * GAIN_RATIO * (1 + U[-GAIN_JITTER, GAIN_JITTER)).
 pub const GAIN_RATIO: f64 = 1.5;
 pub const GAIN_JITTER: f64 = 0.05;

@@ -318,7 +318,7 @@ fn quantizers_are_as_documented() {
             m.quant_scaling.step,
             m.quant_offsets.step
         ),
-        (1.0, 0.001, 0.2)
+        (1.0, (0.1 * f64::from(m.voxel_size)) as f32, 0.2)
     );
     for q in [&m.quant_feat, &m.quant_scaling, &m.quant_offsets] {
         assert_eq!(q.gains[0], 1.0);

@@ -59,8 +59,8 @@ fn golden_digests() {
     assert_eq!(small, GOLDEN_SMALL_500_7);
     assert_eq!(hac, GOLDEN_NEW_2000_1);
 }
-const GOLDEN_SMALL_500_7: &str = "6af0bc63e36137e975b596d5547fd4c2b909f3274076e18ace311e6e35b91b8b";
-const GOLDEN_NEW_2000_1: &str = "f89225bba1d1c870c7cefdeca442d12c2b0db58cbe33c5c5817c28849f821480";
+const GOLDEN_SMALL_500_7: &str = "3ebee4c1b84b971fe8bcb2e45f918c716800bf854658821259f62138c49c1c84";
+const GOLDEN_NEW_2000_1: &str = "f023161b2ed597539fca512f23705433c5435b47fb82cee34cd84aeeb29d38d7";
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
     std::env::var(name).ok().and_then(|s| s.parse().ok())
