@@ -10,39 +10,10 @@ use crate::model::SceneModel;
 /// Smallest probability the float model assigns (as HAC's likelihood lower bound).
 const P_MIN: f64 = 1e-9;
 
-/// erfc(x) with relative error < 1.2e-7 (Numerical Recipes `erfcc`, Chebyshev fit).
-pub fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let poly = -z * z - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98
-                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let r = t * poly.exp();
-    if x >= 0.0 {
-        r
-    } else {
-        2.0 - r
-    }
-}
-
-/// P(u) of the Gaussian N(0, sigma^2) convolved with the unit uniform, at integer u.
-pub fn discretized_gaussian(u: f64, sigma: f64) -> f64 {
-    let s = std::f64::consts::SQRT_2 * sigma;
-    let (a, b) = ((u - 0.5) / s, (u + 0.5) / s);
-    // Evaluate on the side where erfc keeps its precision.
-    let p = if a >= 0.0 {
-        0.5 * (erfc(a) - erfc(b))
-    } else if b <= 0.0 {
-        0.5 * (erfc(-b) - erfc(-a))
-    } else {
-        1.0 - 0.5 * (erfc(-a) + erfc(b))
-    };
-    p.max(P_MIN)
+/// P(u) of the Gaussian N(0, sigma^2) convolved with the unit uniform, at integer u, floored
+/// at HAC's likelihood bound.
+fn discretized_gaussian(u: f64, sigma: f64) -> f64 {
+    crate::entropy::analysis::discretized_gaussian(u as i64, sigma).max(P_MIN)
 }
 
 /// The float model of one stream: interpolation, MLP weights in f64, base steps.
@@ -123,25 +94,5 @@ impl FloatAnchor<'_> {
         let sigma = self.y[p.scale_at[gi] + j].max(1e-9);
         let u = ((f64::from(x) - mu) / delta).round();
         -discretized_gaussian(u, sigma / delta).log2()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn discretized_gaussian_sums_to_one() {
-        for sigma in [0.1, 0.7, 3.0, 20.0] {
-            let total: f64 = (-200..=200)
-                .map(|u| discretized_gaussian(f64::from(u), sigma))
-                .sum();
-            assert!(
-                (total - 1.0).abs() < 1e-5 + 401.0 * P_MIN,
-                "sigma {sigma}: {total}"
-            );
-        }
-        assert!((erfc(0.0) - 1.0).abs() < 1e-7);
-        assert!((erfc(1.0) - 0.157_299_207_050_285_1).abs() < 1e-7);
     }
 }
