@@ -65,12 +65,15 @@ struct PriorBlock {
 
 impl PriorBlock {
     /// Computes the block's priors in parallel: every anchor's values are independent of the
-    /// others and of the symbols, so the result does not depend on the thread count.
+    /// others and of the symbols, so the result does not depend on the thread count. Scale
+    /// indices of offsets whose mask (`masks`, K per anchor of the block) is 0 are not needed
+    /// and are left as they were.
     fn fill(
         &mut self,
         prior: &Prior,
         grid: &HashGrid,
         voxels: &[[u32; 3]],
+        masks: &[u8],
         (f, s, k): (usize, usize, usize),
     ) {
         let cout = prior.mlp.cout;
@@ -81,26 +84,26 @@ impl PriorBlock {
             .zip(self.ks[..m * width].par_chunks_mut(width.max(1)))
             .zip(self.deltas[..m].par_iter_mut())
             .zip(voxels.par_iter())
+            .zip(masks.par_chunks(k.max(1)))
             .for_each_init(
                 || prior.context(),
-                |ctx, (((y, kk), delta), &v)| {
-                    prior.eval(grid, v, ctx);
-                    y.copy_from_slice(&ctx.y);
-                    let mut at = 0;
-                    for (gi, (g, w)) in [
-                        (Group::Feature, f),
-                        (Group::Scaling, s),
-                        (Group::Offsets, 3 * k),
-                    ]
-                    .into_iter()
-                    .enumerate()
+                |ctx, ((((y, kk), delta), &v), mask)| {
+                    prior.eval_into(grid, v, ctx, y);
+                    for (gi, (g, w)) in [(Group::Feature, f), (Group::Scaling, s)]
+                        .into_iter()
+                        .enumerate()
                     {
                         let step = prior.step(y, g);
                         delta[gi] = step.delta;
-                        for j in 0..w {
-                            kk[at + j] = prior.scale_index(y, g, j, &step);
-                        }
-                        at += w;
+                        let at = gi * f;
+                        prior.scale_indices(y, g, 0, &step, &mut kk[at..at + w]);
+                    }
+                    let step = prior.step(y, Group::Offsets);
+                    delta[2] = step.delta;
+                    for (slot, _) in mask.iter().enumerate().filter(|(_, &m)| m != 0) {
+                        let at = f + s + 3 * slot;
+                        let out = &mut kk[at..at + 3];
+                        prior.scale_indices(y, Group::Offsets, 3 * slot, &step, out);
                     }
                 },
             );
@@ -160,7 +163,7 @@ pub fn read_attributes(
     let (mut current, mut next) = (new_block(), new_block());
     let dims = (f, s, k);
     if let Some(first) = blocks.first() {
-        current.fill(prior, grid, first, dims);
+        current.fill(prior, grid, first, &masks[..first.len() * k], dims);
     }
     // Pipeline: while one thread reads block b's symbols, the others compute block b + 1's
     // priors. Symbols are still read in order, so errors are reported as §6.6.2 says.
@@ -169,7 +172,8 @@ pub fn read_attributes(
         let (_, decoded) = rayon::join(
             || {
                 if let Some(vs) = upcoming {
-                    next.fill(prior, grid, vs, dims);
+                    let start = (bi + 1) * BLOCK * k;
+                    next.fill(prior, grid, vs, &masks[start..start + vs.len() * k], dims);
                 }
             },
             || -> Result<()> {

@@ -177,6 +177,7 @@ impl GaussianTables {
         self.scales[usize::from(k)].radius
     }
     /// The decoding model of scale `k` (panics if `k ≥ SCALE_COUNT`).
+    #[inline]
     pub(crate) fn model(&self, k: u8) -> ScaleModel<'_> {
         let bits = self.precision.min(COARSE_BITS);
         let start = usize::from(k) << bits;

@@ -1,6 +1,8 @@
 //! Hash-grid interpolation in integer arithmetic (spec §5.1) and the set of grid entries that
 //! some anchor touches (§5.2).
 
+use rayon::prelude::*;
+
 use crate::model::{level_entries, Dims, HashGrid};
 
 /// Bits of each per-axis interpolation weight (spec §5.1): weights are in units of 2^-10.
@@ -150,7 +152,18 @@ impl GridLayout {
     /// §5.1: the integer grid features of voxel `v` (units of 2^-8), written to `out`
     /// (length [`GridLayout::features`]) in the order 3D levels, xy, xz, yz levels, C each.
     pub fn interpolate(&self, g: &HashGrid, v: [u32; 3], out: &mut [i16]) {
-        let c = self.channels;
+        // Common channel counts get a copy of the loop with the count a constant, which the
+        // compiler unrolls and vectorises (HAC uses C = 4).
+        match self.channels {
+            2 => self.interpolate_c(2, g, v, out),
+            4 => self.interpolate_c(4, g, v, out),
+            8 => self.interpolate_c(8, g, v, out),
+            c => self.interpolate_c(c, g, v, out),
+        }
+    }
+
+    #[inline(always)]
+    fn interpolate_c(&self, c: usize, g: &HashGrid, v: [u32; 3], out: &mut [i16]) {
         let one = 1i32 << WEIGHT_BITS;
         // §5.1 step 3: round to units of 2^-8 (add half, arithmetic shift). The sums fit i32:
         // the corner weights of a level add up to 2^30 (3D) or 2^20 (2D) and values are ±1.
@@ -202,19 +215,43 @@ impl GridLayout {
         }
     }
 
-    /// §5.2: which entries of each grid tensor (3D, xy, xz, yz) some anchor touches.
+    /// §5.2: which entries of each grid tensor (3D, xy, xz, yz) some anchor touches. The
+    /// anchors are split among the threads and the sets merged: the result is the same for
+    /// every thread count.
     pub fn touched(&self, voxels: &[[u32; 3]], entries_3d: u64, entries_2d: u64) -> [Vec<bool>; 4] {
-        let mut t = [
-            vec![false; entries_3d as usize],
-            vec![false; entries_2d as usize],
-            vec![false; entries_2d as usize],
-            vec![false; entries_2d as usize],
-        ];
-        for &v in voxels {
-            self.corners3(v, |_, e, _| t[0][e as usize] = true);
-            self.corners2(v, |pi, _, e, _| t[pi + 1][e as usize] = true);
-        }
-        t
+        let empty = || {
+            [
+                vec![false; entries_3d as usize],
+                vec![false; entries_2d as usize],
+                vec![false; entries_2d as usize],
+                vec![false; entries_2d as usize],
+            ]
+        };
+        let mark = |voxels: &[[u32; 3]]| {
+            let mut t = empty();
+            for &v in voxels {
+                self.corners3(v, |_, e, _| t[0][e as usize] = true);
+                self.corners2(v, |pi, _, e, _| t[pi + 1][e as usize] = true);
+            }
+            t
+        };
+        // One part per thread (each part costs a set of flags), but small inputs stay whole.
+        let part = voxels
+            .len()
+            .div_ceil(rayon::current_num_threads())
+            .max(16_384);
+        voxels
+            .par_chunks(part.max(1))
+            .map(mark)
+            .reduce_with(|mut a, b| {
+                for (x, y) in a.iter_mut().zip(b) {
+                    for (p, q) in x.iter_mut().zip(y) {
+                        *p |= q;
+                    }
+                }
+                a
+            })
+            .unwrap_or_else(empty)
     }
 }
 

@@ -3,6 +3,8 @@
 
 use super::grid::GridLayout;
 use super::mlp::IntMlp;
+#[cfg(target_arch = "x86_64")]
+use super::simd::avx2::Avx2Mlp;
 use super::step::{factor_index, BaseStep, STEP_FACTOR, THRESHOLDS};
 use crate::entropy::scale::THRESHOLD_Q16;
 use crate::model::{Dims, GroupQuantizer, HashGrid};
@@ -41,6 +43,9 @@ pub struct AnchorContext {
 pub struct Prior {
     pub layout: GridLayout,
     pub mlp: IntMlp,
+    /// The same MLP in the AVX2 kernel's layout, where the CPU has AVX2 (bit-identical).
+    #[cfg(target_arch = "x86_64")]
+    fast: Option<Avx2Mlp>,
     pub steps: [BaseStep; 3],
     /// Output offsets of (mean, scale) per group, and of the three adjustments.
     mean_at: [usize; 3],
@@ -59,7 +64,8 @@ pub struct Prior {
 pub struct GroupStep {
     pub factor: u32,
     pub delta: f32,
-    y_thresholds: [u64; THRESHOLDS],
+    /// The thresholds, then a sentinel u64::MAX that no lifted output reaches.
+    y_thresholds: [u64; THRESHOLDS + 1],
 }
 
 impl Prior {
@@ -90,8 +96,17 @@ impl Prior {
                 lift[o] = (emax[g] - frac[o]) as u32;
             }
         }
+        let layout = GridLayout::new(dims, coord_bits);
+        #[cfg(target_arch = "x86_64")]
+        let fast = if layout.features() == mlp.cin {
+            Avx2Mlp::new(&mlp)
+        } else {
+            None
+        };
         Prior {
-            layout: GridLayout::new(dims, coord_bits),
+            layout,
+            #[cfg(target_arch = "x86_64")]
+            fast,
             frac,
             emax,
             lift,
@@ -104,17 +119,46 @@ impl Prior {
     }
 
     pub fn context(&self) -> AnchorContext {
+        // The kernel reads zero-padded inputs and writes padded hidden scratch.
+        let (mut x_len, mut h_len) = (self.layout.features(), self.mlp.hidden);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = &self.fast {
+            (x_len, h_len) = (x_len.max(k.input_len()), h_len.max(k.hidden_len()));
+        }
         AnchorContext {
-            x: vec![0; self.layout.features()],
-            h: vec![0; self.mlp.hidden],
+            x: vec![0; x_len],
+            h: vec![0; h_len],
             y: vec![0; self.mlp.cout],
         }
     }
 
     /// §5.1 + §5.3: evaluates the anchor at voxel `v` into `ctx.y`.
     pub fn eval(&self, grid: &HashGrid, v: [u32; 3], ctx: &mut AnchorContext) {
-        self.layout.interpolate(grid, v, &mut ctx.x);
-        self.mlp.eval(&ctx.x, &mut ctx.h, &mut ctx.y);
+        let AnchorContext { x, h, y } = ctx;
+        self.eval_parts(grid, v, x, h, y);
+    }
+
+    /// [`Prior::eval`] with the outputs written to `y` (length `cout`) instead of `ctx.y`.
+    pub fn eval_into(&self, grid: &HashGrid, v: [u32; 3], ctx: &mut AnchorContext, y: &mut [i32]) {
+        self.eval_parts(grid, v, &mut ctx.x, &mut ctx.h, y);
+    }
+
+    fn eval_parts(
+        &self,
+        grid: &HashGrid,
+        v: [u32; 3],
+        x: &mut [i16],
+        h: &mut [i16],
+        y: &mut [i32],
+    ) {
+        let n = self.layout.features();
+        self.layout.interpolate(grid, v, &mut x[..n]);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = &self.fast {
+            k.eval(x, h, y);
+            return;
+        }
+        self.mlp.eval(&x[..n], &mut h[..self.mlp.hidden], y);
     }
 
     /// §5.4 step 1: the group's step at this anchor.
@@ -125,7 +169,10 @@ impl Prior {
         GroupStep {
             factor,
             delta: base.delta(factor),
-            y_thresholds: base.y_thresholds(factor, self.emax[g as usize], &THRESHOLD_Q16),
+            y_thresholds: {
+                let t = base.y_thresholds(factor, self.emax[g as usize], &THRESHOLD_Q16);
+                std::array::from_fn(|i| t.get(i).copied().unwrap_or(u64::MAX))
+            },
         }
     }
 
@@ -138,17 +185,37 @@ impl Prior {
     /// §5.4 step 3: the scale index of value `j` of group `g`.
     #[inline]
     pub fn scale_index(&self, y: &[i32], g: Group, j: usize, step: &GroupStep) -> u8 {
-        let o = self.scale_at[g as usize] + j;
-        let lifted = (y[o].max(1) as u64) << self.lift[o];
-        // The number of thresholds <= lifted, by a branch-free binary search (the thresholds
-        // increase; the comparisons become conditional moves, with no mispredictions).
+        let mut k = [0u8];
+        self.scale_indices(y, g, j, step, &mut k);
+        k[0]
+    }
+
+    /// §5.4 step 3 for the values `first .. first + out.len()` of group `g`.
+    #[inline]
+    pub fn scale_indices(
+        &self,
+        y: &[i32],
+        g: Group,
+        first: usize,
+        step: &GroupStep,
+        out: &mut [u8],
+    ) {
+        let o = self.scale_at[g as usize] + first;
+        let (ys, lifts) = (&y[o..o + out.len()], &self.lift[o..o + out.len()]);
         let t = &step.y_thresholds;
-        let mut k = 0usize;
-        for half in [32usize, 16, 8, 4, 2, 1] {
-            let probe = k + half - 1;
-            k += half * usize::from(probe < t.len() && t[probe] <= lifted);
+        for ((k, &yv), &lift) in out.iter_mut().zip(ys).zip(lifts) {
+            // lift <= 30 (Table 5-1 bounds the weight fraction bits) and y < 2^31, so the
+            // lifted value stays below 2^61 < the sentinel.
+            let lifted = (yv.max(1) as u64) << lift;
+            // The number of thresholds <= lifted, by a branch-free binary search over the 63
+            // increasing thresholds and the sentinel (the comparisons become conditional
+            // moves; `& 63` keeps every probe in bounds without a check).
+            let mut c = 0usize;
+            for half in [32usize, 16, 8, 4, 2, 1] {
+                c += half * usize::from(t[(c + half - 1) & 63] <= lifted);
+            }
+            *k = c as u8;
         }
-        k as u8
     }
 
     /// §5.5: reconstruction of value `j` of group `g` from its symbol.
@@ -161,5 +228,44 @@ impl Prior {
     /// Fraction bits E_o of output `o`.
     pub fn frac(&self, o: usize) -> i32 {
         self.frac[o]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encoder::convert::{convert_context_mlp, grid_inputs};
+    use crate::gen::{generate, GenParams};
+
+    /// The SIMD kernel (where this CPU has one) and the portable §5.3 loop give the same
+    /// outputs for every anchor of a generated scene with HAC's dimensions.
+    #[test]
+    fn simd_and_portable_paths_agree_on_a_scene() {
+        let m = generate(&GenParams {
+            feat_basis: false,
+            ..GenParams::new(3000, 5)
+        });
+        let layout = GridLayout::new(&m.dims, m.coord_bits());
+        let x = grid_inputs(&m, &layout);
+        let mlp = convert_context_mlp(&m.mlp_grid, layout.features(), &x).expect("converts");
+        let quant = [&m.quant_feat, &m.quant_scaling, &m.quant_offsets];
+        let fast = Prior::new(&m.dims, m.coord_bits(), mlp.clone(), quant, 0);
+        let mut portable = fast.clone();
+        #[cfg(target_arch = "x86_64")]
+        {
+            let avx2 = std::arch::is_x86_feature_detected!("avx2");
+            assert_eq!(
+                fast.fast.is_some(),
+                avx2,
+                "kernel chosen where AVX2 is present"
+            );
+            portable.fast = None;
+        }
+        let (mut a, mut b) = (fast.context(), portable.context());
+        for &v in &m.anchors.voxel {
+            fast.eval(&m.grid, v, &mut a);
+            portable.eval(&m.grid, v, &mut b);
+            assert_eq!(a.y, b.y, "voxel {v:?}");
+        }
     }
 }

@@ -1,9 +1,5 @@
-//! The one place with `unsafe` code: the context MLP's dot product with SSE2's `pmaddwd`.
-//!
-//! Why: the context MLP is 365 multiply-adds per coded symbol and dominated decoding time
-//! (`cargo bench --bench decode_throughput`); the compiler does not turn the safe loop into
-//! `pmaddwd` on the baseline x86-64 target. SSE2 is part of every x86-64 CPU, so no runtime
-//! feature detection is needed.
+//! The context MLP's dot product with SSE2's `pmaddwd`: the baseline x86-64 path, used when
+//! AVX2 is absent (SSE2 is part of every x86-64 CPU, so no feature detection is needed).
 //!
 //! Same result: `pmaddwd` adds two i16 x i16 products into an i32; the only case that exceeds
 //! i32, (-32768)^2 + (-32768)^2 = 2^31, comes out as 0x8000_0000, which is 2^31 modulo 2^32.

@@ -1,0 +1,319 @@
+//! The whole context MLP (spec §5.3) with AVX2: 16 i16 lanes per `vpmaddwd`, eight weight
+//! rows against one input block at a time, their eight sums reduced into one vector, and the
+//! bias, rounding shift and clamped ReLU done on eight outputs at once.
+//!
+//! The weights are re-laid once per stream ([`Avx2Mlp::new`]): rows padded with zeros to a
+//! multiple of 16 columns, row counts padded to a multiple of 8, and the eight rows of a group
+//! interleaved block by block so the kernel reads them as one sequential stream. Zero padding
+//! adds nothing to any sum, and padded hidden units have zero weights and bias, so they are
+//! 0 after the ReLU and add nothing to layer 1 either.
+
+use std::arch::x86_64::{
+    __m128i, __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_castsi256_si128,
+    _mm256_extracti128_si256, _mm256_hadd_epi32, _mm256_loadu_si256, _mm256_madd_epi16,
+    _mm256_permute2x128_si256, _mm256_set1_epi32, _mm256_setzero_si256, _mm256_sra_epi32,
+    _mm256_storeu_si256, _mm_cvtsi32_si128, _mm_max_epi16, _mm_packs_epi32, _mm_setzero_si128,
+    _mm_storeu_si128,
+};
+
+use crate::hyperprior::mlp::IntMlp;
+
+/// Input lanes per `vpmaddwd` block.
+const LANES: usize = 16;
+/// Weight rows evaluated together.
+const ROWS: usize = 8;
+
+fn round_up(n: usize, m: usize) -> usize {
+    n.div_ceil(m) * m
+}
+
+/// One layer's weights in the kernel's layout: for row group `r` and input block `b`, the
+/// 8 rows' 16 weights are contiguous at `((r * blocks + b) * ROWS + i) * LANES`.
+#[derive(Debug, Clone)]
+struct Layer {
+    weights: Vec<i16>,
+    /// Biases padded with zeros to a multiple of 8.
+    bias: Vec<i32>,
+    /// Input blocks of 16 per row.
+    blocks: usize,
+    /// Row groups of 8.
+    groups: usize,
+}
+
+impl Layer {
+    fn new(w: &[i16], bias: &[i32], rows: usize, cols: usize, rows_pad: usize) -> Layer {
+        let blocks = round_up(cols, LANES) / LANES;
+        let groups = rows_pad / ROWS;
+        let mut weights = vec![0i16; groups * blocks * ROWS * LANES];
+        for r in 0..rows {
+            for c in 0..cols {
+                let (g, i, b, l) = (r / ROWS, r % ROWS, c / LANES, c % LANES);
+                weights[((g * blocks + b) * ROWS + i) * LANES + l] = w[r * cols + c];
+            }
+        }
+        let mut padded = vec![0i32; rows_pad];
+        padded[..rows].copy_from_slice(&bias[..rows]);
+        Layer {
+            weights,
+            bias: padded,
+            blocks,
+            groups,
+        }
+    }
+}
+
+/// The context MLP in the AVX2 kernel's layout. Only [`Avx2Mlp::new`] makes one, and only
+/// on a CPU with AVX2.
+#[derive(Debug, Clone)]
+pub struct Avx2Mlp {
+    layer0: Layer,
+    layer1: Layer,
+    shift0: u8,
+    cin: usize,
+    cout: usize,
+}
+
+impl Avx2Mlp {
+    /// The kernel for `mlp`, or `None` where the CPU lacks AVX2 or the MLP's tensors do not
+    /// have the lengths its dimensions give (the portable path then handles it).
+    pub fn new(mlp: &IntMlp) -> Option<Avx2Mlp> {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return None;
+        }
+        let (cin, hidden, cout) = (mlp.cin, mlp.hidden, mlp.cout);
+        if mlp.w0.len() != hidden * cin
+            || mlp.b0.len() != hidden
+            || mlp.w1.len() != cout * hidden
+            || mlp.b1.len() != cout
+        {
+            return None;
+        }
+        // Hidden activations feed layer 1 in blocks of 16, so the hidden width is padded to
+        // 16 (which is also a multiple of the 8 rows of layer 0).
+        let hidden_pad = round_up(hidden, LANES);
+        Some(Avx2Mlp {
+            layer0: Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
+            layer1: Layer::new(&mlp.w1, &mlp.b1, cout, hidden, round_up(cout, ROWS)),
+            shift0: mlp.shift0,
+            cin,
+            cout,
+        })
+    }
+
+    /// Length of the zero-padded input the kernel reads.
+    pub fn input_len(&self) -> usize {
+        self.layer0.blocks * LANES
+    }
+
+    /// Length of the hidden scratch the kernel writes.
+    pub fn hidden_len(&self) -> usize {
+        self.layer0.groups * ROWS
+    }
+
+    /// §5.3 steps 1-3, bit-identical to [`IntMlp::eval`]: `x` holds the `cin` inputs followed
+    /// by zeros up to [`Self::input_len`]; `h` is scratch of [`Self::hidden_len`]; `y` gets
+    /// the `cout` outputs.
+    pub fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        assert!(
+            x.len() >= self.input_len()
+                && x[self.cin..self.input_len()].iter().all(|&v| v == 0)
+                && h.len() >= self.hidden_len()
+                && y.len() == self.cout,
+            "Avx2Mlp::eval: scratch of the wrong shape"
+        );
+        // SAFETY: `new` returned this kernel only after detecting AVX2 on this CPU; the
+        // assertion above gives `eval_avx2` the slice lengths it reads and writes.
+        unsafe { self.eval_avx2(x, h, y) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    unsafe fn eval_avx2(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        // Layer 0: s_h = b0[h] + W0[h] . x, then a_h = min(max(rshr(s_h, shift0), 0), 32767).
+        let l0 = &self.layer0;
+        for g in 0..l0.groups {
+            let s = rows8(l0, g, x.as_ptr());
+            let acc =
+                _mm256_add_epi32(s, _mm256_loadu_si256(l0.bias.as_ptr().add(g * ROWS).cast()));
+            let q = round_shift(acc, self.shift0);
+            // Signed saturation to i16 then max with 0 is exactly the clamp to 0 ..= 32767.
+            let packed = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
+            let relu = _mm_max_epi16(packed, _mm_setzero_si128());
+            _mm_storeu_si128(h.as_mut_ptr().add(g * ROWS).cast::<__m128i>(), relu);
+        }
+        // Layer 1: y_o = b1[o] + W1[o] . a.
+        let l1 = &self.layer1;
+        for g in 0..l1.groups {
+            let s = rows8(l1, g, h.as_ptr());
+            let acc =
+                _mm256_add_epi32(s, _mm256_loadu_si256(l1.bias.as_ptr().add(g * ROWS).cast()));
+            let at = g * ROWS;
+            if at + ROWS <= self.cout {
+                _mm256_storeu_si256(y.as_mut_ptr().add(at).cast::<__m256i>(), acc);
+            } else {
+                let mut last = [0i32; ROWS];
+                _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), acc);
+                y[at..].copy_from_slice(&last[..self.cout - at]);
+            }
+        }
+    }
+}
+
+/// The 8 wrapping dot products of row group `g` of `layer` with the input at `x` (which has
+/// `layer.blocks * 16` readable i16), as one vector of 8 sums.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn rows8(layer: &Layer, g: usize, x: *const i16) -> __m256i {
+    let mut acc = [_mm256_setzero_si256(); ROWS];
+    let base = layer.weights.as_ptr().add(g * layer.blocks * ROWS * LANES);
+    for b in 0..layer.blocks {
+        let xv = _mm256_loadu_si256(x.add(b * LANES).cast());
+        let wb = base.add(b * ROWS * LANES);
+        for (i, a) in acc.iter_mut().enumerate() {
+            let wv = _mm256_loadu_si256(wb.add(i * LANES).cast());
+            *a = _mm256_add_epi32(*a, _mm256_madd_epi16(wv, xv));
+        }
+    }
+    // Reduce: after two rounds of pairwise horizontal adds, each 128-bit half holds partial
+    // sums of rows 0-3 (from acc 0-3) or 4-7; adding the halves completes them.
+    let s01 = _mm256_hadd_epi32(acc[0], acc[1]);
+    let s23 = _mm256_hadd_epi32(acc[2], acc[3]);
+    let s45 = _mm256_hadd_epi32(acc[4], acc[5]);
+    let s67 = _mm256_hadd_epi32(acc[6], acc[7]);
+    let t0 = _mm256_hadd_epi32(s01, s23);
+    let t1 = _mm256_hadd_epi32(s45, s67);
+    let lo = _mm256_permute2x128_si256(t0, t1, 0x20);
+    let hi = _mm256_permute2x128_si256(t0, t1, 0x31);
+    _mm256_add_epi32(lo, hi)
+}
+
+/// §0.5 `rshr(acc, s)` on 8 lanes without the 64-bit sum: `(acc >> s) + bit (s - 1) of acc`,
+/// which equals `(acc + 2^(s-1)) >> s` for every i32 and 1 <= s <= 31.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn round_shift(acc: __m256i, s: u8) -> __m256i {
+    if s == 0 {
+        return acc;
+    }
+    let shifted = _mm256_sra_epi32(acc, _mm_cvtsi32_si128(i32::from(s)));
+    let half = _mm256_sra_epi32(acc, _mm_cvtsi32_si128(i32::from(s) - 1));
+    _mm256_add_epi32(shifted, _mm256_and_si256(half, _mm256_set1_epi32(1)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct XorShift(u64);
+    impl XorShift {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+        /// Mostly small values, sometimes the extremes that exercise wrapping.
+        fn i16(&mut self, extreme: bool) -> i16 {
+            let r = self.next();
+            match (r >> 40) % 8 {
+                0 if extreme => i16::MIN,
+                1 if extreme => i16::MAX,
+                _ => (r as i16) >> 4,
+            }
+        }
+    }
+
+    fn random_mlp(
+        rng: &mut XorShift,
+        cin: usize,
+        hidden: usize,
+        cout: usize,
+        shift0: u8,
+        extreme: bool,
+    ) -> IntMlp {
+        IntMlp {
+            cin,
+            hidden,
+            cout,
+            w0: (0..hidden * cin).map(|_| rng.i16(extreme)).collect(),
+            b0: (0..hidden).map(|_| (rng.next() as i32) >> 8).collect(),
+            w0_frac_bits: 12,
+            shift0,
+            w1: (0..cout * hidden).map(|_| rng.i16(extreme)).collect(),
+            b1: (0..cout).map(|_| rng.next() as i32).collect(),
+            w1_frac_bits: vec![12; cout],
+        }
+    }
+
+    #[test]
+    fn matches_the_portable_mlp() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: kernel not tested");
+            return;
+        }
+        let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
+        let shapes = [
+            (96, 100, 175),
+            (1, 1, 1),
+            (16, 16, 8),
+            (17, 9, 9),
+            (24, 8, 19),
+            (48, 33, 7),
+        ];
+        for (cin, hidden, cout) in shapes {
+            for shift0 in [0u8, 1, 5, 12, 20, 31] {
+                for extreme in [false, true] {
+                    let m = random_mlp(&mut rng, cin, hidden, cout, shift0, extreme);
+                    let k = Avx2Mlp::new(&m).expect("AVX2 present");
+                    let mut x = vec![0i16; k.input_len()];
+                    let mut hk = vec![0i16; k.hidden_len()];
+                    let (mut h, mut y, mut yk) =
+                        (vec![0i16; hidden], vec![0i32; cout], vec![0i32; cout]);
+                    for _ in 0..20 {
+                        for v in &mut x[..cin] {
+                            *v = rng.i16(extreme);
+                        }
+                        m.eval(&x[..cin], &mut h, &mut y);
+                        k.eval(&x, &mut hk, &mut yk);
+                        assert_eq!(y, yk, "shape {cin}/{hidden}/{cout} shift {shift0}");
+                        assert_eq!(&hk[..hidden], &h[..]);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn round_shift_matches_the_definition_at_the_edges() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let values = [
+            i32::MIN,
+            i32::MIN + 1,
+            -3,
+            -2,
+            -1,
+            0,
+            1,
+            2,
+            3,
+            i32::MAX - 1,
+            i32::MAX,
+        ];
+        for s in 0..=31u8 {
+            for chunk in values.chunks(8).chain(std::iter::once(&values[3..])) {
+                let mut lanes = [0i32; 8];
+                lanes[..chunk.len()].copy_from_slice(chunk);
+                let mut out = [0i32; 8];
+                // SAFETY: AVX2 detected above; both arrays hold 8 i32.
+                unsafe {
+                    let v = _mm256_loadu_si256(lanes.as_ptr().cast());
+                    _mm256_storeu_si256(out.as_mut_ptr().cast(), round_shift(v, s));
+                }
+                for (a, b) in lanes.iter().zip(out) {
+                    assert_eq!(crate::hyperprior::mlp::round_shift(*a, s), b, "{a} >> {s}");
+                }
+            }
+        }
+    }
+}
