@@ -38,12 +38,12 @@ fn main() {
     });
     let e = encode_full(&model, &EncodeOptions::default()).expect("encodes");
     let stream = &e.stream;
-    let symbols_total: u64 = e.report.groups.iter().map(|g| g.symbols).sum();
+    let symbols_total: u64 = e.report().groups.iter().map(|g| g.symbols).sum();
     println!(
         "scene: {n} anchors, {symbols_total} attribute symbols, stream {} bytes",
         stream.len()
     );
-    for g in &e.report.groups {
+    for g in &e.report().groups {
         println!(
             "  {:<8} coded {:>9} B, ideal(int) {:>11.0} B, ideal(float) {:>11.0} B: coded/int {:.5}, int/float {:.5}",
             g.group,
@@ -54,7 +54,7 @@ fn main() {
             g.ideal_bits_integer / g.ideal_bits_float
         );
     }
-    let (coded, int, flt) = e.report.groups.iter().fold((0f64, 0f64, 0f64), |a, g| {
+    let (coded, int, flt) = e.report().groups.iter().fold((0f64, 0f64, 0f64), |a, g| {
         (
             a.0 + g.coded_bytes as f64 * 8.0,
             a.1 + g.ideal_bits_integer,
@@ -91,7 +91,7 @@ fn main() {
         [&quant[0], &quant[1], &quant[2]],
         0,
     );
-    let expected = &e.expected;
+    let expected = e.expected();
     let (f, s, k) = (
         usize::from(d.feat_dim),
         usize::from(d.scaling_dim),

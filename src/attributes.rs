@@ -11,6 +11,7 @@ use crate::entropy::{GaussianTables, SymbolReader};
 use crate::error::{Error, Result};
 use crate::hyperprior::prior::{Group, Prior};
 use crate::model::{Dims, HashGrid};
+use crate::quantizer::{reconstruct_value, LatticeMatrix};
 
 /// §6.6.1: the coder frequency of a mask bit being 1, from its 16-bit probability.
 pub fn mask_freq(p_one: u16, precision: u32) -> u32 {
@@ -128,6 +129,7 @@ pub fn read_attributes(
     masks: &[u8],
     grid: &HashGrid,
     prior: &Prior,
+    lattices: &[LatticeMatrix; 2],
     tables: &GaussianTables,
 ) -> Result<Attributes> {
     let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
@@ -177,6 +179,7 @@ pub fn read_attributes(
                 }
             },
             || -> Result<()> {
+                let (mut u, mut z) = (vec![0i64; f.max(s)], vec![0f32; f.max(s)]);
                 for b in 0..block.len() {
                     let i = bi * BLOCK + b;
                     let y = &current.ys[b * cout..(b + 1) * cout];
@@ -187,9 +190,22 @@ pub fn read_attributes(
                         (Group::Scaling, s, f, &mut out.scaling),
                     ] {
                         let reader = &mut readers[g as usize];
-                        for j in 0..w {
-                            let u = reader.symbol(kk[at + j])?;
-                            dst.push(prior.reconstruct(y, g, j, delta[g as usize], u));
+                        let lattice = &lattices[g as usize];
+                        let delta = delta[g as usize];
+                        if lattice.is_identity() {
+                            for j in 0..w {
+                                let u = reader.symbol(kk[at + j])?;
+                                dst.push(prior.reconstruct(y, g, j, delta, u));
+                            }
+                            continue;
+                        }
+                        // §7.3: all of the group's coordinates, then μ + Δ·(B u).
+                        for (j, uj) in u[..w].iter_mut().enumerate() {
+                            *uj = reader.symbol(kk[at + j])?;
+                        }
+                        lattice.apply(&u[..w], &mut z[..w]);
+                        for (j, &zj) in z[..w].iter().enumerate() {
+                            dst.push(reconstruct_value(prior.mean_f32(y, g, j), delta, zj));
                         }
                     }
                     let reader = &mut readers[2];

@@ -9,15 +9,36 @@ use crate::container::payload;
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
-use crate::error::{Error, Result, Structure};
+use crate::error::{Error, Field, Result, Structure};
 use crate::hyperprior::prior::Prior;
 use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
 use crate::model::{Anchors, GroupQuantizer, HashGrid, Mlp, SceneModel};
+use crate::quantizer::LatticeMatrix;
 
-/// Decodes a whole stream with the default [`Limits`].
+/// Decodes a whole stream with the default [`Limits`], at its lowest coded rate.
 pub fn decode(data: &[u8]) -> Result<SceneModel> {
     decode_with_limits(data, &Limits::default())
+}
+
+/// What to decode and under which limits.
+#[derive(Debug, Clone, Default)]
+pub struct DecodeOptions {
+    pub limits: Limits,
+    /// The rate whose symbol layer to decode (§7.4); `None`: the lowest coded rate.
+    pub rate: Option<u8>,
+}
+
+/// The critical chunk expected at position `i` of a stream with `layers` symbol layers
+/// (§1.5 Table 1-3 with §7.4: the layer chunks repeat once per layer).
+pub(crate) fn expected_critical(i: usize, layers: usize) -> ChunkTag {
+    const SHARED: usize = 6;
+    const LAYER: [ChunkTag; 3] = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
+    match i.checked_sub(SHARED) {
+        None => ChunkTag::CRITICAL_ORDER[i],
+        Some(j) if j < 3 * layers => LAYER[j % 3],
+        Some(_) => ChunkTag::SEND,
+    }
 }
 
 /// Parts of the model decoded so far, filled chunk by chunk.
@@ -31,6 +52,8 @@ struct Partial<'a> {
     grid: Option<HashGrid>,
     mask: Option<Vec<u8>>,
     attributes: [&'a [u8]; 3],
+    /// The rate being decoded.
+    rate: u8,
 }
 
 fn missing(tag: ChunkTag) -> Error {
@@ -40,13 +63,29 @@ fn missing(tag: ChunkTag) -> Error {
     }
 }
 
-/// Decodes a whole stream under `limits`.
+/// Decodes a whole stream under `limits`, at its lowest coded rate.
 pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
+    decode_with_options(
+        data,
+        &DecodeOptions {
+            limits: *limits,
+            rate: None,
+        },
+    )
+}
+
+/// Decodes one symbol layer of a stream (§7.4): every chunk's framing, CRC and order is
+/// checked, the shared chunks and the selected layer are decoded, other layers' payloads
+/// are not parsed.
+pub fn decode_with_options(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
+    let limits = &options.limits;
     // §1.2: signature and version.
     let (_sig, rest) = Signature::parse(data)?;
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut next_critical = 0usize;
     let mut p = Partial::default();
+    // Layers in the stream and the index of the selected one, known once HEAD is read.
+    let (mut layers, mut selected) = (0usize, 0usize);
     let tables = GaussianTables::standard();
     loop {
         let Some(chunk) = reader.next_chunk()? else {
@@ -72,10 +111,11 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
         if !ChunkTag::CRITICAL_ORDER.contains(&tag) {
             return Err(Error::UnknownCriticalChunk { tag });
         }
-        let expected = ChunkTag::CRITICAL_ORDER
-            .get(next_critical)
-            .copied()
-            .unwrap_or(ChunkTag::SEND);
+        let expected = if p.head.is_none() {
+            ChunkTag::HEAD
+        } else {
+            expected_critical(next_critical, layers)
+        };
         if tag != expected {
             return Err(Error::ChunkOrder {
                 found: tag,
@@ -85,9 +125,31 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
         next_critical += 1;
         let bytes = chunk.payload;
         if tag == ChunkTag::HEAD {
-            p.head = Some(Preflight::parse(bytes, limits)?);
+            let head = Preflight::parse(bytes, limits)?;
+            let coded = head.coded_rates();
+            let rate = options.rate.unwrap_or(coded[0]);
+            if rate >= head.dims.rates {
+                return Err(Error::FieldOutOfRange {
+                    field: Field::CodedRate,
+                    value: rate.into(),
+                    min: 0,
+                    max: u64::from(head.dims.rates) - 1,
+                });
+            }
+            selected = coded
+                .iter()
+                .position(|&r| r == rate)
+                .ok_or(Error::RateNotCoded {
+                    rate,
+                    rate_mask: head.rate_mask,
+                })?;
+            layers = coded.len();
+            p.rate = rate;
+            p.head = Some(head);
             continue;
         }
+        // §7.4: the layer this chunk belongs to, if it is a layer chunk.
+        let layer = next_critical.checked_sub(7).map(|j| j / 3);
         let head = p.head.as_ref().ok_or(missing(ChunkTag::HEAD))?;
         let d = &head.dims;
         match tag {
@@ -105,6 +167,7 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
                 p.grid = Some(payload::read_grid(bytes, d, touched)?);
             }
             ChunkTag::AMSK => p.mask = Some(read_masks(bytes, d, tables)?),
+            ChunkTag::AFEA | ChunkTag::ASCL | ChunkTag::AOFF if layer != Some(selected) => {}
             ChunkTag::AFEA => p.attributes[0] = bytes,
             ChunkTag::ASCL => p.attributes[1] = bytes,
             ChunkTag::AOFF => p.attributes[2] = bytes,
@@ -144,9 +207,31 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
         head.coord_bits,
         int_mlp,
         [&quant_feat, &quant_scaling, &quant_offsets],
-        usize::from(head.coded_rate),
+        usize::from(p.rate),
     );
-    let attrs = read_attributes(p.attributes, d, &voxel, &mask, &grid, &prior, tables)?;
+    // §7.2: the reconstruction matrices of the feature and scaling groups.
+    let lattices = [
+        LatticeMatrix::new(
+            d.feat_lattice,
+            usize::from(d.feat_dim),
+            quant_feat.basis.as_ref(),
+        ),
+        LatticeMatrix::new(
+            d.scaling_lattice,
+            usize::from(d.scaling_dim),
+            quant_scaling.basis.as_ref(),
+        ),
+    ];
+    let attrs = read_attributes(
+        p.attributes,
+        d,
+        &voxel,
+        &mask,
+        &grid,
+        &prior,
+        &lattices,
+        tables,
+    )?;
     Ok(SceneModel {
         origin: head.origin,
         voxel_size: head.voxel_size,

@@ -57,7 +57,7 @@ pub struct HeadInfo {
     pub origin: [f32; 3],
     pub voxel_size: f32,
     pub decoded_bytes: u64,
-    pub coded_rate: u8,
+    pub coded_rates: Vec<u8>,
 }
 
 impl From<&Preflight> for HeadInfo {
@@ -68,7 +68,7 @@ impl From<&Preflight> for HeadInfo {
             origin: p.origin,
             voxel_size: p.voxel_size,
             decoded_bytes: p.decoded_bytes,
-            coded_rate: p.coded_rate,
+            coded_rates: p.coded_rates(),
         }
     }
 }
@@ -127,12 +127,12 @@ fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<Mode
         part(
             "quant.feat",
             ChunkTag::QUAN,
-            4 * (1 + m) + basis(f, d.feat_basis),
+            4 * (1 + m) + basis(f, d.feat_lattice.has_factors()),
         ),
         part(
             "quant.scaling",
             ChunkTag::QUAN,
-            4 * (1 + m) + basis(s, d.scaling_basis),
+            4 * (1 + m) + basis(s, d.scaling_lattice.has_factors()),
         ),
         part("quant.offsets", ChunkTag::QUAN, 4 * (1 + m)),
         part(
@@ -153,8 +153,8 @@ pub struct StreamInfo {
     pub totals: Totals,
     /// Model bytes per part (framing and method bytes not included).
     pub model_parts: Vec<ModelPart>,
-    /// The encoder's measurements, from the `ests` chunk when the stream has one.
-    pub encoder: Option<EncodeReport>,
+    /// The encoder's measurements, one per `ests` chunk (one per layer, §7.4), in stream order.
+    pub encoder: Vec<EncodeReport>,
 }
 
 /// The per-group table of an encoder report.
@@ -204,7 +204,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     let mut chunks = Vec::new();
     let mut head = None;
     let mut preflight = None;
-    let mut encoder = None;
+    let mut encoder = Vec::new();
     let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
     while let Some(c) = reader.next_chunk()? {
         if c.tag == ChunkTag::HEAD && head.is_none() {
@@ -213,7 +213,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
             preflight = Some(p);
         }
         if c.tag == ChunkTag::ESTS {
-            encoder = serde_json::from_slice(c.payload).ok();
+            encoder.extend(serde_json::from_slice::<EncodeReport>(c.payload).ok());
         }
         let total = c.payload.len() as u64 + CHUNK_OVERHEAD;
         let class = byte_class(c.tag);
@@ -295,18 +295,14 @@ impl StreamInfo {
             );
             let _ = writeln!(
                 s,
-                "quantizers: feature basis {}, scaling basis {}",
-                if d.feat_basis { "general" } else { "identity" },
-                if d.scaling_basis {
-                    "general"
-                } else {
-                    "identity"
-                }
+                "quantizers: feature lattice {}, scaling lattice {}, offsets identity",
+                d.feat_lattice.name(),
+                d.scaling_lattice.name()
             );
             let _ = writeln!(
                 s,
-                "coded rate {}; decoded size {} bytes",
-                h.coded_rate, h.decoded_bytes
+                "coded rates {:?}; decoded size {} bytes",
+                h.coded_rates, h.decoded_bytes
             );
         }
         let _ = writeln!(
@@ -332,7 +328,7 @@ impl StreamInfo {
                 let _ = writeln!(s, "  {:<36} {:<5} {:>10}", p.part, p.chunk, p.bytes);
             }
         }
-        if let Some(r) = &self.encoder {
+        for r in &self.encoder {
             let _ = writeln!(s, "encoder statistics (ests), rate {}:", r.rate);
             s.push_str(&groups_text(r));
         }

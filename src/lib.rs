@@ -5,7 +5,7 @@
 //! quantization with per-rate gains). The normative text is `spec/` in this repository; every
 //! module cites the section it implements.
 //!
-//! ## Map of a stream (format 0.2)
+//! ## Map of a stream (format 0.3)
 //!
 //! | stream part | spec | module |
 //! |---|---|---|
@@ -21,6 +21,7 @@
 //! | model validation (finite, masks, bases, gains) | §2.3, §2.6 | [`model::validate`] |
 //! | limits and errors | §9 | [`limits`], [`error`] |
 //! | safetensors interchange | Annex A | [`model::interchange`] |
+//! | quantizers: lattices, reconstruction, rate layers | §7 | [`quantizer`], [`encoder::search`], [`extract`] |
 //! | synthetic scene generator | Annex B | [`gen`] |
 //!
 //! ## Use
@@ -33,7 +34,7 @@
 //! let decoded = salvq::decode(&encoded.stream)?;
 //! // Decoding reproduces, bit for bit, the reconstruction the encoder predicted; positions
 //! // and masks are lossless, attributes lie within half a quantization step.
-//! assert_eq!(decoded, encoded.expected);
+//! assert_eq!(&decoded, encoded.expected());
 //! assert_eq!(decoded.anchors.mask, model.anchors.mask);
 //! # Ok::<(), salvq::Error>(())
 //! ```
@@ -53,6 +54,7 @@ pub mod decoder;
 pub mod encoder;
 pub mod entropy;
 pub mod error;
+pub mod extract;
 pub mod gen;
 pub mod hyperprior;
 pub mod info;
@@ -60,9 +62,12 @@ pub mod io;
 pub mod lattice;
 pub mod limits;
 pub mod model;
+pub mod quantizer;
 
-pub use decoder::{decode, decode_with_limits};
-pub use encoder::{encode, encode_with_options, EncodeOptions};
+pub use decoder::{decode, decode_with_limits, decode_with_options, DecodeOptions};
+pub use encoder::{encode, encode_with_options, EncodeOptions, Search};
 pub use error::{Error, Result};
+pub use extract::extract_rate;
 pub use limits::Limits;
 pub use model::SceneModel;
+pub use quantizer::LatticeKind;

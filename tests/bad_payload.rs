@@ -99,9 +99,9 @@ fn non_finite_values() {
             index: vec![0, 1]
         }
     );
-    // origin.x is HEAD bytes 24..28.
+    // origin.x is HEAD bytes 33..37.
     let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
-        p[24..28].copy_from_slice(&f32::NAN.to_le_bytes());
+        p[33..37].copy_from_slice(&f32::NAN.to_le_bytes());
     });
     assert_eq!(
         err(&s),
@@ -136,9 +136,9 @@ fn values_not_positive() {
             value: -1.0
         }
     );
-    // voxel_size is HEAD bytes 36..40.
+    // voxel_size is HEAD bytes 45..49.
     let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
-        p[36..40].copy_from_slice(&0f32.to_le_bytes());
+        p[45..49].copy_from_slice(&0f32.to_le_bytes());
     });
     assert!(matches!(
         err(&s),
@@ -203,18 +203,48 @@ fn mlp_shift_out_of_range() {
 }
 
 #[test]
-fn coded_rate_out_of_range() {
-    // coded_rate is HEAD byte 23; the small model has 2 rates.
-    let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| p[23] = 2);
+fn rate_mask_out_of_range() {
+    // rate_mask is HEAD bytes 25..33; the small model has 2 rates, so only bits 0-1 exist.
+    for mask in [0u64, 4, 1 << 63] {
+        let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
+            p[25..33].copy_from_slice(&mask.to_le_bytes())
+        });
+        assert_eq!(
+            err(&s),
+            Error::FieldOutOfRange {
+                field: Field::RateMask,
+                value: mask,
+                min: 1,
+                max: 3
+            }
+        );
+    }
+}
+
+#[test]
+fn lattice_codes_and_dimensions() {
+    // feat_lattice is HEAD byte 13: code 4 is undefined.
+    let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| p[13] = 4);
     assert_eq!(
         err(&s),
         Error::FieldOutOfRange {
-            field: Field::CodedRate,
-            value: 2,
+            field: Field::FeatLattice,
+            value: 4,
             min: 0,
-            max: 1
+            max: 3
         }
     );
+    // scaling_lattice (byte 14) = E8 product on the 6 scaling dimensions.
+    let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| p[14] = 2);
+    assert!(matches!(
+        err(&s),
+        Error::LatticeDimension {
+            field: Field::ScalingLattice,
+            lattice: "e8",
+            dim: 6,
+            ..
+        }
+    ));
 }
 
 #[test]

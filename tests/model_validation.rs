@@ -273,16 +273,6 @@ fn non_orthogonal_basis() {
 }
 
 #[test]
-fn format_0_2_codes_the_identity_basis_only() {
-    assert_eq!(
-        encode(&small_salvq_model()).unwrap_err(),
-        Error::QuantizerUnsupported {
-            tensor: "quant.feat.basis_u"
-        }
-    );
-}
-
-#[test]
 fn encoder_rejects_wrong_lengths_in_memory() {
     let mut m = small_salvq_model();
     m.anchors.feat.pop();

@@ -118,8 +118,20 @@ fn every_error() -> Vec<Error> {
             scale_index: -1,
             max: 63,
         },
-        Error::QuantizerUnsupported {
-            tensor: "quant.feat.basis_u",
+        Error::LatticeDimension {
+            field: salvq::error::Field::FeatLattice,
+            lattice: "e8",
+            dim: 50,
+            rule: "r",
+        },
+        Error::RateNotCoded {
+            rate: 1,
+            rate_mask: 1,
+        },
+        Error::LatticeSearchFailed {
+            tensor: "quant.feat.step",
+            anchor: Some(0),
+            reason: "r".into(),
         },
         Error::NonFiniteValue {
             tensor: "x",
@@ -239,8 +251,8 @@ fn tensor_names_match_table_2_1() {
         spec_names.extend(names.into_iter().map(|n| format!("{n}{rest}")));
     }
     let mut dims = salvq::gen::generate(&salvq::gen::GenParams::small(1, 1)).dims;
-    dims.feat_basis = true;
-    dims.scaling_basis = true;
+    dims.feat_lattice = salvq::LatticeKind::General;
+    dims.scaling_lattice = salvq::LatticeKind::General;
     let code: Vec<String> = salvq::model::tensor_table(&dims)
         .iter()
         .map(|e| e.name.to_string())

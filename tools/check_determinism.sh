@@ -19,15 +19,25 @@ declare -A bins=(
   [native]=target/native/release/salvq
 )
 "${bins[opt3]}" gen --anchors "$n" --seed 3 -o "$work/model.safetensors" > /dev/null
-ref=""
+"${bins[opt3]}" gen --anchors "$n" --seed 3 --quantizer salvq -o "$work/salvq.safetensors" > /dev/null
 status=0
-for name in opt0 opt3 native; do
-  bin=${bins[$name]}
-  "$bin" encode "$work/model.safetensors" -o "$work/$name.salvq" > /dev/null
-  "$bin" decode "$work/$name.salvq" -o "$work/$name.decoded.safetensors" > /dev/null
-  line="$(sha256sum < "$work/$name.salvq" | cut -c1-16) $(sha256sum < "$work/$name.decoded.safetensors" | cut -c1-16)"
-  echo "$name: stream+decoded sha256 prefixes $line"
-  if [ -z "$ref" ]; then ref=$line; elif [ "$line" != "$ref" ]; then status=1; fi
+# Two cases: the USQ model at rate 0, and the SALVQ model (learned basis, binary32 B u of
+# spec §7.3) with two rate layers, decoded at the second.
+for case in usq salvq; do
+  ref=""
+  for name in opt0 opt3 native; do
+    bin=${bins[$name]}
+    if [ "$case" = usq ]; then
+      "$bin" encode "$work/model.safetensors" -o "$work/$name.salvq" > /dev/null
+      "$bin" decode "$work/$name.salvq" -o "$work/$name.decoded.safetensors" > /dev/null
+    else
+      "$bin" encode "$work/salvq.safetensors" --rates 0,2 -o "$work/$name.salvq" > /dev/null
+      "$bin" decode "$work/$name.salvq" --rate 2 -o "$work/$name.decoded.safetensors" > /dev/null
+    fi
+    line="$(sha256sum < "$work/$name.salvq" | cut -c1-16) $(sha256sum < "$work/$name.decoded.safetensors" | cut -c1-16)"
+    echo "$case $name: stream+decoded sha256 prefixes $line"
+    if [ -z "$ref" ]; then ref=$line; elif [ "$line" != "$ref" ]; then status=1; fi
+  done
 done
 if [ "$status" -eq 0 ]; then
   echo "identical across opt-level 0, opt-level 3 and target-cpu=native ($n anchors)"

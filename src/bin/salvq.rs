@@ -18,7 +18,7 @@ use salvq::{Error, Limits};
 #[command(
     name = "salvq",
     version,
-    about = "SALVQ compressed 3DGS scenes: reference encoder and decoder (format 0.1)"
+    about = "SALVQ compressed 3DGS scenes: reference encoder and decoder (format 0.3)"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -38,8 +38,8 @@ enum Command {
         /// Use the tiny model configuration (tests and examples) instead of HAC's.
         #[arg(long)]
         small: bool,
-        /// Feature quantizer of the model: `usq` (identity basis, what format 0.2 codes) or
-        /// `salvq` (a learned lattice basis; coded from a later format version).
+        /// Feature quantizer of the model: `usq` (identity basis) or `salvq` (a learned
+        /// lattice basis B = U diag(s) V^T).
         #[arg(long, default_value = "usq", value_parser = ["usq", "salvq"])]
         quantizer: String,
         /// Output model file (safetensors, spec Annex A).
@@ -56,9 +56,19 @@ enum Command {
         /// Text for an `encd` ancillary chunk (encoder identification).
         #[arg(long)]
         note: Option<String>,
-        /// The rate (index into the model's gains) to code.
-        #[arg(long, default_value_t = 0)]
-        rate: u8,
+        /// The rates (indices into the model's gains) to code, one symbol layer each, e.g.
+        /// `0,1,2,3` (spec §7.4).
+        #[arg(long, value_delimiter = ',', default_value = "0")]
+        rates: Vec<u8>,
+        /// Feature quantizer: `model` (the model's own), `usq` (identity), `dn` (D_n),
+        /// `e8` (E8 product; the feature dimension must be a multiple of 8) or `salvq` (the
+        /// model's learned basis).
+        #[arg(long, default_value = "model", value_parser = ["model", "usq", "dn", "e8", "salvq"])]
+        quantizer: String,
+        /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai rounding
+        /// for a learned basis), `rounding`, `nearest-plane` or `closest`.
+        #[arg(long, default_value = "auto", value_parser = salvq::Search::NAMES)]
+        search: String,
         /// Do not write the `ests` chunk (encoder statistics shown by `info`).
         #[arg(long)]
         no_stats: bool,
@@ -71,6 +81,21 @@ enum Command {
         /// Input stream.
         input: PathBuf,
         /// Output model (safetensors).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The rate to decode (default: the lowest rate the stream carries).
+        #[arg(long)]
+        rate: Option<u8>,
+    },
+    /// Write the single-rate stream of one rate of a multi-rate stream, without re-coding
+    /// (byte-identical to encoding that rate alone).
+    Extract {
+        /// Input stream.
+        input: PathBuf,
+        /// The rate to keep.
+        #[arg(long)]
+        rate: u8,
+        /// Output stream.
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -141,40 +166,80 @@ fn run(cli: Cli) -> Result<(), Error> {
             input,
             output,
             note,
-            rate,
+            rates,
+            quantizer,
+            search,
             no_stats,
             json,
         } => {
             let t = Instant::now();
             let model = read_model(&input)?;
+            let feat_lattice = match quantizer.as_str() {
+                "usq" => Some(salvq::LatticeKind::Identity),
+                "dn" => Some(salvq::LatticeKind::Dn),
+                "e8" => Some(salvq::LatticeKind::E8Product),
+                "salvq" => Some(salvq::LatticeKind::General),
+                _ => None,
+            };
             let options = salvq::EncodeOptions {
                 encoder_note: note,
-                rate,
+                rates,
                 statistics: !no_stats,
+                feat_lattice,
+                search: salvq::Search::from_name(&search).unwrap_or_default(),
             };
-            let (stream, report) = salvq::encoder::encode_with_report(&model, &options)?;
-            salvq::io::write_bytes_atomic(&output, &stream)?;
+            let encoded = salvq::encoder::encode_full(&model, &options)?;
+            let stream = &encoded.stream;
+            salvq::io::write_bytes_atomic(&output, stream)?;
+            let reports: Vec<_> = encoded.layers.iter().map(|l| &l.report).collect();
             if json {
                 println!(
                     "{}",
-                    serde_json::to_string_pretty(&report).unwrap_or_default()
+                    serde_json::to_string_pretty(&reports).unwrap_or_default()
                 );
             } else {
+                let rates: Vec<u8> = reports.iter().map(|r| r.rate).collect();
                 println!(
-                    "encoded {} anchors at rate {rate} into {} ({} bytes, {:.2} bits/anchor) in {:.2} s",
+                    "encoded {} anchors at rates {rates:?} into {} ({} bytes, {:.2} bits/anchor) in {:.2} s",
                     model.dims.anchors,
                     output.display(),
                     stream.len(),
                     stream.len() as f64 * 8.0 / f64::from(model.dims.anchors),
                     secs(t)
                 );
-                print!("{}", salvq::info::groups_text(&report));
+                for r in reports {
+                    println!("rate {}:", r.rate);
+                    print!("{}", salvq::info::groups_text(r));
+                }
             }
         }
-        Command::Decode { input, output } => {
+        Command::Extract {
+            input,
+            rate,
+            output,
+        } => {
+            let stream = salvq::io::read_file(&input)?;
+            let one = salvq::extract_rate(&stream, rate, &Limits::default())?;
+            salvq::io::write_bytes_atomic(&output, &one)?;
+            println!(
+                "extracted rate {rate} into {} ({} of {} bytes)",
+                output.display(),
+                one.len(),
+                stream.len()
+            );
+        }
+        Command::Decode {
+            input,
+            output,
+            rate,
+        } => {
             let t = Instant::now();
             let stream = salvq::io::read_file(&input)?;
-            let model = salvq::decode_with_limits(&stream, &Limits::default())?;
+            let options = salvq::DecodeOptions {
+                limits: Limits::default(),
+                rate,
+            };
+            let model = salvq::decode_with_options(&stream, &options)?;
             write_model(&model, &output)?;
             println!(
                 "decoded {} anchors into {} in {:.2} s",
@@ -222,7 +287,7 @@ fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Error> {
         }
     };
     println!(
-        "salvq demo: format 0.2, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n"
+        "salvq demo: format 0.3, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n"
     );
     salvq::model::validate::check_field(salvq::error::Field::AnchorCount, anchors.into())?;
     let params = GenParams {

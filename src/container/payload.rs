@@ -257,6 +257,14 @@ fn read_group(
         check_finite(names[3], &s, &[dim])?;
         let v = f32s(r.take(4 * n * n)?);
         check_finite(names[4], &v, &[dim, dim])?;
+        // §7.2: B must be invertible; a zero singular value is the one defect a decoder
+        // checks (the other basis rules of §2.6 bind encoders).
+        if let Some(i) = s.iter().position(|&x| x == 0.0) {
+            return Err(Error::BasisSingular {
+                tensor: names[3],
+                index: i as u64,
+            });
+        }
         Some(Basis { u, s, v })
     } else {
         None
@@ -270,12 +278,15 @@ pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
     let basis_len = |dim: u64, on: bool| if on { 2 * dim * dim + dim } else { 0 };
     let f = u64::from(d.feat_dim);
     let s = u64::from(d.scaling_dim);
-    let count =
-        3 * (1 + u64::from(d.rates)) + basis_len(f, d.feat_basis) + basis_len(s, d.scaling_basis);
+    let (fb, sb) = (
+        d.feat_lattice.has_factors(),
+        d.scaling_lattice.has_factors(),
+    );
+    let count = 3 * (1 + u64::from(d.rates)) + basis_len(f, fb) + basis_len(s, sb);
     expect_len(tag, body, 4 * count)?;
     let mut r = PayloadReader::new(tag, body);
-    let feat = read_group(&mut r, &names::QUANT_FEAT, d.rates, f, d.feat_basis)?;
-    let scaling = read_group(&mut r, &names::QUANT_SCALING, d.rates, s, d.scaling_basis)?;
+    let feat = read_group(&mut r, &names::QUANT_FEAT, d.rates, f, fb)?;
+    let scaling = read_group(&mut r, &names::QUANT_SCALING, d.rates, s, sb)?;
     let offsets = read_group(&mut r, &names::QUANT_OFFSETS, d.rates, 3, false)?;
     r.finish()?;
     Ok([feat, scaling, offsets])

@@ -6,13 +6,10 @@ use crate::container::chunk::ChunkTag;
 use crate::error::{Error, Field, Result};
 use crate::limits::{LimitKind, Limits};
 use crate::model::validate::{check_dims, check_field, check_geometry};
-use crate::model::{decoded_bytes, Dims};
+use crate::model::{decoded_bytes, Dims, LatticeKind};
 
-/// `head_flags` bit 0: the feature group carries a general lattice basis.
-pub const HEAD_FLAG_FEAT_BASIS: u8 = 1 << 0;
-/// `head_flags` bit 1: the scaling group carries a general lattice basis (FS-SALVQ).
-pub const HEAD_FLAG_SCALING_BASIS: u8 = 1 << 1;
-const HEAD_FLAGS_DEFINED: u8 = HEAD_FLAG_FEAT_BASIS | HEAD_FLAG_SCALING_BASIS;
+/// `head_flags`: no bit is defined in this version (all reserved, zero).
+const HEAD_FLAGS_DEFINED: u8 = 0;
 
 /// The decoded `HEAD` payload.
 #[derive(Debug, Clone, PartialEq)]
@@ -24,8 +21,9 @@ pub struct Preflight {
     pub voxel_size: f32,
     /// Sum of the sizes of every decoded tensor (spec Table 2-1).
     pub decoded_bytes: u64,
-    /// The rate whose symbols the stream carries (0 .. rate_count - 1).
-    pub coded_rate: u8,
+    /// Bit i set: the stream carries a symbol layer for rate i (§7.4); at least one bit,
+    /// none at or above `rate_count`.
+    pub rate_mask: u64,
 }
 
 impl Preflight {
@@ -39,14 +37,9 @@ impl Preflight {
         w.u16(d.scaling_dim);
         w.u8(d.rates);
         w.u8(self.coord_bits);
-        let mut flags = 0;
-        if d.feat_basis {
-            flags |= HEAD_FLAG_FEAT_BASIS;
-        }
-        if d.scaling_basis {
-            flags |= HEAD_FLAG_SCALING_BASIS;
-        }
-        w.u8(flags);
+        w.u8(0);
+        w.u8(d.feat_lattice.code());
+        w.u8(d.scaling_lattice.code());
         w.u8(d.grid_channels);
         w.u8(d.res_3d.len() as u8);
         w.u8(d.res_2d.len() as u8);
@@ -55,7 +48,7 @@ impl Preflight {
         w.u16(d.context_hidden);
         w.u16(d.scaffold_hidden);
         w.u8(d.view_dims);
-        w.u8(self.coded_rate);
+        w.u64(self.rate_mask);
         for o in self.origin {
             w.f32(o);
         }
@@ -80,6 +73,8 @@ impl Preflight {
         let rates = r.u8()?;
         let coord_bits = r.u8()?;
         let flags = r.u8()?;
+        let feat_lattice = r.u8()?;
+        let scaling_lattice = r.u8()?;
         let grid_channels = r.u8()?;
         let levels_3d = r.u8()?;
         let levels_2d = r.u8()?;
@@ -88,7 +83,7 @@ impl Preflight {
         let context_hidden = r.u16()?;
         let scaffold_hidden = r.u16()?;
         let view_dims = r.u8()?;
-        let coded_rate = r.u8()?;
+        let rate_mask = r.u64()?;
         let origin = [r.f32()?, r.f32()?, r.f32()?];
         let voxel_size = r.f32()?;
         // Step 2: reserved flag bits.
@@ -124,18 +119,19 @@ impl Preflight {
             context_hidden,
             scaffold_hidden,
             view_dims,
-            feat_basis: flags & HEAD_FLAG_FEAT_BASIS != 0,
-            scaling_basis: flags & HEAD_FLAG_SCALING_BASIS != 0,
+            feat_lattice: lattice_kind(Field::FeatLattice, feat_lattice)?,
+            scaling_lattice: lattice_kind(Field::ScalingLattice, scaling_lattice)?,
         };
         // Step 4: every field in its range (Table 1-4).
         check_dims(&dims)?;
         check_field(Field::CoordBits, coord_bits.into())?;
-        if coded_rate >= rates {
+        let all_rates = u64::MAX >> (64 - u32::from(rates.clamp(1, 64)));
+        if rate_mask == 0 || rate_mask & !all_rates != 0 {
             return Err(Error::FieldOutOfRange {
-                field: Field::CodedRate,
-                value: coded_rate.into(),
-                min: 0,
-                max: u64::from(rates) - 1,
+                field: Field::RateMask,
+                value: rate_mask,
+                min: 1,
+                max: all_rates,
             });
         }
         check_geometry(&origin, voxel_size)?;
@@ -153,7 +149,24 @@ impl Preflight {
             origin,
             voxel_size,
             decoded_bytes: computed,
-            coded_rate,
+            rate_mask,
         })
     }
+
+    /// The coded rates, ascending (§7.4: the order of the symbol layers).
+    pub fn coded_rates(&self) -> Vec<u8> {
+        (0..64u8)
+            .filter(|&i| self.rate_mask >> i & 1 == 1)
+            .collect()
+    }
+}
+
+/// Table 1-4: a lattice code (Table 7-1).
+fn lattice_kind(field: Field, code: u8) -> Result<LatticeKind> {
+    LatticeKind::from_code(code).ok_or(Error::FieldOutOfRange {
+        field,
+        value: code.into(),
+        min: 0,
+        max: 3,
+    })
 }

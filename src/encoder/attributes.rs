@@ -1,5 +1,6 @@
-//! Encoder side of the anchor attribute chunks (spec §6.6): symbols u = round((x - μ) / Δ)
-//! against the integer prior, the masks' slot probabilities, and the statistics `info`
+//! Encoder side of the anchor attribute chunks (spec §6.6): lattice coordinates u of the
+//! targets (x - μ) / Δ (§7.3; u = round((x - μ) / Δ) for the identity), coded against the
+//! integer prior, the masks' slot probabilities, and the statistics `info`
 //! reports (ideal information under the integer model and under the float model).
 
 use rayon::prelude::*;
@@ -14,6 +15,8 @@ use crate::hyperprior::prior::{Group, Prior};
 use crate::model::SceneModel;
 
 use super::float_prior::FloatPrior;
+use super::search::GroupSearch;
+use crate::quantizer::reconstruct_value;
 
 /// What coding one attribute group cost (spec §6.6; reported by `salvq info --json`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -28,7 +31,8 @@ pub struct GroupStats {
     /// Σ -log2 p(u) under the float model (float interpolation, float MLP, exact
     /// discretized Gaussian), for the symbols that model would have chosen.
     pub ideal_bits_float: f64,
-    /// Largest |x - x̂| / Δ over the group's coded values (≤ 0.5 up to binary32 rounding).
+    /// Largest |x - x̂| / Δ over the group's coded values (≤ 0.5 up to binary32 rounding for
+    /// the identity; up to the lattice's covering radius otherwise).
     pub max_error_steps: f64,
     /// Σ (x - x̂)^2 over the group's coded values.
     pub squared_error: f64,
@@ -36,10 +40,8 @@ pub struct GroupStats {
 
 /// The coded chunks and their statistics.
 pub struct CodedAttributes {
-    pub amsk: Vec<u8>,
     pub chunks: [Vec<u8>; 3],
     pub stats: [GroupStats; 3],
-    pub mask_bits: u64,
     /// What a decoder reconstructs: features [N, F], scalings [N, S], offsets [N, K, 3].
     pub recon: [Vec<f32>; 3],
 }
@@ -56,7 +58,13 @@ struct AnchorSymbols {
     recon: [Vec<f32>; 3],
 }
 
-fn symbols_of(m: &SceneModel, i: usize, prior: &Prior, float: &FloatPrior) -> AnchorSymbols {
+fn symbols_of(
+    m: &SceneModel,
+    i: usize,
+    prior: &Prior,
+    float: &FloatPrior,
+    searches: &[GroupSearch; 2],
+) -> Result<AnchorSymbols> {
     let d = &m.dims;
     let (f, s, k) = (
         usize::from(d.feat_dim),
@@ -96,24 +104,50 @@ fn symbols_of(m: &SceneModel, i: usize, prior: &Prior, float: &FloatPrior) -> An
         ),
     ];
     for (g, x, coded) in values {
+        let gi = g as usize;
         let step = prior.step(&ctx.y, g);
-        for j in coded {
-            let mu = prior.reconstruct(&ctx.y, g, j, step.delta, 0);
-            let u = ((f64::from(x[j]) - f64::from(mu)) / f64::from(step.delta)).round();
-            let u = u.clamp(-9.0e18, 9.0e18) as i64;
-            let ki = prior.scale_index(&ctx.y, g, j, &step);
-            let x_hat = prior.reconstruct(&ctx.y, g, j, step.delta, u);
-            out.recon[g as usize][j] = x_hat;
-            let err = f64::from(x[j]) - f64::from(x_hat);
-            let gi = g as usize;
-            out.max_error_steps[gi] =
-                out.max_error_steps[gi].max(err.abs() / f64::from(step.delta));
-            out.squared_error[gi] += err * err;
-            out.groups[g as usize].push((u, ki));
-            out.float_bits[g as usize] += fctx.ideal_bits(g, j, x[j]);
+        let delta = f64::from(step.delta);
+        let mu: Vec<f32> = coded
+            .iter()
+            .map(|&j| prior.mean_f32(&ctx.y, g, j))
+            .collect();
+        // §7.3 (Annex A.4): targets t = (x − μ) / Δ, a lattice point u for them, and the
+        // decoder's reconstruction μ + Δ·(B u).
+        let t: Vec<f64> = coded
+            .iter()
+            .zip(&mu)
+            .map(|(&j, &m)| (f64::from(x[j]) - f64::from(m)) / delta)
+            .collect();
+        let search = searches.get(gi);
+        let u = match search {
+            Some(gs) => gs.quantize(&t, i as u64)?,
+            None => t
+                .iter()
+                .map(|v| v.round().clamp(-9.0e18, 9.0e18) as i64)
+                .collect(),
+        };
+        let mut z = vec![0f32; u.len()];
+        match search {
+            Some(gs) => gs.matrix.apply(&u, &mut z),
+            None => z.iter_mut().zip(&u).for_each(|(z, &u)| *z = u as f32),
         }
+        for (c, &j) in coded.iter().enumerate() {
+            let x_hat = reconstruct_value(mu[c], step.delta, z[c]);
+            out.recon[gi][j] = x_hat;
+            let err = f64::from(x[j]) - f64::from(x_hat);
+            out.max_error_steps[gi] = out.max_error_steps[gi].max(err.abs() / delta);
+            out.squared_error[gi] += err * err;
+            let ki = prior.scale_index(&ctx.y, g, j, &step);
+            out.groups[gi].push((u[c], ki));
+        }
+        out.float_bits[gi] = match search {
+            Some(gs) if !gs.matrix.is_identity() => {
+                fctx.ideal_bits_lattice(g, x, |t| gs.quantize(t, i as u64).ok())
+            }
+            _ => coded.iter().map(|&j| fctx.ideal_bits(g, j, x[j])).sum(),
+        };
     }
-    out
+    Ok(out)
 }
 
 /// §6.6.1: the slot probabilities P(mask = 1) in units of 2^-16, clamped to 1 ..= 65535.
@@ -130,14 +164,8 @@ fn slot_probabilities(m: &SceneModel) -> Vec<u16> {
         .collect()
 }
 
-/// Codes the masks and the three attribute groups of a canonical-order model.
-pub fn code_attributes(
-    m: &SceneModel,
-    prior: &Prior,
-    float: &FloatPrior,
-    tables: &GaussianTables,
-) -> Result<CodedAttributes> {
-    // Masks (§6.6.1).
+/// §6.6.1: the `AMSK` payload (shared by every rate) of a canonical-order model.
+pub fn code_masks(m: &SceneModel, tables: &GaussianTables) -> Vec<u8> {
     let p_one = slot_probabilities(m);
     let mut amsk = vec![METHOD_CODED];
     for p in &p_one {
@@ -152,7 +180,18 @@ pub fn code_attributes(
         w.bit(b != 0, freq[i % freq.len()]);
     }
     amsk.extend_from_slice(&w.finish());
+    amsk
+}
 
+/// Codes the three attribute groups of a canonical-order model at one rate (`prior` and
+/// `float` are built for that rate): one symbol layer (§7.4).
+pub fn code_attributes(
+    m: &SceneModel,
+    prior: &Prior,
+    float: &FloatPrior,
+    searches: &[GroupSearch; 2],
+    tables: &GaussianTables,
+) -> Result<CodedAttributes> {
     // Attributes (§6.6.2): symbols in parallel, coded in stream order.
     let mut writers =
         [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF].map(|tag| SymbolWriter::new(tag, tables));
@@ -172,8 +211,8 @@ pub fn code_attributes(
         let end = (start + BLOCK).min(m.n());
         let block: Vec<AnchorSymbols> = (start..end)
             .into_par_iter()
-            .map(|i| symbols_of(m, i, prior, float))
-            .collect();
+            .map(|i| symbols_of(m, i, prior, float, searches))
+            .collect::<Result<_>>()?;
         for a in block {
             for (r, v) in recon.iter_mut().zip(&a.recon) {
                 r.extend_from_slice(v);
@@ -203,10 +242,8 @@ pub fn code_attributes(
         st.coded_bytes = c.len() as u64;
     }
     Ok(CodedAttributes {
-        amsk,
         chunks,
         stats,
-        mask_bits: m.anchors.mask.len() as u64,
         recon,
     })
 }

@@ -85,14 +85,46 @@ impl FloatPrior {
 }
 
 impl FloatAnchor<'_> {
+    /// The float model's step of group `g` at this anchor.
+    fn delta(&self, g: Group) -> f64 {
+        let gi = g as usize;
+        self.prior.base[gi] * (1.0 + self.y[self.prior.adj_at + gi].tanh())
+    }
+
+    /// -log2 P(u) of value `j` of group `g` with scale σ/Δ.
+    fn bits(&self, g: Group, j: usize, u: f64, delta: f64) -> f64 {
+        let sigma = self.y[self.prior.scale_at[g as usize] + j].max(1e-9);
+        -discretized_gaussian(u, sigma / delta).log2()
+    }
+
     /// -log2 P(u) of value `j` of group `g` for the symbol the float model would code.
     pub fn ideal_bits(&self, g: Group, j: usize, x: f32) -> f64 {
-        let p = self.prior;
-        let gi = g as usize;
-        let delta = p.base[gi] * (1.0 + self.y[p.adj_at + gi].tanh());
-        let mu = self.y[p.mean_at[gi] + j];
-        let sigma = self.y[p.scale_at[gi] + j].max(1e-9);
+        let delta = self.delta(g);
+        let mu = self.y[self.prior.mean_at[g as usize] + j];
         let u = ((f64::from(x) - mu) / delta).round();
-        -discretized_gaussian(u, sigma / delta).log2()
+        self.bits(g, j, u, delta)
+    }
+
+    /// The float model's bits for a whole group coded with a lattice: its own targets
+    /// `(x − μ) / Δ`, quantized by `search`, each coordinate under its Gaussian.
+    pub fn ideal_bits_lattice(
+        &self,
+        g: Group,
+        x: &[f32],
+        search: impl Fn(&[f64]) -> Option<Vec<i64>>,
+    ) -> f64 {
+        let delta = self.delta(g);
+        let at = self.prior.mean_at[g as usize];
+        let t: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(j, &v)| (f64::from(v) - self.y[at + j]) / delta)
+            .collect();
+        match search(&t) {
+            Some(u) => (0..x.len())
+                .map(|j| self.bits(g, j, u[j] as f64, delta))
+                .sum(),
+            None => f64::INFINITY,
+        }
     }
 }

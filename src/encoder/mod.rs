@@ -5,6 +5,7 @@
 pub mod attributes;
 pub mod convert;
 pub mod float_prior;
+pub mod search;
 
 use serde::{Deserialize, Serialize};
 
@@ -16,23 +17,32 @@ use crate::entropy::GaussianTables;
 use crate::error::{Error, Field, Result};
 use crate::hyperprior::prior::Prior;
 use crate::hyperprior::GridLayout;
-use crate::model::validate::validate_model;
-use crate::model::{decoded_bytes, names, SceneModel};
+use crate::model::validate::{check_lattices, validate_model};
+use crate::model::{decoded_bytes, names, LatticeKind, SceneModel};
+use crate::quantizer::LatticeMatrix;
 
 pub use attributes::GroupStats;
+pub use search::{GroupSearch, Search};
 
 /// Options that change what the encoder writes.
 #[derive(Debug, Clone, Default)]
 pub struct EncodeOptions {
     /// Text for an `encd` ancillary chunk (§1.7); `None` writes no such chunk.
     pub encoder_note: Option<String>,
-    /// The rate (index into the gains) whose symbols the stream carries.
-    pub rate: u8,
-    /// Write the `ests` ancillary chunk with the encoder's statistics (§1.7).
+    /// The rates (indices into the gains) whose symbol layers the stream carries (§7.4), in
+    /// any order; empty means rate 0 alone.
+    pub rates: Vec<u8>,
+    /// Write an `ests` ancillary chunk with the encoder's statistics after each layer (§1.7).
     pub statistics: bool,
+    /// Code the feature group with this lattice instead of the model's (`--quantizer`):
+    /// the identity, D_n, an E8 product, or the model's general basis.
+    pub feat_lattice: Option<LatticeKind>,
+    /// How the encoder picks lattice points (§7.3 leaves it free).
+    pub search: Search,
 }
 
-/// What the encoder measured (written to `ests` when asked; `salvq info` shows it).
+/// What the encoder measured for one layer (written to `ests` when asked; `salvq info`
+/// shows it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EncodeReport {
     pub anchors: u64,
@@ -60,37 +70,84 @@ pub fn encode_with_report(
     model: &SceneModel,
     options: &EncodeOptions,
 ) -> Result<(Vec<u8>, EncodeReport)> {
-    encode_full(model, options).map(|e| (e.stream, e.report))
+    encode_full(model, options).map(|mut e| (e.stream, e.layers.swap_remove(0).report))
 }
 
-/// Everything the encoder produces: the stream, its report, and the model a conformant
-/// decoder must output for it (bit for bit), which tests use as their oracle.
-pub struct Encoded {
-    pub stream: Vec<u8>,
+/// One symbol layer as the encoder produced it.
+#[derive(Debug)]
+pub struct EncodedLayer {
+    pub rate: u8,
     pub report: EncodeReport,
+    /// The model a conformant decoder must output for this rate, bit for bit.
     pub expected: SceneModel,
 }
 
-/// Encodes a model, returning the stream, the report and the expected decoded model.
+/// Everything the encoder produces: the stream and, per layer in stream order (rates
+/// ascending), its report and the decoded model a conformant decoder must output, which
+/// tests use as their oracle.
+#[derive(Debug)]
+pub struct Encoded {
+    pub stream: Vec<u8>,
+    pub layers: Vec<EncodedLayer>,
+}
+
+impl Encoded {
+    /// The report of the first layer (the lowest rate).
+    pub fn report(&self) -> &EncodeReport {
+        &self.layers[0].report
+    }
+
+    /// The expected decoded model of the first layer (what `decode` returns by default).
+    pub fn expected(&self) -> &SceneModel {
+        &self.layers[0].expected
+    }
+}
+
+/// The lattice each of the feature and scaling groups is coded with, and the model with
+/// the quantizers changed accordingly (an E8 or D_n asked for by the options replaces the
+/// model's basis).
+fn choose_lattices(model: &SceneModel, options: &EncodeOptions) -> Result<SceneModel> {
+    let mut m = model.clone();
+    if let Some(kind) = options.feat_lattice {
+        if kind == LatticeKind::General && model.quant_feat.basis.is_none() {
+            return Err(Error::TensorMissing {
+                tensor: names::QUANT_FEAT[2],
+            });
+        }
+        m.dims.feat_lattice = kind;
+        if kind != LatticeKind::General {
+            m.quant_feat.basis = None;
+        }
+        check_lattices(&m.dims)?;
+    }
+    Ok(m)
+}
+
+/// Encodes a model, returning the stream and, per layer, the report and expected model.
 pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encoded> {
     validate_model(model)?;
-    // §6.6: version 0.2 codes every group with the identity basis.
-    for (q, tensor) in [
-        (&model.quant_feat, names::QUANT_FEAT[2]),
-        (&model.quant_scaling, names::QUANT_SCALING[2]),
-    ] {
-        if q.basis.is_some() {
-            return Err(Error::QuantizerUnsupported { tensor });
-        }
-    }
-    if options.rate >= model.dims.rates {
+    let mut rates = if options.rates.is_empty() {
+        vec![0]
+    } else {
+        options.rates.clone()
+    };
+    rates.sort_unstable();
+    rates.dedup();
+    if let Some(&r) = rates.iter().find(|&&r| r >= model.dims.rates) {
         return Err(Error::FieldOutOfRange {
             field: Field::CodedRate,
-            value: options.rate.into(),
+            value: r.into(),
             min: 0,
             max: u64::from(model.dims.rates) - 1,
         });
     }
+    let chosen;
+    let model = if options.feat_lattice.is_some() {
+        chosen = choose_lattices(model, options)?;
+        &chosen
+    } else {
+        model
+    };
     let canonical;
     let m = if model.is_canonical() {
         model
@@ -106,34 +163,47 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         origin: m.origin,
         voxel_size: m.voxel_size,
         decoded_bytes: decoded_bytes(d),
-        coded_rate: options.rate,
+        rate_mask: rates.iter().fold(0u64, |a, &r| a | 1 << r),
     };
     // §5: the integer prior, converted from the model's float context MLP.
     let layout = GridLayout::new(d, coord_bits);
     let x = convert::grid_inputs(m, &layout);
     let int_mlp = convert::convert_context_mlp(&m.mlp_grid, layout.features(), &x)?;
     drop(x);
-    let rate = usize::from(options.rate);
     let quant = [&m.quant_feat, &m.quant_scaling, &m.quant_offsets];
-    let prior = Prior::new(d, coord_bits, int_mlp.clone(), quant, rate);
-    let float = float_prior::FloatPrior::new(m, coord_bits, rate);
     let touched = layout.touched(&m.anchors.voxel, d.entries_3d(), d.entries_2d());
     let tables = GaussianTables::standard();
-    let coded = attributes::code_attributes(m, &prior, &float, tables)?;
+    // §7.2: each group's lattice, and the encoder's search for it.
+    let searches = [
+        (
+            d.feat_lattice,
+            usize::from(d.feat_dim),
+            &m.quant_feat,
+            names::QUANT_FEAT[0],
+        ),
+        (
+            d.scaling_lattice,
+            usize::from(d.scaling_dim),
+            &m.quant_scaling,
+            names::QUANT_SCALING[0],
+        ),
+    ]
+    .map(|(kind, dim, q, tensor)| {
+        GroupSearch::new(
+            LatticeMatrix::new(kind, dim, q.basis.as_ref()),
+            options.search,
+            tensor,
+        )
+    });
+    let [fs, ss] = searches;
+    let searches = [fs?, ss?];
+    let amsk = attributes::code_masks(m, tables);
+    let grid_entries_stored = touched
+        .iter()
+        .map(|t| t.iter().filter(|&&u| u).count() as u64)
+        .sum();
 
-    let report = EncodeReport {
-        anchors: d.anchors.into(),
-        rate: options.rate,
-        groups: coded.stats.to_vec(),
-        mask_bits: coded.mask_bits,
-        mask_bytes: coded.amsk.len() as u64,
-        grid_entries_stored: touched
-            .iter()
-            .map(|t| t.iter().filter(|&&u| u).count() as u64)
-            .sum(),
-        grid_entries_total: d.entries_3d() + 3 * d.entries_2d(),
-    };
-    let mut out = Vec::with_capacity(coded.chunks.iter().map(Vec::len).sum::<usize>() + (1 << 20));
+    let mut out = Vec::with_capacity(1 << 20);
     out.extend_from_slice(&Signature::current().to_bytes());
     write_chunk(&mut out, ChunkTag::HEAD, &head.to_payload());
     if let Some(note) = &options.encoder_note {
@@ -147,18 +217,9 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         ChunkTag::GRID,
         &payload::write_grid(&m.grid, &touched, usize::from(d.grid_channels)),
     );
-    write_chunk(&mut out, ChunkTag::AMSK, &coded.amsk);
-    let [afea, ascl, aoff] = &coded.chunks;
-    write_chunk(&mut out, ChunkTag::AFEA, afea);
-    write_chunk(&mut out, ChunkTag::ASCL, ascl);
-    write_chunk(&mut out, ChunkTag::AOFF, aoff);
-    if options.statistics {
-        let json = serde_json::to_vec(&report).unwrap_or_default();
-        write_chunk(&mut out, ChunkTag::ESTS, &json);
-    }
-    write_chunk(&mut out, ChunkTag::SEND, &[]);
-    // The decoded model: reconstructed attributes, the integer MLP's values, +1 at untouched
-    // grid entries (§5.2, §6.6.2).
+    write_chunk(&mut out, ChunkTag::AMSK, &amsk);
+    // The decoded model's shared parts: the integer MLP's values, +1 at untouched grid
+    // entries (§5.2).
     let c = usize::from(d.grid_channels);
     let keep = |t: &[i8], used: &[bool]| -> Vec<i8> {
         t.iter()
@@ -166,15 +227,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
             .map(|(i, &v)| if used[i / c] { v } else { 1 })
             .collect()
     };
-    let [feat, scaling, offsets] = coded.recon;
-    let expected = SceneModel {
-        anchors: crate::model::Anchors {
-            voxel: m.anchors.voxel.clone(),
-            mask: m.anchors.mask.clone(),
-            feat,
-            scaling,
-            offsets,
-        },
+    let shared = SceneModel {
         grid: crate::model::HashGrid {
             grid_3d: keep(&m.grid.grid_3d, &touched[0]),
             grid_xy: keep(&m.grid.grid_xy, &touched[1]),
@@ -184,9 +237,50 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         mlp_grid: int_mlp.to_float(),
         ..m.clone()
     };
+    // §7.4: one symbol layer per rate, rates ascending, each with its own `ests`.
+    let mut layers = Vec::with_capacity(rates.len());
+    for &rate in &rates {
+        let r = usize::from(rate);
+        let prior = Prior::new(d, coord_bits, int_mlp.clone(), quant, r);
+        let float = float_prior::FloatPrior::new(m, coord_bits, r);
+        let coded = attributes::code_attributes(m, &prior, &float, &searches, tables)?;
+        let report = EncodeReport {
+            anchors: d.anchors.into(),
+            rate,
+            groups: coded.stats.to_vec(),
+            mask_bits: m.anchors.mask.len() as u64,
+            mask_bytes: amsk.len() as u64,
+            grid_entries_stored,
+            grid_entries_total: d.entries_3d() + 3 * d.entries_2d(),
+        };
+        let [afea, ascl, aoff] = &coded.chunks;
+        write_chunk(&mut out, ChunkTag::AFEA, afea);
+        write_chunk(&mut out, ChunkTag::ASCL, ascl);
+        write_chunk(&mut out, ChunkTag::AOFF, aoff);
+        if options.statistics {
+            let json = serde_json::to_vec(&report).unwrap_or_default();
+            write_chunk(&mut out, ChunkTag::ESTS, &json);
+        }
+        let [feat, scaling, offsets] = coded.recon;
+        let expected = SceneModel {
+            anchors: crate::model::Anchors {
+                voxel: m.anchors.voxel.clone(),
+                mask: m.anchors.mask.clone(),
+                feat,
+                scaling,
+                offsets,
+            },
+            ..shared.clone()
+        };
+        layers.push(EncodedLayer {
+            rate,
+            report,
+            expected,
+        });
+    }
+    write_chunk(&mut out, ChunkTag::SEND, &[]);
     Ok(Encoded {
         stream: out,
-        report,
-        expected,
+        layers,
     })
 }

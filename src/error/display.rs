@@ -150,9 +150,27 @@ impl fmt::Display for Error {
                 f,
                 "chunk {tag}: symbol {symbol}: scale index {scale_index} is outside 0..={max}"
             )?,
-            QuantizerUnsupported { tensor } => write!(
+            LatticeDimension {
+                field,
+                lattice,
+                dim,
+                rule,
+            } => write!(
                 f,
-                "{tensor}: format 0.2 codes anchors with the identity basis only (lattice bases come with §7)"
+                "{}: lattice '{lattice}' on a group of dimension {dim}: {rule}",
+                field.spec_name()
+            )?,
+            LatticeSearchFailed {
+                tensor,
+                anchor,
+                reason,
+            } => match anchor {
+                Some(a) => write!(f, "{tensor}: anchor {a}: {reason}")?,
+                None => write!(f, "{tensor}: {reason}")?,
+            },
+            RateNotCoded { rate, rate_mask } => write!(
+                f,
+                "rate {rate} has no symbol layer in this stream (rate_mask {rate_mask:#x})"
             )?,
             NonFiniteValue { tensor, index } => {
                 write!(f, "{tensor}{}: value is not finite", Index(index))?

@@ -60,6 +60,9 @@ pub enum Field {
     ScaffoldHidden,
     ViewDims,
     CodedRate,
+    RateMask,
+    FeatLattice,
+    ScalingLattice,
     W0FracBits,
     Shift0,
     W1FracBits,
@@ -90,7 +93,10 @@ impl Field {
             Field::ContextHidden => "context_hidden",
             Field::ScaffoldHidden => "scaffold_hidden",
             Field::ViewDims => "view_dims",
-            Field::CodedRate => "coded_rate",
+            Field::CodedRate => "rate",
+            Field::RateMask => "rate_mask",
+            Field::FeatLattice => "feat_lattice",
+            Field::ScalingLattice => "scaling_lattice",
             Field::W0FracBits => "w0_frac_bits",
             Field::Shift0 => "shift0",
             Field::W1FracBits => "w1_frac_bits",
@@ -225,8 +231,22 @@ pub enum Error {
         max: u64,
     },
 
-    /// The encoder cannot code this quantizer in this format version.
-    QuantizerUnsupported { tensor: &'static str },
+    /// A group's lattice does not fit its dimension (§7.1: E8 products need a multiple of
+    /// 8, D_n at least 2).
+    LatticeDimension {
+        field: Field,
+        lattice: &'static str,
+        dim: u64,
+        rule: &'static str,
+    },
+    /// The rate asked for has no symbol layer in the stream (§7.4).
+    RateNotCoded { rate: u8, rate_mask: u64 },
+    /// The encoder's lattice search could not quantize a group (encoder only).
+    LatticeSearchFailed {
+        tensor: &'static str,
+        anchor: Option<u64>,
+        reason: String,
+    },
 
     // ---- tensor values (§2, decoder and encoder alike) ----
     /// A float value is NaN or infinite.
@@ -330,7 +350,9 @@ impl Error {
             AnsStreamInvalid { .. } => "§6.2",
             EscapeOverflow { .. } => "§6.4",
             ScaleIndexOutOfRange { .. } => "§6.3",
-            QuantizerUnsupported { .. } => "§6.6",
+            LatticeDimension { .. } => "§7.1",
+            RateNotCoded { .. } => "§7.4",
+            LatticeSearchFailed { .. } => "§7.3",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
             InterchangeFormat { .. }
@@ -369,7 +391,9 @@ impl Error {
             AnsStreamInvalid { .. } => "AnsStreamInvalid",
             EscapeOverflow { .. } => "EscapeOverflow",
             ScaleIndexOutOfRange { .. } => "ScaleIndexOutOfRange",
-            QuantizerUnsupported { .. } => "QuantizerUnsupported",
+            LatticeDimension { .. } => "LatticeDimension",
+            RateNotCoded { .. } => "RateNotCoded",
+            LatticeSearchFailed { .. } => "LatticeSearchFailed",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",

@@ -39,7 +39,7 @@ mod tests;
 mod tests_report;
 
 use crate::model::validate::check_dims;
-use crate::model::{Dims, SceneModel};
+use crate::model::{Dims, LatticeKind, SceneModel};
 
 /// What to generate: the scene size and seed, and the model dimensions (spec §2.1).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -137,9 +137,18 @@ impl GenParams {
             context_hidden: self.context_hidden,
             scaffold_hidden: self.scaffold_hidden,
             view_dims: self.view_dims,
-            feat_basis: self.feat_basis,
-            scaling_basis: self.scaling_basis,
+            feat_lattice: lattice(self.feat_basis),
+            scaling_lattice: lattice(self.scaling_basis),
         }
+    }
+}
+
+/// The lattice a generated group gets: a general basis or the identity (Annex B.7).
+fn lattice(basis: bool) -> LatticeKind {
+    if basis {
+        LatticeKind::General
+    } else {
+        LatticeKind::Identity
     }
 }
 

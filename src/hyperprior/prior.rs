@@ -218,6 +218,13 @@ impl Prior {
         }
     }
 
+    /// §5.5 step 1: the binary32 mean μ of value `j` of group `g`.
+    #[inline]
+    pub fn mean_f32(&self, y: &[i32], g: Group, j: usize) -> f32 {
+        let o = self.mean_at[g as usize] + j;
+        super::step::mean_f32(y[o], self.frac[o])
+    }
+
     /// §5.5: reconstruction of value `j` of group `g` from its symbol.
     #[inline]
     pub fn reconstruct(&self, y: &[i32], g: Group, j: usize, delta: f32, u: i64) -> f32 {

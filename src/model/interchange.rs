@@ -13,13 +13,17 @@ use safetensors::SafeTensors;
 
 use super::validate::{check_field, validate_model, MAX_COORD_BITS};
 use super::{
-    names, tensor_table, Anchors, Basis, Dims, Dtype, GroupQuantizer, HashGrid, Mlp, SceneModel,
-    TensorEntry,
+    names, tensor_table, Anchors, Basis, Dims, Dtype, GroupQuantizer, HashGrid, LatticeKind, Mlp,
+    SceneModel, TensorEntry,
 };
 use crate::error::{Error, Field, Result};
 
 /// Schema version written in the file's `__metadata__` (Annex A.1).
-pub const SCHEMA_VERSION: &str = "0.1";
+pub const SCHEMA_VERSION: &str = "0.2";
+
+/// Metadata keys naming the lattice of the feature and scaling groups (Annex A.1, §7.1).
+pub const META_FEAT_LATTICE: &str = "feat_lattice";
+pub const META_SCALING_LATTICE: &str = "scaling_lattice";
 
 fn st_dtype(d: Dtype) -> safetensors::Dtype {
     match d {
@@ -32,6 +36,8 @@ fn st_dtype(d: Dtype) -> safetensors::Dtype {
 
 struct Reader<'a> {
     st: SafeTensors<'a>,
+    /// The `__metadata__` lattice names (Annex A.1), when given.
+    lattices: [Option<String>; 2],
 }
 
 impl<'a> Reader<'a> {
@@ -159,7 +165,20 @@ fn infer_dims(r: &Reader<'_>) -> Result<Dims> {
         expected: vec![opa[0], feat_dim],
         found: opa.clone(),
     })?;
-    let present = |name: &'static str| r.st.tensor(name).is_ok();
+    // Annex A.1: a lattice named in the metadata, else a general basis exactly when its
+    // factor tensors are present.
+    let lattice = |named: &Option<String>, names: &[&'static str; 5]| -> Result<LatticeKind> {
+        match named {
+            Some(name) => LatticeKind::from_name(name).ok_or(Error::InterchangeFormat {
+                detail: format!(
+                    "metadata names an unknown lattice '{name}' (identity, dn, e8 or basis)"
+                ),
+            }),
+            None if names[2..].iter().any(|n| r.st.tensor(n).is_ok()) => Ok(LatticeKind::General),
+            None => Ok(LatticeKind::Identity),
+        }
+    };
+    let [feat_named, scaling_named] = &r.lattices;
     Ok(Dims {
         anchors: check_field(Field::AnchorCount, feat[0])? as u32,
         feat_dim: feat_dim as u16,
@@ -174,8 +193,8 @@ fn infer_dims(r: &Reader<'_>) -> Result<Dims> {
         context_hidden: check_field(Field::ContextHidden, ctx[0])? as u16,
         scaffold_hidden: check_field(Field::ScaffoldHidden, opa[0])? as u16,
         view_dims: check_field(Field::ViewDims, view_dims)? as u8,
-        feat_basis: names::QUANT_FEAT[2..].iter().any(|n| present(n)),
-        scaling_basis: names::QUANT_SCALING[2..].iter().any(|n| present(n)),
+        feat_lattice: lattice(feat_named, &names::QUANT_FEAT)?,
+        scaling_lattice: lattice(scaling_named, &names::QUANT_SCALING)?,
     })
 }
 
@@ -184,7 +203,12 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
     let st = SafeTensors::deserialize(bytes).map_err(|e| Error::InterchangeFormat {
         detail: e.to_string(),
     })?;
-    let r = Reader { st };
+    let lattices = SafeTensors::read_metadata(bytes)
+        .ok()
+        .and_then(|(_, meta)| meta.metadata().clone())
+        .map(|m| [META_FEAT_LATTICE, META_SCALING_LATTICE].map(|k| m.get(k).cloned()))
+        .unwrap_or_default();
+    let r = Reader { st, lattices };
     let dims = infer_dims(&r)?;
     super::validate::check_dims(&dims)?;
     let table = tensor_table(&dims);
@@ -266,8 +290,8 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
         mlp_opacity: mlp(names::MLP_OPACITY),
         mlp_cov: mlp(names::MLP_COV),
         mlp_color: mlp(names::MLP_COLOR),
-        quant_feat: group(&names::QUANT_FEAT, dims.feat_basis),
-        quant_scaling: group(&names::QUANT_SCALING, dims.scaling_basis),
+        quant_feat: group(&names::QUANT_FEAT, dims.feat_lattice.has_factors()),
+        quant_scaling: group(&names::QUANT_SCALING, dims.scaling_lattice.has_factors()),
         quant_offsets: group(&names::QUANT_OFFSETS, false),
         dims,
     };
@@ -352,7 +376,11 @@ pub fn write_safetensors(m: &SceneModel, w: &mut dyn Write) -> std::io::Result<(
     let table = tensor_table(&m.dims);
     let mut header = String::from("{\"__metadata__\":{\"format\":\"salvq-model\",\"schema\":\"");
     header.push_str(SCHEMA_VERSION);
-    header.push_str("\"}");
+    header.push_str(&format!(
+        "\",\"{META_FEAT_LATTICE}\":\"{}\",\"{META_SCALING_LATTICE}\":\"{}\"}}",
+        m.dims.feat_lattice.name(),
+        m.dims.scaling_lattice.name()
+    ));
     let mut offset = 0u64;
     for e in &table {
         let shape: Vec<String> = e.shape.iter().map(u64::to_string).collect();

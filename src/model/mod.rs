@@ -10,6 +10,8 @@ pub mod validate;
 
 use std::fmt;
 
+pub use crate::quantizer::LatticeKind;
+
 /// Element type of a tensor (spec §0.2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dtype {
@@ -69,10 +71,10 @@ pub struct Dims {
     pub scaffold_hidden: u16,
     /// V: view inputs of the Scaffold-GS MLPs after the feature (3: direction; 4: + distance).
     pub view_dims: u8,
-    /// Whether the feature group has a general lattice basis (`quant.feat.basis_*`).
-    pub feat_basis: bool,
-    /// Whether the scaling group has a general lattice basis (FS-SALVQ).
-    pub scaling_basis: bool,
+    /// The feature group's lattice (spec §7.1); `General` stores `quant.feat.basis_*`.
+    pub feat_lattice: LatticeKind,
+    /// The scaling group's lattice (FS-SALVQ when not the identity).
+    pub scaling_lattice: LatticeKind,
 }
 
 /// Entries in one hash-grid level of dimension `d` (spec §2.4): the dense grid
@@ -246,8 +248,8 @@ pub fn tensor_table(d: &Dims) -> Vec<TensorEntry> {
             t.push(e(names[4], Dtype::F32, &[dim, dim]));
         }
     };
-    group(&mut t, &QUANT_FEAT, f, d.feat_basis);
-    group(&mut t, &QUANT_SCALING, s, d.scaling_basis);
+    group(&mut t, &QUANT_FEAT, f, d.feat_lattice.has_factors());
+    group(&mut t, &QUANT_SCALING, s, d.scaling_lattice.has_factors());
     group(&mut t, &QUANT_OFFSETS, 3, false);
     t
 }
@@ -282,7 +284,8 @@ pub struct Basis {
 pub struct GroupQuantizer {
     pub step: f32,
     pub gains: Vec<f32>,
-    /// `None`: identity basis (uniform scalar quantization).
+    /// The factors of a general lattice basis (`Some` exactly when the group's
+    /// [`LatticeKind`] in [`Dims`] is `General`).
     pub basis: Option<Basis>,
 }
 

@@ -35,6 +35,8 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::ViewDims => (0, 8),
         Field::W0FracBits | Field::W1FracBits => (0, 30),
         Field::Shift0 => (0, 31),
+        Field::FeatLattice | Field::ScalingLattice => (0, 3),
+        Field::RateMask => (1, u64::MAX),
         Field::CodedRate
         | Field::FileFlags
         | Field::HeadFlags
@@ -57,6 +59,24 @@ pub fn check_field(field: Field, value: u64) -> Result<u64> {
     Ok(value)
 }
 
+/// §7.1: each group's lattice fits its dimension.
+pub fn check_lattices(d: &Dims) -> Result<()> {
+    for (field, kind, dim) in [
+        (Field::FeatLattice, d.feat_lattice, d.feat_dim),
+        (Field::ScalingLattice, d.scaling_lattice, d.scaling_dim),
+    ] {
+        if let Err(rule) = kind.check_dim(dim.into()) {
+            return Err(Error::LatticeDimension {
+                field,
+                lattice: kind.name(),
+                dim: dim.into(),
+                rule,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Checks every dimension against spec Table 1-4.
 pub fn check_dims(d: &Dims) -> Result<()> {
     check_field(Field::AnchorCount, d.anchors.into())?;
@@ -65,6 +85,7 @@ pub fn check_dims(d: &Dims) -> Result<()> {
     check_field(Field::ScalingDim, d.scaling_dim.into())?;
     check_field(Field::RateCount, d.rates.into())?;
     check_field(Field::GridChannels, d.grid_channels.into())?;
+    check_lattices(d)?;
     check_field(Field::Levels3d, d.res_3d.len() as u64)?;
     check_field(Field::Levels2d, d.res_2d.len() as u64)?;
     check_field(Field::Log2Size3d, d.log2_size_3d.into())?;
@@ -315,8 +336,22 @@ pub fn validate_model(m: &SceneModel) -> Result<()> {
     check_mlp(names::MLP_COV, &m.mlp_cov, si, hs, 7 * k)?;
     check_mlp(names::MLP_COLOR, &m.mlp_color, si, hs, 3 * k)?;
     let (qf, qs) = (&names::QUANT_FEAT, &names::QUANT_SCALING);
-    check_group(qf, Some(qf), &m.quant_feat, d.rates, f, d.feat_basis)?;
-    check_group(qs, Some(qs), &m.quant_scaling, d.rates, s, d.scaling_basis)?;
+    check_group(
+        qf,
+        Some(qf),
+        &m.quant_feat,
+        d.rates,
+        f,
+        d.feat_lattice.has_factors(),
+    )?;
+    check_group(
+        qs,
+        Some(qs),
+        &m.quant_scaling,
+        d.rates,
+        s,
+        d.scaling_lattice.has_factors(),
+    )?;
     check_group(
         &names::QUANT_OFFSETS,
         None,

@@ -27,6 +27,8 @@ pub fn small_stream() -> Vec<u8> {
 pub fn small_expected() -> SceneModel {
     salvq::encoder::encode_full(&small_model(), &Default::default())
         .expect("valid model encodes")
+        .layers
+        .swap_remove(0)
         .expected
 }
 

@@ -1,0 +1,117 @@
+//! Extracting one rate from a multi-rate stream (spec §7.5): the shared chunks and one symbol
+//! layer are copied as they are, `HEAD` is rewritten with the one rate, and nothing is
+//! re-coded, so the result is byte-identical to encoding that rate alone.
+
+use crate::container::chunk::{write_chunk, ChunkReader, ChunkTag};
+use crate::container::preflight::Preflight;
+use crate::container::signature::{Signature, SIGNATURE_LEN};
+use crate::decoder::expected_critical;
+use crate::error::{Error, Field, Result};
+use crate::limits::Limits;
+
+/// The single-rate stream of rate `rate` taken from `data` (§7.5). The container is checked
+/// as a decoder checks it (signature, framing, CRC-32C, chunk order, `HEAD`); the payloads of
+/// the other chunks are copied without being parsed.
+pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
+    let (_sig, rest) = Signature::parse(data)?;
+    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
+    let mut out = Vec::with_capacity(data.len());
+    out.extend_from_slice(&data[..SIGNATURE_LEN]);
+    let (mut layers, mut selected) = (0usize, 0usize);
+    let mut next_critical = 0usize;
+    // The layer the chunks now read belong to (§7.4): None before the first AFEA.
+    let mut section: Option<usize> = None;
+    let mut head_seen = false;
+    loop {
+        let Some(chunk) = reader.next_chunk()? else {
+            return Err(Error::Truncated {
+                structure: crate::error::Structure::ChunkHeader,
+                needed: 8,
+                available: 0,
+            });
+        };
+        let tag = chunk.tag;
+        if !tag.is_critical() {
+            if !head_seen {
+                return Err(Error::ChunkOrder {
+                    found: tag,
+                    expected: ChunkTag::HEAD,
+                });
+            }
+            if section.map_or(true, |l| l == selected) {
+                write_chunk(&mut out, tag, chunk.payload);
+            }
+            continue;
+        }
+        if !ChunkTag::CRITICAL_ORDER.contains(&tag) {
+            return Err(Error::UnknownCriticalChunk { tag });
+        }
+        let expected = if head_seen {
+            expected_critical(next_critical, layers)
+        } else {
+            ChunkTag::HEAD
+        };
+        if tag != expected {
+            return Err(Error::ChunkOrder {
+                found: tag,
+                expected,
+            });
+        }
+        next_critical += 1;
+        match tag {
+            ChunkTag::HEAD => {
+                let mut head = Preflight::parse(chunk.payload, limits)?;
+                if rate >= head.dims.rates {
+                    return Err(Error::FieldOutOfRange {
+                        field: Field::CodedRate,
+                        value: rate.into(),
+                        min: 0,
+                        max: u64::from(head.dims.rates) - 1,
+                    });
+                }
+                let coded = head.coded_rates();
+                selected = coded
+                    .iter()
+                    .position(|&r| r == rate)
+                    .ok_or(Error::RateNotCoded {
+                        rate,
+                        rate_mask: head.rate_mask,
+                    })?;
+                layers = coded.len();
+                head.rate_mask = 1 << rate;
+                write_chunk(&mut out, tag, &head.to_payload());
+                head_seen = true;
+            }
+            ChunkTag::AFEA => {
+                let layer = section.map_or(0, |l| l + 1);
+                section = Some(layer);
+                if layer == selected {
+                    write_chunk(&mut out, tag, chunk.payload);
+                }
+            }
+            ChunkTag::ASCL | ChunkTag::AOFF => {
+                if section == Some(selected) {
+                    write_chunk(&mut out, tag, chunk.payload);
+                }
+            }
+            ChunkTag::SEND => {
+                if !chunk.payload.is_empty() {
+                    return Err(Error::ChunkSizeMismatch {
+                        tag,
+                        expected: 0,
+                        found: chunk.payload.len() as u64,
+                    });
+                }
+                write_chunk(&mut out, tag, chunk.payload);
+                let trailing = reader.remaining().len();
+                if trailing != 0 {
+                    return Err(Error::TrailingData {
+                        bytes: trailing as u64,
+                    });
+                }
+                return Ok(out);
+            }
+            _ => write_chunk(&mut out, tag, chunk.payload),
+        }
+    }
+}

@@ -1,0 +1,221 @@
+//! Quantizers (spec §7): the lattice of each attribute group, its reconstruction matrix in
+//! binary32, and the reconstruction `x = μ + Δ·(B u)` in a fixed order of binary32 operations.
+//!
+//! Decoding never searches a lattice: it multiplies the decoded integer coordinates `u` by the
+//! group's matrix B (§7.3). Which `u` an encoder picks is its own choice ([`crate::lattice`]).
+
+use serde::Serialize;
+
+use crate::lattice::{dn_basis, e8_product_basis};
+use crate::model::Basis;
+
+/// The lattice of an attribute group (spec §7.1, Table 7-1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub enum LatticeKind {
+    /// Z^d: uniform scalar quantization (USQ), B = I.
+    #[serde(rename = "identity")]
+    Identity,
+    /// D_d = {x in Z^d : sum even}, d >= 2, with the generator of §7.2.
+    #[serde(rename = "dn")]
+    Dn,
+    /// E8^(d/8), d a multiple of 8, with the generator of §7.2 on each block.
+    #[serde(rename = "e8")]
+    E8Product,
+    /// A learned basis B = U diag(s) V^T stored as its factors (SALVQ).
+    #[serde(rename = "basis")]
+    General,
+}
+
+impl LatticeKind {
+    pub const ALL: [LatticeKind; 4] = [
+        LatticeKind::Identity,
+        LatticeKind::Dn,
+        LatticeKind::E8Product,
+        LatticeKind::General,
+    ];
+
+    /// The code stored in `HEAD` (Table 7-1).
+    pub fn code(self) -> u8 {
+        match self {
+            LatticeKind::Identity => 0,
+            LatticeKind::Dn => 1,
+            LatticeKind::E8Product => 2,
+            LatticeKind::General => 3,
+        }
+    }
+
+    pub fn from_code(code: u8) -> Option<LatticeKind> {
+        LatticeKind::ALL.into_iter().find(|k| k.code() == code)
+    }
+
+    /// The name used by the interchange metadata (Annex A) and the tools.
+    pub fn name(self) -> &'static str {
+        match self {
+            LatticeKind::Identity => "identity",
+            LatticeKind::Dn => "dn",
+            LatticeKind::E8Product => "e8",
+            LatticeKind::General => "basis",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<LatticeKind> {
+        LatticeKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// §7.1: whether a group of dimension `d` can use this lattice; `Err` gives the rule.
+    pub fn check_dim(self, d: u64) -> Result<(), &'static str> {
+        match self {
+            LatticeKind::Dn if d < 2 => Err("D_n needs a dimension of at least 2"),
+            LatticeKind::E8Product if d % 8 != 0 => {
+                Err("an E8 product needs a dimension that is a multiple of 8")
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Whether the group stores basis factors (`QUAN`, Table 2-1).
+    pub fn has_factors(self) -> bool {
+        self == LatticeKind::General
+    }
+}
+
+/// The reconstruction matrix B of one group in binary32, row-major `B[i * d + j]`: component
+/// i of basis vector j (§7.2, §7.3 step 1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LatticeMatrix {
+    pub kind: LatticeKind,
+    pub dim: usize,
+    /// Empty for the identity.
+    b: Vec<f32>,
+}
+
+impl LatticeMatrix {
+    /// §7.3 step 1. `basis` is used (and required) for [`LatticeKind::General`] only; a
+    /// general lattice without factors is treated as the identity (callers validate first).
+    pub fn new(kind: LatticeKind, dim: usize, basis: Option<&Basis>) -> LatticeMatrix {
+        let b = match (kind, basis) {
+            (LatticeKind::Identity, _) | (LatticeKind::General, None) => Vec::new(),
+            // §7.2: the generators have entries 0, ±1, 2 and 1/2, exact in binary32.
+            (LatticeKind::Dn, _) => dn_basis(dim).into_iter().map(|v| v as f32).collect(),
+            (LatticeKind::E8Product, _) => e8_product_basis(dim)
+                .into_iter()
+                .map(|v| v as f32)
+                .collect(),
+            (LatticeKind::General, Some(f)) => general_matrix(dim, f),
+        };
+        let kind = if b.is_empty() {
+            LatticeKind::Identity
+        } else {
+            kind
+        };
+        LatticeMatrix { kind, dim, b }
+    }
+
+    /// B as f64 (row-major), for an encoder's lattice search: the exact values the decoder
+    /// multiplies by.
+    pub fn to_f64(&self) -> Vec<f64> {
+        if self.b.is_empty() {
+            let mut id = vec![0.0; self.dim * self.dim];
+            for i in 0..self.dim {
+                id[i * self.dim + i] = 1.0;
+            }
+            id
+        } else {
+            self.b.iter().map(|&v| f64::from(v)).collect()
+        }
+    }
+
+    pub fn is_identity(&self) -> bool {
+        self.b.is_empty()
+    }
+
+    /// §7.3 step 2: `z = B u` in binary32: `z_i = (((+0 + B_i0·u_0) + B_i1·u_1) + …)`, every
+    /// product and sum rounded to binary32, `u_j` converted to binary32 first. A term with
+    /// `u_j = 0` adds ±0 to a sum that is never −0, so skipping it changes nothing.
+    pub fn apply(&self, u: &[i64], z: &mut [f32]) {
+        let d = self.dim;
+        if self.b.is_empty() {
+            for (zi, &ui) in z.iter_mut().zip(u) {
+                *zi = ui as f32;
+            }
+            return;
+        }
+        z[..d].fill(0.0);
+        for (j, &uj) in u.iter().enumerate().take(d) {
+            if uj == 0 {
+                continue;
+            }
+            let uf = uj as f32;
+            for (i, zi) in z.iter_mut().enumerate().take(d) {
+                *zi += self.b[i * d + j] * uf;
+            }
+        }
+    }
+}
+
+/// §7.3 step 1 for a general basis: `B_ij = Σ_k (U_ik · s_k) · V_jk`, k ascending, each
+/// product and sum in binary32, starting from +0.
+fn general_matrix(d: usize, f: &Basis) -> Vec<f32> {
+    let mut b = vec![0f32; d * d];
+    for i in 0..d {
+        for j in 0..d {
+            let mut acc = 0f32;
+            for k in 0..d {
+                acc += (f.u[i * d + k] * f.s[k]) * f.v[j * d + k];
+            }
+            b[i * d + j] = acc;
+        }
+    }
+    b
+}
+
+/// §7.3 step 3: one reconstructed value, `μ + Δ·z` in binary32 (the §5.5 rule with z in
+/// place of u).
+#[inline]
+pub fn reconstruct_value(mu: f32, delta: f32, z: f32) -> f32 {
+    mu + delta * z
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_and_names_round_trip() {
+        for k in LatticeKind::ALL {
+            assert_eq!(LatticeKind::from_code(k.code()), Some(k));
+            assert_eq!(LatticeKind::from_name(k.name()), Some(k));
+        }
+        assert_eq!(LatticeKind::from_code(4), None);
+    }
+
+    #[test]
+    fn dimension_rules() {
+        assert!(LatticeKind::E8Product.check_dim(48).is_ok());
+        assert!(LatticeKind::E8Product.check_dim(50).is_err());
+        assert!(LatticeKind::Dn.check_dim(1).is_err());
+        assert!(LatticeKind::Identity.check_dim(1).is_ok());
+    }
+
+    #[test]
+    fn e8_points_are_exact_and_skipping_zeros_changes_nothing() {
+        let m = LatticeMatrix::new(LatticeKind::E8Product, 16, None);
+        let u: Vec<i64> = (0..16).map(|j| [0, 3, -1, 0, 7][j % 5]).collect();
+        let mut z = vec![0f32; 16];
+        m.apply(&u, &mut z);
+        let b = m.to_f64();
+        for (i, zi) in z.iter().enumerate() {
+            let exact: f64 = (0..16).map(|j| b[i * 16 + j] * u[j] as f64).sum();
+            assert_eq!(f64::from(*zi), exact);
+        }
+    }
+
+    #[test]
+    fn identity_reconstruction_is_section_5_5() {
+        let m = LatticeMatrix::new(LatticeKind::Identity, 3, None);
+        let mut z = [0f32; 3];
+        m.apply(&[5, -2, 0], &mut z);
+        assert_eq!(z, [5.0, -2.0, 0.0]);
+        assert_eq!(reconstruct_value(0.25, 0.5, z[0]), 2.75);
+    }
+}
