@@ -79,13 +79,14 @@ impl LatticeKind {
     }
 }
 
-/// The reconstruction matrix B of one group in binary32, row-major `B[i * d + j]`: component
-/// i of basis vector j (§7.2, §7.3 step 1).
+/// The reconstruction matrix B of one group in binary32 (§7.2, §7.3 step 1).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LatticeMatrix {
     pub kind: LatticeKind,
     pub dim: usize,
-    /// Empty for the identity.
+    /// Column-major: `b[j * d + i]` is component i of basis vector j (so `B u` runs over
+    /// contiguous columns and vectorises; each `z_i` still sums in increasing j). Empty for
+    /// the identity.
     b: Vec<f32>,
 }
 
@@ -93,7 +94,7 @@ impl LatticeMatrix {
     /// §7.3 step 1. `basis` is used (and required) for [`LatticeKind::General`] only; a
     /// general lattice without factors is treated as the identity (callers validate first).
     pub fn new(kind: LatticeKind, dim: usize, basis: Option<&Basis>) -> LatticeMatrix {
-        let b = match (kind, basis) {
+        let row_major = match (kind, basis) {
             (LatticeKind::Identity, _) | (LatticeKind::General, None) => Vec::new(),
             // §7.2: the generators have entries 0, ±1, 2 and 1/2, exact in binary32.
             (LatticeKind::Dn, _) => dn_basis(dim).into_iter().map(|v| v as f32).collect(),
@@ -102,6 +103,13 @@ impl LatticeMatrix {
                 .map(|v| v as f32)
                 .collect(),
             (LatticeKind::General, Some(f)) => general_matrix(dim, f),
+        };
+        let b = if row_major.is_empty() {
+            row_major
+        } else {
+            (0..dim * dim)
+                .map(|c| row_major[(c % dim) * dim + c / dim])
+                .collect()
         };
         let kind = if b.is_empty() {
             LatticeKind::Identity
@@ -121,7 +129,10 @@ impl LatticeMatrix {
             }
             id
         } else {
-            self.b.iter().map(|&v| f64::from(v)).collect()
+            let d = self.dim;
+            (0..d * d)
+                .map(|r| f64::from(self.b[(r % d) * d + r / d]))
+                .collect()
         }
     }
 
@@ -140,14 +151,15 @@ impl LatticeMatrix {
             }
             return;
         }
-        z[..d].fill(0.0);
-        for (j, &uj) in u.iter().enumerate().take(d) {
+        let z = &mut z[..d];
+        z.fill(0.0);
+        for (column, &uj) in self.b.chunks_exact(d).zip(u) {
             if uj == 0 {
                 continue;
             }
             let uf = uj as f32;
-            for (i, zi) in z.iter_mut().enumerate().take(d) {
-                *zi += self.b[i * d + j] * uf;
+            for (zi, &bij) in z.iter_mut().zip(column) {
+                *zi += bij * uf;
             }
         }
     }
