@@ -65,8 +65,9 @@ enum Command {
         /// model's learned basis).
         #[arg(long, default_value = "model", value_parser = ["model", "usq", "dn", "e8", "salvq"])]
         quantizer: String,
-        /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai rounding
-        /// for a learned basis), `rounding`, `nearest-plane` or `closest`.
+        /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
+        /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`
+        /// or `closest`.
         #[arg(long, default_value = "auto", value_parser = salvq::Search::NAMES)]
         search: String,
         /// Do not write the `ests` chunk (encoder statistics shown by `info`).

@@ -8,8 +8,10 @@ use crate::quantizer::{LatticeKind, LatticeMatrix};
 /// Which lattice point the encoder picks for a target (`salvq encode --search`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Search {
-    /// Exact for Z^n, D_n and E8 products (Conway & Sloane); Babai rounding for a general
-    /// basis (what SALVQ training uses).
+    /// Exact for Z^n, D_n and E8 products (Conway & Sloane); Babai nearest plane on the
+    /// LLL-reduced basis for a general basis (`cargo bench --bench search_methods`: 14 % less
+    /// feature MSE than rounding at F = 50 for +0.2 % bits and ~10 % encode time; the exact
+    /// search costs 7x the encode time for 4 % more).
     #[default]
     Auto,
     /// Babai rounding `u = round(B^-1 t)`.
@@ -107,8 +109,8 @@ impl GroupSearch {
             };
         };
         let method = match self.method {
-            Search::Auto | Search::Rounding => SearchMethod::Rounding,
-            Search::NearestPlane => SearchMethod::NearestPlane,
+            Search::Rounding => SearchMethod::Rounding,
+            Search::Auto | Search::NearestPlane => SearchMethod::NearestPlane,
             Search::Closest { max_nodes } => SearchMethod::ClosestPoint { max_nodes },
         };
         lattice.quantize(t, method).map(|q| q.u).map_err(fail)
