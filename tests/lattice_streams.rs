@@ -297,3 +297,42 @@ fn lattice_names_round_trip_through_the_interchange_file() {
         assert_eq!(&back, e.expected());
     }
 }
+
+/// A small multi-rate SALVQ stream: every truncation is an error, and payload damage that
+/// keeps CRCs valid (one byte of each layer chunk and of QUAN changed, then re-framed) never
+/// panics, whichever layer is decoded or extracted.
+#[test]
+fn damaged_multi_rate_lattice_streams_never_panic() {
+    let m = small_salvq_model();
+    let s = encode_full(&m, &options(&[0, 1], None, Search::Auto))
+        .unwrap()
+        .stream;
+    for len in 0..s.len() {
+        assert!(decode(&s[..len]).is_err(), "prefix of {len} bytes decoded");
+        assert!(extract_rate(&s[..len], 1, &Limits::default()).is_err());
+    }
+    let parts = chunks(&s);
+    for (ci, (tag, payload)) in parts.iter().enumerate() {
+        if ![
+            ChunkTag::QUAN,
+            ChunkTag::AFEA,
+            ChunkTag::ASCL,
+            ChunkTag::AOFF,
+        ]
+        .contains(tag)
+        {
+            continue;
+        }
+        for at in (0..payload.len()).step_by(3) {
+            for flip in [0x01u8, 0x80] {
+                let mut edited = parts.clone();
+                edited[ci].1[at] ^= flip;
+                let t = assemble(&s[..12], &edited);
+                for rate in [0u8, 1] {
+                    let _ = decode_rate(&t, rate);
+                    let _ = extract_rate(&t, rate, &Limits::default());
+                }
+            }
+        }
+    }
+}
