@@ -9,7 +9,7 @@ use crate::container::payload;
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
-use crate::error::{Error, Field, Result, Structure};
+use crate::error::{Error, Result, Structure};
 use crate::hyperprior::prior::Prior;
 use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
@@ -126,24 +126,8 @@ pub fn decode_with_options(data: &[u8], options: &DecodeOptions) -> Result<Scene
         let bytes = chunk.payload;
         if tag == ChunkTag::HEAD {
             let head = Preflight::parse(bytes, limits)?;
-            let coded = head.coded_rates();
-            let rate = options.rate.unwrap_or(coded[0]);
-            if rate >= head.dims.rates {
-                return Err(Error::FieldOutOfRange {
-                    field: Field::CodedRate,
-                    value: rate.into(),
-                    min: 0,
-                    max: u64::from(head.dims.rates) - 1,
-                });
-            }
-            selected = coded
-                .iter()
-                .position(|&r| r == rate)
-                .ok_or(Error::RateNotCoded {
-                    rate,
-                    rate_mask: head.rate_mask,
-                })?;
-            layers = coded.len();
+            let rate;
+            (rate, selected, layers) = head.select_layer(options.rate)?;
             p.rate = rate;
             p.head = Some(head);
             continue;

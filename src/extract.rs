@@ -6,7 +6,7 @@ use crate::container::chunk::{write_chunk, ChunkReader, ChunkTag};
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::decoder::expected_critical;
-use crate::error::{Error, Field, Result};
+use crate::error::{Error, Result};
 use crate::limits::Limits;
 
 /// The single-rate stream of rate `rate` taken from `data` (§7.5). The container is checked
@@ -61,23 +61,7 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
         match tag {
             ChunkTag::HEAD => {
                 let mut head = Preflight::parse(chunk.payload, limits)?;
-                if rate >= head.dims.rates {
-                    return Err(Error::FieldOutOfRange {
-                        field: Field::CodedRate,
-                        value: rate.into(),
-                        min: 0,
-                        max: u64::from(head.dims.rates) - 1,
-                    });
-                }
-                let coded = head.coded_rates();
-                selected = coded
-                    .iter()
-                    .position(|&r| r == rate)
-                    .ok_or(Error::RateNotCoded {
-                        rate,
-                        rate_mask: head.rate_mask,
-                    })?;
-                layers = coded.len();
+                (_, selected, layers) = head.select_layer(Some(rate))?;
                 head.rate_mask = 1 << rate;
                 write_chunk(&mut out, tag, &head.to_payload());
                 head_seen = true;

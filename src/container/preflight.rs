@@ -159,6 +159,30 @@ impl Preflight {
             .filter(|&i| self.rate_mask >> i & 1 == 1)
             .collect()
     }
+
+    /// §7.4: the rate to decode (`rate`, or the lowest coded one), its layer's index among the
+    /// layers, and the number of layers. Errors: a rate ≥ M is **FieldOutOfRange** (field
+    /// `rate`); a rate without a layer is **RateNotCoded**.
+    pub fn select_layer(&self, rate: Option<u8>) -> Result<(u8, usize, usize)> {
+        let coded = self.coded_rates();
+        let rate = rate.unwrap_or(coded.first().copied().unwrap_or(0));
+        if rate >= self.dims.rates {
+            return Err(Error::FieldOutOfRange {
+                field: Field::CodedRate,
+                value: rate.into(),
+                min: 0,
+                max: u64::from(self.dims.rates) - 1,
+            });
+        }
+        let index = coded
+            .iter()
+            .position(|&r| r == rate)
+            .ok_or(Error::RateNotCoded {
+                rate,
+                rate_mask: self.rate_mask,
+            })?;
+        Ok((rate, index, coded.len()))
+    }
 }
 
 /// Table 1-4: a lattice code (Table 7-1).
