@@ -24,39 +24,46 @@ pub struct RootPoint {
     pub distance2: f64,
 }
 
-/// Generator basis of D_n, row-major `n × n`, columns are the basis vectors:
-/// `b_0 = 2e_0` and `b_j = e_j − e_{j−1}` for `1 ≤ j < n` (upper bidiagonal, det 2).
-/// For `x ∈ D_n` the coordinates are `u_0 = ½ Σ_i x_i` and `u_j = Σ_{i ≥ j} x_i` (j ≥ 1).
+/// Generator basis of D_n (§7.2), row-major `n × n`, columns are the basis vectors:
+/// `b_j = e_j − e_{n−1}` for `j < n − 1` and `b_{n−1} = 2e_{n−1}` (lower triangular, det 2).
+/// For `x ∈ D_n` the coordinates are `u_j = x_j` (j < n − 1) and `u_{n−1} = ½ Σ_i x_i`: the
+/// rows of `B⁻¹` are `e_j` and `½·1`, the shortest dual basis there is, so the coordinates
+/// are as narrow as they can be (their variances are σ² and nσ²/4 for an isotropic source).
 pub fn dn_basis(n: usize) -> Vec<f64> {
     let mut b = vec![0.0; n * n];
     if n == 0 {
         return b;
     }
-    b[0] = 2.0;
-    for j in 1..n {
+    let last = n - 1;
+    for j in 0..last {
         b[j * n + j] = 1.0;
-        b[(j - 1) * n + j] = -1.0;
+        b[last * n + j] = -1.0;
     }
+    b[last * n + last] = 2.0;
     b
 }
 
-/// Generator basis of E8, row-major `8 × 8`, columns are the basis vectors: `c_0 = 2e_0`,
-/// `c_j = e_j − e_{j−1}` for `1 ≤ j ≤ 6`, and `c_7 = (½, …, ½)` (det 1).
-/// For `x ∈ E8`: `u_7 = 2 x_7`, then with `x' = x − x_7·1` (an integer vector with `x'_7 = 0`
-/// and an even sum), `u_0 = ½ Σ_{i ≤ 6} x'_i` and `u_j = Σ_{j ≤ i ≤ 6} x'_i` (1 ≤ j ≤ 6).
+/// Generator basis of E8 (§7.2, Table 7-2), row-major `8 × 8`, columns are the basis
+/// vectors. It is the inverse of the root matrix whose rows are `e_j − e_{j+1}` (j ≤ 5),
+/// `e_5 + e_6` and `½·1`, so for `x ∈ E8` the coordinates are `u_j = x_j − x_{j+1}` (j ≤ 5),
+/// `u_6 = x_5 + x_6` and `u_7 = ½ Σ_i x_i`: every row of `B⁻¹` is a root (norm² 2, the
+/// shortest dual vectors of the self-dual E8), so every coordinate has variance 2σ² for an
+/// isotropic source. Entries are multiples of ½ (det 1).
 pub fn e8_basis() -> Vec<f64> {
-    let n = 8;
-    let mut b = vec![0.0; n * n];
-    b[0] = 2.0;
-    for j in 1..7 {
-        b[j * n + j] = 1.0;
-        b[(j - 1) * n + j] = -1.0;
-    }
-    for i in 0..n {
-        b[i * n + 7] = 0.5;
-    }
-    b
+    E8_BASIS_TWICE.iter().map(|&v| f64::from(v) / 2.0).collect()
 }
+
+/// Table 7-2 times 2 (row-major): twice the E8 generator block.
+const E8_BASIS_TWICE: [i8; 64] = [
+    2, 2, 2, 2, 2, 1, 1, 0, //
+    0, 2, 2, 2, 2, 1, 1, 0, //
+    0, 0, 2, 2, 2, 1, 1, 0, //
+    0, 0, 0, 2, 2, 1, 1, 0, //
+    0, 0, 0, 0, 2, 1, 1, 0, //
+    0, 0, 0, 0, 0, 1, 1, 0, //
+    0, 0, 0, 0, 0, -1, 1, 0, //
+    -2, -4, -6, -8, -10, -5, -7, 4, //
+];
 
 /// Block-diagonal generator basis of E8^k (`n = 8k`, row-major `n × n`): [`e8_basis`] on
 /// each block of 8 coordinates.
@@ -159,16 +166,13 @@ fn dn_point(y: &[f64]) -> Vec<f64> {
     x
 }
 
-/// Coordinates of `x ∈ D_n` in [`dn_basis`] (suffix sums, in i128 so that no length overflows).
+/// Coordinates of `x ∈ D_n` in [`dn_basis`]: `x_j` for j < n − 1, then half the sum (in
+/// i128 so that no length overflows).
 fn dn_coords(x: &[f64]) -> Result<Vec<i64>, LatticeError> {
     let n = x.len();
-    let mut u = vec![0i64; n];
-    let mut suffix = 0i128;
-    for j in (1..n).rev() {
-        suffix += x[j] as i128;
-        u[j] = i64::try_from(suffix).map_err(|_| LatticeError::OutOfRange)?;
-    }
-    u[0] = i64::try_from((suffix + x[0] as i128) / 2).map_err(|_| LatticeError::OutOfRange)?;
+    let mut u: Vec<i64> = x[..n - 1].iter().map(|&v| v as i64).collect();
+    let sum = x.iter().fold(0i128, |s, &v| s + v as i128);
+    u.push(i64::try_from(sum / 2).map_err(|_| LatticeError::OutOfRange)?);
     Ok(u)
 }
 
@@ -186,18 +190,15 @@ fn e8_block(y: &[f64]) -> RootPoint {
     }
 }
 
-/// Coordinates of `x ∈ E8` in [`e8_basis`].
+/// Coordinates of `x ∈ E8` in [`e8_basis`]: inner products with the rows of `B⁻¹`, computed
+/// on `2x` (integers) so that they are exact.
 fn e8_coords(x: &[f64]) -> Vec<i64> {
-    let u7 = (2.0 * x[7]) as i64;
-    let half = x[7];
-    let xp: Vec<i64> = x[..7].iter().map(|&v| (v - half) as i64).collect();
+    let t: Vec<i64> = x.iter().map(|&v| (2.0 * v) as i64).collect();
     let mut u = vec![0i64; 8];
-    u[7] = u7;
-    let mut suffix = 0i64;
-    for j in (1..7).rev() {
-        suffix += xp[j];
-        u[j] = suffix;
+    for j in 0..6 {
+        u[j] = (t[j] - t[j + 1]) / 2;
     }
-    u[0] = (suffix + xp[0]) / 2;
+    u[6] = (t[5] + t[6]) / 2;
+    u[7] = t.iter().sum::<i64>() / 4;
     u
 }

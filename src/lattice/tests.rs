@@ -250,3 +250,42 @@ fn enumeration_on_an_unreduced_basis_agrees_with_the_reduced_one() {
         "only {far} cases exercised the zig-zag beyond two children"
     );
 }
+
+/// §7.2: the rows of `B⁻¹` are the short dual bases the spec names (`e_j`, `½·1` for D_n; the
+/// roots `e_j − e_{j+1}`, `e_5 + e_6`, `½·1` for E8), so `R B = I` exactly with `R` built
+/// from the spec's text; every E8 row has norm² 2.
+#[test]
+fn root_generators_have_the_short_dual_bases_of_section_7_2() {
+    let check = |n: usize, b: &[f64], r: &[f64]| {
+        let rb = mat_mul(n, r, b);
+        for i in 0..n {
+            for j in 0..n {
+                assert_eq!(
+                    rb[i * n + j],
+                    f64::from(u8::from(i == j)),
+                    "n {n}: ({i}, {j})"
+                );
+            }
+        }
+    };
+    for n in 2..12 {
+        let mut r = vec![0.0; n * n];
+        for j in 0..n - 1 {
+            r[j * n + j] = 1.0;
+        }
+        r[(n - 1) * n..].fill(0.5);
+        check(n, &dn_basis(n), &r);
+    }
+    let mut r = vec![0.0; 64];
+    for j in 0..6 {
+        r[j * 8 + j] = 1.0;
+        r[j * 8 + j + 1] = -1.0;
+    }
+    r[6 * 8 + 5] = 1.0;
+    r[6 * 8 + 6] = 1.0;
+    r[56..].fill(0.5);
+    for row in r.chunks(8) {
+        assert_eq!(row.iter().map(|v| v * v).sum::<f64>(), 2.0);
+    }
+    check(8, &e8_basis(), &r);
+}
