@@ -96,7 +96,7 @@ impl LatticeMatrix {
     pub fn new(kind: LatticeKind, dim: usize, basis: Option<&Basis>) -> LatticeMatrix {
         let row_major = match (kind, basis) {
             (LatticeKind::Identity, _) | (LatticeKind::General, None) => Vec::new(),
-            // §7.2: the generators have entries 0, ±1, 2 and 1/2, exact in binary32.
+            // §7.2: the generators have integer and half-integer entries, exact in binary32.
             (LatticeKind::Dn, _) => dn_basis(dim).into_iter().map(|v| v as f32).collect(),
             (LatticeKind::E8Product, _) => e8_product_basis(dim)
                 .into_iter()

@@ -61,10 +61,15 @@ enum Command {
         #[arg(long, value_delimiter = ',', default_value = "0")]
         rates: Vec<u8>,
         /// Feature quantizer: `model` (the model's own), `usq` (identity), `dn` (D_n),
-        /// `e8` (E8 product; the feature dimension must be a multiple of 8) or `salvq` (the
-        /// model's learned basis).
-        #[arg(long, default_value = "model", value_parser = ["model", "usq", "dn", "e8", "salvq"])]
+        /// `e8` (E8 product; the feature dimension must be a multiple of 8), `salvq` (the
+        /// model's learned basis) or `klt` (a basis the encoder fits to the features' residuals,
+        /// spec Annex A.5).
+        #[arg(long, default_value = "model", value_parser = ["model", "usq", "dn", "e8", "salvq", "klt"])]
         quantizer: String,
+        /// Refit the context MLP's feature-scale rows to the coordinates of the chosen
+        /// quantizer (spec Annex A.5), as training for that quantizer would.
+        #[arg(long)]
+        fit_scales: bool,
         /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
         /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`
         /// or `closest`.
@@ -170,6 +175,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             rates,
             quantizer,
             search,
+            fit_scales,
             no_stats,
             json,
         } => {
@@ -188,6 +194,8 @@ fn run(cli: Cli) -> Result<(), Error> {
                 statistics: !no_stats,
                 feat_lattice,
                 search: salvq::Search::from_name(&search).unwrap_or_default(),
+                fit_basis: quantizer == "klt",
+                fit_scales,
             };
             let encoded = salvq::encoder::encode_full(&model, &options)?;
             let stream = &encoded.stream;

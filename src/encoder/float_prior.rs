@@ -66,21 +66,31 @@ impl FloatPrior {
     }
 
     pub fn eval(&self, m: &SceneModel, v: [u32; 3]) -> FloatAnchor<'_> {
+        let h = self.hidden(m, v);
+        FloatAnchor {
+            prior: self,
+            y: self.outputs(&h),
+        }
+    }
+
+    /// The context MLP's hidden activations (after ReLU) at voxel `v`.
+    pub fn hidden(&self, m: &SceneModel, v: [u32; 3]) -> Vec<f64> {
         let mut x = vec![0f64; self.cin];
         self.interp.features(&m.grid, v, &mut x);
-        let h: Vec<f64> = self
-            .w0
+        self.w0
             .chunks_exact(self.cin.max(1))
             .zip(&self.b0)
             .map(|(row, b)| (row.iter().zip(&x).map(|(w, x)| w * x).sum::<f64>() + b).max(0.0))
-            .collect();
-        let y = self
-            .w1
+            .collect()
+    }
+
+    /// The context MLP's outputs for hidden activations `h`.
+    pub fn outputs(&self, h: &[f64]) -> Vec<f64> {
+        self.w1
             .chunks_exact(self.hidden.max(1))
             .zip(&self.b1)
-            .map(|(row, b)| row.iter().zip(&h).map(|(w, h)| w * h).sum::<f64>() + b)
-            .collect();
-        FloatAnchor { prior: self, y }
+            .map(|(row, b)| row.iter().zip(h).map(|(w, h)| w * h).sum::<f64>() + b)
+            .collect()
     }
 }
 

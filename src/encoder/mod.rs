@@ -4,6 +4,7 @@
 
 pub mod attributes;
 pub mod convert;
+pub mod fit;
 pub mod float_prior;
 pub mod search;
 
@@ -39,6 +40,12 @@ pub struct EncodeOptions {
     pub feat_lattice: Option<LatticeKind>,
     /// How the encoder picks lattice points (§7.3 leaves it free).
     pub search: Search,
+    /// Replace the feature group's lattice by a basis fitted to the anchors (the KLT,
+    /// [`fit::fit_klt_basis`]); `feat_lattice` must then be `None` or the general kind.
+    pub fit_basis: bool,
+    /// Refit the context MLP's feature-scale rows to the coordinates of the lattice the
+    /// features are coded with ([`fit::fit_feature_scales`]).
+    pub fit_scales: bool,
 }
 
 /// What the encoder measured for one layer (written to `ests` when asked; `salvq info`
@@ -105,10 +112,20 @@ impl Encoded {
 
 /// The lattice each of the feature and scaling groups is coded with, and the model with
 /// the quantizers changed accordingly (an E8 or D_n asked for by the options replaces the
-/// model's basis).
+/// model's basis; a fitted basis replaces the lattice; fitted scale rows replace the
+/// context MLP's, Annex A.5).
 fn choose_lattices(model: &SceneModel, options: &EncodeOptions) -> Result<SceneModel> {
     let mut m = model.clone();
-    if let Some(kind) = options.feat_lattice {
+    if options.fit_basis {
+        if !matches!(options.feat_lattice, None | Some(LatticeKind::General)) {
+            return Err(Error::FitFailed {
+                tensor: names::QUANT_FEAT[2],
+                reason: "a fitted basis is a general lattice; another lattice was asked for".into(),
+            });
+        }
+        m.quant_feat.basis = Some(fit::fit_klt_basis(model)?);
+        m.dims.feat_lattice = LatticeKind::General;
+    } else if let Some(kind) = options.feat_lattice {
         if kind == LatticeKind::General && model.quant_feat.basis.is_none() {
             return Err(Error::TensorMissing {
                 tensor: names::QUANT_FEAT[2],
@@ -118,7 +135,16 @@ fn choose_lattices(model: &SceneModel, options: &EncodeOptions) -> Result<SceneM
         if kind != LatticeKind::General {
             m.quant_feat.basis = None;
         }
-        check_lattices(&m.dims)?;
+    }
+    check_lattices(&m.dims)?;
+    if options.fit_scales {
+        let d = &m.dims;
+        let lattice = LatticeMatrix::new(
+            d.feat_lattice,
+            usize::from(d.feat_dim),
+            m.quant_feat.basis.as_ref(),
+        );
+        fit::fit_feature_scales(&mut m, &lattice)?;
     }
     Ok(m)
 }
@@ -142,7 +168,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         });
     }
     let chosen;
-    let model = if options.feat_lattice.is_some() {
+    let model = if options.feat_lattice.is_some() || options.fit_basis || options.fit_scales {
         chosen = choose_lattices(model, options)?;
         &chosen
     } else {

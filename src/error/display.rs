@@ -168,6 +168,7 @@ impl fmt::Display for Error {
                 Some(a) => write!(f, "{tensor}: anchor {a}: {reason}")?,
                 None => write!(f, "{tensor}: {reason}")?,
             },
+            FitFailed { tensor, reason } => write!(f, "{tensor}: fit failed: {reason}")?,
             RateNotCoded { rate, rate_mask } => write!(
                 f,
                 "rate {rate} has no symbol layer in this stream (rate_mask {rate_mask:#x})"

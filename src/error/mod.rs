@@ -247,6 +247,12 @@ pub enum Error {
         anchor: Option<u64>,
         reason: String,
     },
+    /// The encoder's fit of a basis or of scale rows to the model's anchors (Annex A.5)
+    /// failed (encoder only).
+    FitFailed {
+        tensor: &'static str,
+        reason: String,
+    },
 
     // ---- tensor values (§2, decoder and encoder alike) ----
     /// A float value is NaN or infinite.
@@ -353,6 +359,7 @@ impl Error {
             LatticeDimension { .. } => "§7.1",
             RateNotCoded { .. } => "§7.4",
             LatticeSearchFailed { .. } => "§7.3",
+            FitFailed { .. } => "Annex A.5",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
             InterchangeFormat { .. }
@@ -394,6 +401,7 @@ impl Error {
             LatticeDimension { .. } => "LatticeDimension",
             RateNotCoded { .. } => "RateNotCoded",
             LatticeSearchFailed { .. } => "LatticeSearchFailed",
+            FitFailed { .. } => "FitFailed",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",
