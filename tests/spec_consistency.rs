@@ -181,6 +181,10 @@ fn every_error() -> Vec<Error> {
             deviation: 0.1,
             tolerance: 1e-3,
         },
+        Error::FitFailed {
+            tensor: "x",
+            reason: "y".into(),
+        },
         Error::Io {
             op: IoOp::Read,
             path: "x".into(),
