@@ -113,6 +113,12 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Measurements with charts: `bench rd` codes one generated scene with every feature
+    /// quantizer and search method (R-D with BD-rates, speed vs accuracy, stability).
+    Bench {
+        #[command(subcommand)]
+        which: Bench,
+    },
     /// The main job on an embedded default: generate, encode, decode, verify, report.
     Demo {
         /// Number of anchors of the generated scene.
@@ -124,6 +130,24 @@ enum Command {
         /// Keep the generated files in this folder (default: a temporary folder).
         #[arg(long)]
         out: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand)]
+enum Bench {
+    /// Rate-distortion of USQ, D_n, E8 and SALVQ on one generated scene (F = 48), BD-rates,
+    /// SALVQ's gain vs feature correlation, search methods' speed vs accuracy, and stability
+    /// over basis condition numbers and extreme gains: SVG charts, CSV and summary in OUT.
+    Rd {
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// Anchors of the generated scene.
+        #[arg(long, default_value_t = 20_000)]
+        anchors: u32,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
     },
 }
 
@@ -268,6 +292,18 @@ fn run(cli: Cli) -> Result<(), Error> {
             } else {
                 print!("{}", info.to_text());
             }
+        }
+        Command::Bench {
+            which: Bench::Rd { out, anchors, seed },
+        } => {
+            let t = Instant::now();
+            let text = salvq::rdbench::run(&salvq::rdbench::RdOptions {
+                anchors,
+                seed,
+                out: out.clone(),
+            })?;
+            print!("{text}");
+            println!("wrote rd.svg, rd_correlation.svg, search_speed.svg, stability.svg, rd.csv, summary.txt to {} in {:.1} s", out.display(), secs(t));
         }
         Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref())?,
     }

@@ -125,6 +125,7 @@ pub fn context_plan(
     seed: u64,
     voxel: f64,
     n: usize,
+    feat_decay: f64,
     features: impl Fn(usize, &mut [f64]) + Sync,
 ) -> ContextPlan {
     let lay = Layout::new(d);
@@ -177,12 +178,12 @@ pub fn context_plan(
     };
 
     // Part 1, feature mean: Q (F x F normals, Householder), G (F x H normals), beta (F normals).
-    // rows = Q diag(FEAT_DECAY^i) G, scaled to FEAT_MEAN_SPREAD, centred on beta * FEAT_MEAN_BIAS_STD.
+    // rows = Q diag(feat_decay^i) G, scaled to FEAT_MEAN_SPREAD, centred on beta * FEAT_MEAN_BIAS_STD.
     let mut s = Stream::new(seed, tag::CONTEXT_MLP, 1);
     let q = orthogonal(&mut s, f);
     let mut sv = vec![1.0; f];
     for i in 1..f {
-        sv[i] = sv[i - 1] * FEAT_DECAY;
+        sv[i] = sv[i - 1] * feat_decay;
     }
     let g = gaussian(&mut s, f * h, 1.0);
     let mut rows = vec![0.0; f * h];

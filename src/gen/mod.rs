@@ -42,7 +42,7 @@ use crate::model::validate::check_dims;
 use crate::model::{Dims, LatticeKind, SceneModel};
 
 /// What to generate: the scene size and seed, and the model dimensions (spec §2.1).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GenParams {
     /// N: number of anchors (distinct voxels).
     pub anchors: u32,
@@ -67,6 +67,9 @@ pub struct GenParams {
     pub view_dims: u8,
     pub feat_basis: bool,
     pub scaling_basis: bool,
+    /// Feature correlation (Annex B.4.3 part 1): the mixing matrix's singular values decay
+    /// as `feat_decay^i`; 1 gives uncorrelated residuals. Default [`context::FEAT_DECAY`].
+    pub feat_decay: f64,
 }
 
 /// Scaling dimensions: always 6 (Scaffold-GS).
@@ -94,6 +97,7 @@ impl GenParams {
             view_dims: 3,
             feat_basis: true,
             scaling_basis: false,
+            feat_decay: context::FEAT_DECAY,
         }
     }
 
@@ -118,6 +122,7 @@ impl GenParams {
             view_dims: 3,
             feat_basis: true,
             scaling_basis: false,
+            feat_decay: context::FEAT_DECAY,
         }
     }
 
@@ -182,7 +187,7 @@ pub fn generate(p: &GenParams) -> SceneModel {
     // B.4 hyperprior.
     let grid = grid::grid(&dims, seed);
     let interp = grid::Interp::new(&dims, coord_bits(&geo.voxels));
-    let plan = context_build::context_plan(&dims, seed, voxel, n, |a, x| {
+    let plan = context_build::context_plan(&dims, seed, voxel, n, p.feat_decay, |a, x| {
         interp.features(&grid, geo.voxels[a], x)
     });
     // B.5 attributes.
