@@ -55,6 +55,7 @@ fn every_lattice_and_search_decodes_to_the_prediction() {
         Search::Rounding,
         Search::NearestPlane,
         Search::Closest { max_nodes: 2_000 },
+        Search::Rdo { lambda_milli: 1000 },
     ];
     for kind in kinds {
         for search in searches {
@@ -334,5 +335,31 @@ fn damaged_multi_rate_lattice_streams_never_panic() {
                 }
             }
         }
+    }
+}
+
+/// The RDO search trades distortion for rate: on every lattice it codes the features in fewer
+/// bits than the same lattice's auto search, at a higher but bounded squared error.
+#[test]
+fn rdo_search_spends_fewer_bits_for_some_distortion() {
+    let m = model16(1500, 6);
+    for kind in [
+        LatticeKind::Identity,
+        LatticeKind::E8Product,
+        LatticeKind::General,
+    ] {
+        let feat = |search| {
+            let e = encode_full(&m, &options(&[0], Some(kind), search)).unwrap();
+            e.report().groups[0].clone()
+        };
+        let (auto, rdo) = (feat(Search::Auto), feat(Search::Rdo { lambda_milli: 1000 }));
+        assert!(
+            rdo.coded_bytes < auto.coded_bytes,
+            "{kind:?}: {} vs {} bytes",
+            rdo.coded_bytes,
+            auto.coded_bytes
+        );
+        assert!(rdo.squared_error >= auto.squared_error * 0.999, "{kind:?}");
+        assert!(rdo.squared_error < auto.squared_error * 2.0, "{kind:?}");
     }
 }

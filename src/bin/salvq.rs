@@ -71,8 +71,9 @@ enum Command {
         #[arg(long)]
         fit_scales: bool,
         /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
-        /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`
-        /// or `closest`.
+        /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`,
+        /// `closest` (Schnorr-Euchner, bounded) or `rdo` (auto's point refined for rate and
+        /// distortion with the integer entropy model, spec §7.3).
         #[arg(long, default_value = "auto", value_parser = salvq::Search::NAMES)]
         search: String,
         /// Do not write the `ests` chunk (encoder statistics shown by `info`).

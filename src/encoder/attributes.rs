@@ -64,6 +64,7 @@ fn symbols_of(
     prior: &Prior,
     float: &FloatPrior,
     searches: &[GroupSearch; 2],
+    tables: &GaussianTables,
 ) -> Result<AnchorSymbols> {
     let d = &m.dims;
     let (f, s, k) = (
@@ -119,13 +120,20 @@ fn symbols_of(
             .map(|(&j, &m)| (f64::from(x[j]) - f64::from(m)) / delta)
             .collect();
         let search = searches.get(gi);
-        let u = match search {
+        let ks: Vec<u8> = coded
+            .iter()
+            .map(|&j| prior.scale_index(&ctx.y, g, j, &step))
+            .collect();
+        let mut u = match search {
             Some(gs) => gs.quantize(&t, i as u64)?,
             None => t
                 .iter()
                 .map(|v| v.round().clamp(-9.0e18, 9.0e18) as i64)
                 .collect(),
         };
+        if let Some((gs, lambda)) = search.and_then(|gs| gs.rdo_lambda().map(|l| (gs, l))) {
+            gs.refine_rd(&t, &mut u, &ks, tables, lambda);
+        }
         let mut z = vec![0f32; u.len()];
         match search {
             Some(gs) => gs.matrix.apply(&u, &mut z),
@@ -137,8 +145,7 @@ fn symbols_of(
             let err = f64::from(x[j]) - f64::from(x_hat);
             out.max_error_steps[gi] = out.max_error_steps[gi].max(err.abs() / delta);
             out.squared_error[gi] += err * err;
-            let ki = prior.scale_index(&ctx.y, g, j, &step);
-            out.groups[gi].push((u[c], ki));
+            out.groups[gi].push((u[c], ks[c]));
         }
         out.float_bits[gi] = match search {
             Some(gs) if !gs.matrix.is_identity() => {
@@ -211,7 +218,7 @@ pub fn code_attributes(
         let end = (start + BLOCK).min(m.n());
         let block: Vec<AnchorSymbols> = (start..end)
             .into_par_iter()
-            .map(|i| symbols_of(m, i, prior, float, searches))
+            .map(|i| symbols_of(m, i, prior, float, searches, tables))
             .collect::<Result<_>>()?;
         for a in block {
             for (r, v) in recon.iter_mut().zip(&a.recon) {

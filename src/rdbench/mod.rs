@@ -47,35 +47,54 @@ pub struct Quantizer {
     pub label: &'static str,
     pub lattice: Option<LatticeKind>,
     pub fit_basis: bool,
+    pub search: Search,
 }
 
 /// The quantizers of the R-D chart: USQ, D_n, E8⁶, the generator's (random, not adapted)
-/// learned basis, and SALVQ with a basis fitted to the scene (KLT, Annex A.5).
-pub const QUANTIZERS: [Quantizer; 5] = [
+/// learned basis, SALVQ with a basis fitted to the scene (KLT, Annex A.5), and USQ and SALVQ
+/// with the rate-distortion optimised search.
+pub const QUANTIZERS: [Quantizer; 7] = [
     Quantizer {
         label: "USQ",
         lattice: Some(LatticeKind::Identity),
         fit_basis: false,
+        search: Search::Auto,
     },
     Quantizer {
         label: "D48",
         lattice: Some(LatticeKind::Dn),
         fit_basis: false,
+        search: Search::Auto,
     },
     Quantizer {
         label: "E8^6",
         lattice: Some(LatticeKind::E8Product),
         fit_basis: false,
+        search: Search::Auto,
     },
     Quantizer {
         label: "random basis",
         lattice: Some(LatticeKind::General),
         fit_basis: false,
+        search: Search::Auto,
     },
     Quantizer {
         label: "SALVQ (fitted)",
         lattice: None,
         fit_basis: true,
+        search: Search::Auto,
+    },
+    Quantizer {
+        label: "USQ + rdo",
+        lattice: Some(LatticeKind::Identity),
+        fit_basis: false,
+        search: Search::Rdo { lambda_milli: 1000 },
+    },
+    Quantizer {
+        label: "SALVQ + rdo",
+        lattice: None,
+        fit_basis: true,
+        search: Search::Rdo { lambda_milli: 1000 },
     },
 ];
 
@@ -91,6 +110,11 @@ pub struct Point {
 }
 
 fn options(q: &Quantizer, search: Search) -> EncodeOptions {
+    let search = if search == Search::Auto {
+        q.search
+    } else {
+        search
+    };
     EncodeOptions {
         feat_lattice: q.lattice,
         fit_basis: q.fit_basis,
@@ -271,6 +295,15 @@ pub fn run(p: &RdOptions) -> Result<String> {
             bd_text(&bd(&curves[0].1, c, true))
         ));
     }
+    text.push_str("\nRate-distortion optimised search vs the same quantizer's auto search (whole stream | feature chunk):\n");
+    for (base, rdo) in [(0, 5), (4, 6)] {
+        text.push_str(&format!(
+            "  {:>15}: {} | {}\n",
+            curves[rdo].0,
+            bd_text(&bd(&curves[base].1, &curves[rdo].1, false)),
+            bd_text(&bd(&curves[base].1, &curves[rdo].1, true))
+        ));
+    }
     charts::rd(&p.out.join("rd.svg"), &curves)?;
 
     // 2. The SALVQ gain against the features' correlation.
@@ -310,6 +343,7 @@ pub fn run(p: &RdOptions) -> Result<String> {
         ("nearest plane", Search::NearestPlane),
         ("closest ≤1k", Search::Closest { max_nodes: 1_000 }),
         ("closest ≤10k", Search::Closest { max_nodes: 10_000 }),
+        ("rdo", Search::Rdo { lambda_milli: 1000 }),
     ];
     let gen_basis = &QUANTIZERS[3];
     let mut search_rows = Vec::new();
