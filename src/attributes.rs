@@ -11,7 +11,7 @@ use crate::entropy::{GaussianTables, SymbolReader};
 use crate::error::{Error, Result};
 use crate::hyperprior::prior::{Group, Prior};
 use crate::model::{Dims, HashGrid};
-use crate::quantizer::{reconstruct_value, LatticeMatrix};
+use crate::quantizer::{reconstruct_value, GroupLattices};
 
 /// §6.6.1: the coder frequency of a mask bit being 1, from its 16-bit probability.
 pub fn mask_freq(p_one: u16, precision: u32) -> u32 {
@@ -129,7 +129,7 @@ pub fn read_attributes(
     masks: &[u8],
     grid: &HashGrid,
     prior: &Prior,
-    lattices: &[LatticeMatrix; 2],
+    lattices: &[GroupLattices; 2],
     tables: &GaussianTables,
 ) -> Result<Attributes> {
     let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
@@ -190,7 +190,7 @@ pub fn read_attributes(
                         (Group::Scaling, s, f, &mut out.scaling),
                     ] {
                         let reader = &mut readers[g as usize];
-                        let lattice = &lattices[g as usize];
+                        let lattice = lattices[g as usize].for_anchor(i as u32);
                         let delta = delta[g as usize];
                         if lattice.is_identity() {
                             for j in 0..w {

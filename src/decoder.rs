@@ -14,7 +14,7 @@ use crate::hyperprior::prior::Prior;
 use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
 use crate::model::{Anchors, GroupQuantizer, HashGrid, Mlp, SceneModel};
-use crate::quantizer::LatticeMatrix;
+use crate::quantizer::GroupLattices;
 
 /// Decodes a whole stream with the default [`Limits`], at its lowest coded rate.
 pub fn decode(data: &[u8]) -> Result<SceneModel> {
@@ -194,16 +194,13 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
         usize::from(p.rate),
     );
     // §7.2: the reconstruction matrices of the feature and scaling groups.
+    // §7.6: one matrix per spatial region.
     let lattices = [
-        LatticeMatrix::new(
-            d.feat_lattice,
-            usize::from(d.feat_dim),
-            quant_feat.basis.as_ref(),
-        ),
-        LatticeMatrix::new(
+        GroupLattices::new(d.feat_lattice, usize::from(d.feat_dim), &quant_feat),
+        GroupLattices::new(
             d.scaling_lattice,
             usize::from(d.scaling_dim),
-            quant_scaling.basis.as_ref(),
+            &quant_scaling,
         ),
     ];
     let attrs = read_attributes(

@@ -7,7 +7,7 @@
 use serde::Serialize;
 
 use crate::lattice::{dn_basis, e8_product_basis};
-use crate::model::Basis;
+use crate::model::{Basis, GroupQuantizer};
 
 /// The lattice of an attribute group (spec §7.1, Table 7-1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -162,6 +162,50 @@ impl LatticeMatrix {
                 *zi += bij * uf;
             }
         }
+    }
+}
+
+/// A group's lattice matrices, one per spatial region (§7.6; one region unless Sp-SALVQ).
+#[derive(Debug, Clone)]
+pub struct GroupLattices {
+    /// First canonical anchor of each region, ascending, region 0 at 0.
+    starts: Vec<u32>,
+    matrices: Vec<LatticeMatrix>,
+}
+
+impl GroupLattices {
+    /// §7.2 for every region of `q` (a group of lattice `kind` and dimension `dim`).
+    pub fn new(kind: LatticeKind, dim: usize, q: &GroupQuantizer) -> GroupLattices {
+        let bases = q.bases();
+        if bases.is_empty() {
+            return GroupLattices {
+                starts: vec![0],
+                matrices: vec![LatticeMatrix::new(kind, dim, None)],
+            };
+        }
+        GroupLattices {
+            starts: q.region_starts(),
+            matrices: bases
+                .into_iter()
+                .map(|b| LatticeMatrix::new(kind, dim, Some(b)))
+                .collect(),
+        }
+    }
+
+    /// The matrix of the region holding canonical anchor `anchor`.
+    pub fn for_anchor(&self, anchor: u32) -> &LatticeMatrix {
+        let k = self.starts.partition_point(|&s| s <= anchor).max(1);
+        &self.matrices[k - 1]
+    }
+
+    /// Every region's matrix, region 0 first.
+    pub fn matrices(&self) -> &[LatticeMatrix] {
+        &self.matrices
+    }
+
+    /// First anchor of each region.
+    pub fn starts(&self) -> &[u32] {
+        &self.starts
     }
 }
 

@@ -99,9 +99,9 @@ fn non_finite_values() {
             index: vec![0, 1]
         }
     );
-    // origin.x is HEAD bytes 33..37.
+    // origin.x is HEAD bytes 37..41.
     let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
-        p[33..37].copy_from_slice(&f32::NAN.to_le_bytes());
+        p[37..41].copy_from_slice(&f32::NAN.to_le_bytes());
     });
     assert_eq!(
         err(&s),
@@ -136,9 +136,9 @@ fn values_not_positive() {
             value: -1.0
         }
     );
-    // voxel_size is HEAD bytes 45..49.
+    // voxel_size is HEAD bytes 49..53.
     let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
-        p[45..49].copy_from_slice(&0f32.to_le_bytes());
+        p[49..53].copy_from_slice(&0f32.to_le_bytes());
     });
     assert!(matches!(
         err(&s),
@@ -204,10 +204,10 @@ fn mlp_shift_out_of_range() {
 
 #[test]
 fn rate_mask_out_of_range() {
-    // rate_mask is HEAD bytes 25..33; the small model has 2 rates, so only bits 0-1 exist.
+    // rate_mask is HEAD bytes 29..37; the small model has 2 rates, so only bits 0-1 exist.
     for mask in [0u64, 4, 1 << 63] {
         let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
-            p[25..33].copy_from_slice(&mask.to_le_bytes())
+            p[29..37].copy_from_slice(&mask.to_le_bytes())
         });
         assert_eq!(
             err(&s),

@@ -6,7 +6,7 @@
 use salvq::encoder::fit::{fit_feature_scales, fit_klt_basis};
 use salvq::encoder::{encode_full, EncodeOptions};
 use salvq::gen::{generate, GenParams};
-use salvq::quantizer::LatticeMatrix;
+use salvq::quantizer::GroupLattices;
 use salvq::{decode, Error, LatticeKind, SceneModel};
 
 fn model(n: u32) -> SceneModel {
@@ -88,8 +88,8 @@ fn klt_basis_is_orthonormal_and_decorrelates() {
 fn fitted_scales_change_only_the_feature_scale_rows() {
     let m = model(1500);
     let mut fitted = m.clone();
-    let lattice = LatticeMatrix::new(LatticeKind::E8Product, 16, None);
-    let report = fit_feature_scales(&mut fitted, &lattice).unwrap();
+    let lattices = GroupLattices::new(LatticeKind::E8Product, 16, &m.quant_feat);
+    let report = fit_feature_scales(&mut fitted, &lattices).unwrap();
     assert_eq!(report.anchors, 1500);
     assert!(
         report.mean_scale > 0.0 && report.low_fraction < 0.05,

@@ -257,6 +257,8 @@ fn tensor_names_match_table_2_1() {
     let mut dims = salvq::gen::generate(&salvq::gen::GenParams::small(1, 1)).dims;
     dims.feat_lattice = salvq::LatticeKind::General;
     dims.scaling_lattice = salvq::LatticeKind::General;
+    dims.feat_regions = 2;
+    dims.scaling_regions = 2;
     let code: Vec<String> = salvq::model::tensor_table(&dims)
         .iter()
         .map(|e| e.name.to_string())
@@ -267,5 +269,5 @@ fn tensor_names_match_table_2_1() {
     spec_sorted.sort();
     code_sorted.sort();
     assert_eq!(spec_sorted, code_sorted);
-    assert_eq!(code.len(), 42);
+    assert_eq!(code.len(), 50);
 }

@@ -70,6 +70,10 @@ enum Command {
         /// quantizer (spec Annex A.5), as training for that quantizer would.
         #[arg(long)]
         fit_scales: bool,
+        /// With `--quantizer klt`: fit one basis per spatial region, R regions of equal
+        /// anchor count in Morton order (Sp-SALVQ, spec §7.6).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+        regions: u16,
         /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
         /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`,
         /// `closest` (Schnorr-Euchner, bounded) or `rdo` (auto's point refined for rate and
@@ -201,6 +205,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             quantizer,
             search,
             fit_scales,
+            regions,
             no_stats,
             json,
         } => {
@@ -220,6 +225,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 feat_lattice,
                 search: salvq::Search::from_name(&search).unwrap_or_default(),
                 fit_basis: quantizer == "klt",
+                feat_regions: regions,
                 fit_scales,
             };
             let encoded = salvq::encoder::encode_full(&model, &options)?;

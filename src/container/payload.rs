@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::hyperprior::IntMlp;
 use crate::model::validate::{check_finite, check_positive};
 use crate::model::{
-    morton3, names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Mlp, SceneModel,
+    morton3, names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Mlp, Region, SceneModel,
 };
 
 /// `coding_method` 0: raw little-endian values (§1.6).
@@ -229,65 +229,144 @@ pub fn write_quan(m: &SceneModel) -> Vec<u8> {
     for q in [&m.quant_feat, &m.quant_scaling, &m.quant_offsets] {
         w.f32(q.step);
         w.f32s(&q.gains);
-        if let Some(b) = &q.basis {
-            w.f32s(&b.u);
-            w.f32s(&b.s);
-            w.f32s(&b.v);
+        if q.basis.is_some() {
+            for r in &q.regions {
+                w.u32(r.start);
+            }
+            for b in q.bases() {
+                w.f32s(&b.u);
+                w.f32s(&b.s);
+                w.f32s(&b.v);
+            }
         }
     }
     w.buf
 }
 
-fn read_group(
-    r: &mut PayloadReader<'_>,
-    names: &[&'static str],
-    rates: u8,
+/// One basis of a group (§1.6.3): U, s, V, checked finite, then `s` without zeros.
+fn read_basis(r: &mut PayloadReader<'_>, names: [&'static str; 3], dim: u64) -> Result<Basis> {
+    let n = dim as usize;
+    let u = f32s(r.take(4 * n * n)?);
+    check_finite(names[0], &u, &[dim, dim])?;
+    let s = f32s(r.take(4 * n)?);
+    check_finite(names[1], &s, &[dim])?;
+    let v = f32s(r.take(4 * n * n)?);
+    check_finite(names[2], &v, &[dim, dim])?;
+    // §7.2: B must be invertible; a zero singular value is the one defect a decoder
+    // checks (the other basis rules of §2.6 bind encoders).
+    if let Some(i) = s.iter().position(|&x| x == 0.0) {
+        return Err(Error::BasisSingular {
+            tensor: names[1],
+            index: i as u64,
+        });
+    }
+    Ok(Basis { u, s, v })
+}
+
+/// Shape of one group's quantizer in `QUAN`.
+struct GroupShape<'a> {
+    names: &'a [&'static str],
+    region_names: &'a [&'static str; 4],
     dim: u64,
     basis: bool,
+    regions: u16,
+}
+
+fn read_group(
+    r: &mut PayloadReader<'_>,
+    g: &GroupShape<'_>,
+    rates: u8,
+    anchors: u32,
 ) -> Result<GroupQuantizer> {
+    let names = g.names;
     let step = r.f32()?;
     check_positive(names[0], &[step])?;
     let gains = f32s(r.take(4 * usize::from(rates))?);
     check_positive(names[1], &gains)?;
-    let basis = if basis {
-        let n = dim as usize;
-        let u = f32s(r.take(4 * n * n)?);
-        check_finite(names[2], &u, &[dim, dim])?;
-        let s = f32s(r.take(4 * n)?);
-        check_finite(names[3], &s, &[dim])?;
-        let v = f32s(r.take(4 * n * n)?);
-        check_finite(names[4], &v, &[dim, dim])?;
-        // §7.2: B must be invertible; a zero singular value is the one defect a decoder
-        // checks (the other basis rules of §2.6 bind encoders).
-        if let Some(i) = s.iter().position(|&x| x == 0.0) {
-            return Err(Error::BasisSingular {
-                tensor: names[3],
-                index: i as u64,
+    if !g.basis {
+        return Ok(GroupQuantizer {
+            step,
+            gains,
+            basis: None,
+            regions: Vec::new(),
+        });
+    }
+    // §7.6: region starts strictly increasing within 1 … N − 1 (R ≤ 65535, bounded by the
+    // payload length checked before).
+    let more = usize::from(g.regions.max(1)) - 1;
+    let mut starts = Vec::with_capacity(more);
+    let mut min = 1u64;
+    for _ in 0..more {
+        let s = r.u32()?;
+        let max = u64::from(anchors).saturating_sub(1);
+        if u64::from(s) < min || u64::from(s) > max {
+            return Err(Error::FieldOutOfRange {
+                field: Field::RegionStart,
+                value: s.into(),
+                min,
+                max,
             });
         }
-        Some(Basis { u, s, v })
-    } else {
-        None
-    };
-    Ok(GroupQuantizer { step, gains, basis })
+        min = u64::from(s) + 1;
+        starts.push(s);
+    }
+    let basis = read_basis(r, [names[2], names[3], names[4]], g.dim)?;
+    let mut regions = Vec::with_capacity(more);
+    let rn = g.region_names;
+    for start in starts {
+        let basis = read_basis(r, [rn[1], rn[2], rn[3]], g.dim)?;
+        regions.push(Region { start, basis });
+    }
+    Ok(GroupQuantizer {
+        step,
+        gains,
+        basis: Some(basis),
+        regions,
+    })
 }
 
 pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
     let tag = ChunkTag::QUAN;
     let body = body(tag, payload, METHOD_RAW)?;
-    let basis_len = |dim: u64, on: bool| if on { 2 * dim * dim + dim } else { 0 };
+    let basis_len = |dim: u64, on: bool, regions: u16| {
+        let r = u64::from(regions.max(1));
+        if on {
+            (r - 1) + r * (2 * dim * dim + dim)
+        } else {
+            0
+        }
+    };
     let f = u64::from(d.feat_dim);
     let s = u64::from(d.scaling_dim);
-    let (fb, sb) = (
-        d.feat_lattice.has_factors(),
-        d.scaling_lattice.has_factors(),
-    );
-    let count = 3 * (1 + u64::from(d.rates)) + basis_len(f, fb) + basis_len(s, sb);
+    let feat = GroupShape {
+        names: &names::QUANT_FEAT,
+        region_names: &names::QUANT_FEAT_REGIONS,
+        dim: f,
+        basis: d.feat_lattice.has_factors(),
+        regions: d.feat_regions,
+    };
+    let scaling = GroupShape {
+        names: &names::QUANT_SCALING,
+        region_names: &names::QUANT_SCALING_REGIONS,
+        dim: s,
+        basis: d.scaling_lattice.has_factors(),
+        regions: d.scaling_regions,
+    };
+    let offsets = GroupShape {
+        names: &names::QUANT_OFFSETS,
+        region_names: &[""; 4],
+        dim: 3,
+        basis: false,
+        regions: 1,
+    };
+    let count = 3 * (1 + u64::from(d.rates))
+        + basis_len(f, feat.basis, feat.regions)
+        + basis_len(s, scaling.basis, scaling.regions);
     expect_len(tag, body, 4 * count)?;
     let mut r = PayloadReader::new(tag, body);
-    let feat = read_group(&mut r, &names::QUANT_FEAT, d.rates, f, fb)?;
-    let scaling = read_group(&mut r, &names::QUANT_SCALING, d.rates, s, sb)?;
-    let offsets = read_group(&mut r, &names::QUANT_OFFSETS, d.rates, 3, false)?;
+    let feat = read_group(&mut r, &feat, d.rates, d.anchors)?;
+    let scaling = read_group(&mut r, &scaling, d.rates, d.anchors)?;
+    let offsets = read_group(&mut r, &offsets, d.rates, d.anchors)?;
     r.finish()?;
     Ok([feat, scaling, offsets])
 }

@@ -40,6 +40,8 @@ impl Preflight {
         w.u8(0);
         w.u8(d.feat_lattice.code());
         w.u8(d.scaling_lattice.code());
+        w.u16(d.feat_regions);
+        w.u16(d.scaling_regions);
         w.u8(d.grid_channels);
         w.u8(d.res_3d.len() as u8);
         w.u8(d.res_2d.len() as u8);
@@ -75,6 +77,8 @@ impl Preflight {
         let flags = r.u8()?;
         let feat_lattice = r.u8()?;
         let scaling_lattice = r.u8()?;
+        let feat_regions = r.u16()?;
+        let scaling_regions = r.u16()?;
         let grid_channels = r.u8()?;
         let levels_3d = r.u8()?;
         let levels_2d = r.u8()?;
@@ -121,6 +125,8 @@ impl Preflight {
             view_dims,
             feat_lattice: lattice_kind(Field::FeatLattice, feat_lattice)?,
             scaling_lattice: lattice_kind(Field::ScalingLattice, scaling_lattice)?,
+            feat_regions,
+            scaling_regions,
         };
         // Step 4: every field in its range (Table 1-4).
         check_dims(&dims)?;

@@ -15,7 +15,7 @@ use crate::hyperprior::prior::{Group, Prior};
 use crate::model::SceneModel;
 
 use super::float_prior::FloatPrior;
-use super::search::GroupSearch;
+use super::search::GroupSearches;
 use crate::quantizer::reconstruct_value;
 
 /// What coding one attribute group cost (spec §6.6; reported by `salvq info --json`).
@@ -63,7 +63,7 @@ fn symbols_of(
     i: usize,
     prior: &Prior,
     float: &FloatPrior,
-    searches: &[GroupSearch; 2],
+    searches: &[GroupSearches; 2],
     tables: &GaussianTables,
 ) -> Result<AnchorSymbols> {
     let d = &m.dims;
@@ -119,7 +119,7 @@ fn symbols_of(
             .zip(&mu)
             .map(|(&j, &m)| (f64::from(x[j]) - f64::from(m)) / delta)
             .collect();
-        let search = searches.get(gi);
+        let search = searches.get(gi).map(|g| g.for_anchor(i as u32));
         let ks: Vec<u8> = coded
             .iter()
             .map(|&j| prior.scale_index(&ctx.y, g, j, &step))
@@ -196,7 +196,7 @@ pub fn code_attributes(
     m: &SceneModel,
     prior: &Prior,
     float: &FloatPrior,
-    searches: &[GroupSearch; 2],
+    searches: &[GroupSearches; 2],
     tables: &GaussianTables,
 ) -> Result<CodedAttributes> {
     // Attributes (§6.6.2): symbols in parallel, coded in stream order.

@@ -20,8 +20,8 @@ use rayon::prelude::*;
 
 use super::float_prior::FloatPrior;
 use crate::error::{Error, Result};
-use crate::model::{names, Basis, SceneModel};
-use crate::quantizer::LatticeMatrix;
+use crate::model::{names, Basis, Region, SceneModel};
+use crate::quantizer::GroupLattices;
 
 /// At most this many anchors, evenly spaced in the model's order, enter a fit.
 pub const FIT_SAMPLE: usize = 32_768;
@@ -52,18 +52,23 @@ struct Sample {
     h: Vec<f64>,
     r: Vec<f64>,
     rows: usize,
+    /// The anchor of each row.
+    anchors: Vec<usize>,
 }
 
-fn sample(m: &SceneModel) -> Sample {
+/// Up to [`FIT_SAMPLE`] anchors evenly spaced over `range`.
+fn sample(m: &SceneModel, range: std::ops::Range<usize>) -> Sample {
     let f = usize::from(m.dims.feat_dim);
     let hidden = usize::from(m.dims.context_hidden);
     let prior = FloatPrior::new(m, m.coord_bits(), 0);
-    let n = m.n();
+    let n = range.len();
     let rows = n.min(FIT_SAMPLE);
-    let per: Vec<(Vec<f64>, Vec<f64>)> = (0..rows)
-        .into_par_iter()
-        .map(|i| {
-            let a = (i as u128 * n as u128 / rows as u128) as usize;
+    let anchors: Vec<usize> = (0..rows)
+        .map(|i| range.start + (i as u128 * n as u128 / rows as u128) as usize)
+        .collect();
+    let per: Vec<(Vec<f64>, Vec<f64>)> = anchors
+        .par_iter()
+        .map(|&a| {
             let h = prior.hidden(m, m.anchors.voxel[a]);
             let y = prior.outputs(&h);
             let r = (0..f)
@@ -77,6 +82,7 @@ fn sample(m: &SceneModel) -> Sample {
         h: Vec::with_capacity(rows * hidden),
         r: Vec::with_capacity(rows * f),
         rows,
+        anchors,
     };
     for (h, r) in per {
         s.h.extend(h);
@@ -89,8 +95,31 @@ fn sample(m: &SceneModel) -> Sample {
 /// anchors. Eigenvectors are ordered by decreasing eigenvalue, each signed so that its
 /// largest-magnitude component (the first of equals) is positive.
 pub fn fit_klt_basis(m: &SceneModel) -> Result<Basis> {
+    klt(m, 0..m.n())
+}
+
+/// Sp-SALVQ (§7.6): `regions` runs of equal anchor count in canonical (Morton) order, region
+/// `r` starting at anchor `⌊r·N/R⌋`, each with the KLT basis of its own anchors. `m` must be
+/// in canonical order; `regions` is clamped to 1 … min(N, 65535).
+pub fn fit_klt_regions(m: &SceneModel, regions: u16) -> Result<(Basis, Vec<Region>)> {
+    let n = m.n();
+    let r = usize::from(regions).clamp(1, n.clamp(1, usize::from(u16::MAX)));
+    let start = |k: usize| (k as u128 * n as u128 / r as u128) as usize;
+    let first = klt(m, 0..start(1))?;
+    let rest = (1..r)
+        .map(|k| {
+            Ok(Region {
+                start: start(k) as u32,
+                basis: klt(m, start(k)..start(k + 1))?,
+            })
+        })
+        .collect::<Result<_>>()?;
+    Ok((first, rest))
+}
+
+fn klt(m: &SceneModel, range: std::ops::Range<usize>) -> Result<Basis> {
     let f = usize::from(m.dims.feat_dim);
-    let s = sample(m);
+    let s = sample(m, range);
     let fail = |reason: &str| Error::FitFailed {
         tensor: names::QUANT_FEAT[2],
         reason: reason.to_string(),
@@ -134,33 +163,41 @@ pub fn fit_klt_basis(m: &SceneModel) -> Result<Basis> {
 /// coordinates of `lattice` (module docs): for each coordinate `j`, least squares of
 /// `sqrt(π/2) |w_j|` on the hidden activations and a bias, over up to [`FIT_SAMPLE`]
 /// anchors. The feature means and every other row stay as they are.
-pub fn fit_feature_scales(m: &mut SceneModel, lattice: &LatticeMatrix) -> Result<FitReport> {
+pub fn fit_feature_scales(m: &mut SceneModel, lattices: &GroupLattices) -> Result<FitReport> {
     let f = usize::from(m.dims.feat_dim);
     let fail = |reason: String| Error::FitFailed {
         tensor: names::MLP_GRID[2],
         reason,
     };
-    let s = sample(m);
+    let s = sample(m, 0..m.n());
     if s.rows == 0 {
         return Err(fail("no anchors to fit".into()));
     }
     let hd = s.hidden;
     let p = hd + 1;
-    // Coordinates w = B⁻¹ r of every sampled anchor.
-    let w = if lattice.is_identity() {
-        s.r.clone()
-    } else {
-        let b = DMatrix::from_row_slice(f, f, &lattice.to_f64());
-        let inv = b
-            .try_inverse()
-            .ok_or_else(|| fail("lattice basis is singular".into()))?;
-        let r = DMatrix::from_row_slice(s.rows, f, &s.r);
-        let w = r * inv.transpose();
-        (0..s.rows)
-            .flat_map(|a| (0..f).map(move |j| (a, j)))
-            .map(|(a, j)| w[(a, j)])
-            .collect()
-    };
+    // Coordinates w = B⁻¹ r of every sampled anchor, B its region's.
+    let mut inverses = Vec::new();
+    for lattice in lattices.matrices() {
+        inverses.push(if lattice.is_identity() {
+            None
+        } else {
+            let b = DMatrix::from_row_slice(f, f, &lattice.to_f64());
+            Some(
+                b.try_inverse()
+                    .ok_or_else(|| fail("lattice basis is singular".into()))?,
+            )
+        });
+    }
+    let starts = lattices.starts();
+    let mut w = Vec::with_capacity(s.rows * f);
+    for (row, &a) in s.anchors.iter().enumerate() {
+        let region = starts.partition_point(|&st| st as usize <= a).max(1) - 1;
+        let r = &s.r[row * f..(row + 1) * f];
+        match &inverses[region] {
+            None => w.extend_from_slice(r),
+            Some(inv) => w.extend((0..f).map(|j| (0..f).map(|k| inv[(j, k)] * r[k]).sum::<f64>())),
+        }
+    }
     // Normal equations of [h, 1] against every coordinate's target at once.
     let mut design = DMatrix::<f64>::zeros(s.rows, p);
     for a in 0..s.rows {

@@ -20,10 +20,10 @@ use crate::hyperprior::prior::Prior;
 use crate::hyperprior::GridLayout;
 use crate::model::validate::{check_lattices, validate_model};
 use crate::model::{decoded_bytes, names, LatticeKind, SceneModel};
-use crate::quantizer::LatticeMatrix;
+use crate::quantizer::GroupLattices;
 
 pub use attributes::GroupStats;
-pub use search::{GroupSearch, Search};
+pub use search::{GroupSearch, GroupSearches, Search};
 
 /// Options that change what the encoder writes.
 #[derive(Debug, Clone, Default)]
@@ -43,6 +43,9 @@ pub struct EncodeOptions {
     /// Replace the feature group's lattice by a basis fitted to the anchors (the KLT,
     /// [`fit::fit_klt_basis`]); `feat_lattice` must then be `None` or the general kind.
     pub fit_basis: bool,
+    /// With `fit_basis`: fit one basis per spatial region, this many regions of equal
+    /// anchor count in Morton order (Sp-SALVQ, spec §7.6); 0 or 1: one basis.
+    pub feat_regions: u16,
     /// Refit the context MLP's feature-scale rows to the coordinates of the lattice the
     /// features are coded with ([`fit::fit_feature_scales`]).
     pub fit_scales: bool,
@@ -123,7 +126,10 @@ fn choose_lattices(model: &SceneModel, options: &EncodeOptions) -> Result<SceneM
                 reason: "a fitted basis is a general lattice; another lattice was asked for".into(),
             });
         }
-        m.quant_feat.basis = Some(fit::fit_klt_basis(model)?);
+        let (basis, regions) = fit::fit_klt_regions(model, options.feat_regions.max(1))?;
+        m.dims.feat_regions = (regions.len() + 1) as u16;
+        m.quant_feat.basis = Some(basis);
+        m.quant_feat.regions = regions;
         m.dims.feat_lattice = LatticeKind::General;
     } else if let Some(kind) = options.feat_lattice {
         if kind == LatticeKind::General && model.quant_feat.basis.is_none() {
@@ -134,17 +140,15 @@ fn choose_lattices(model: &SceneModel, options: &EncodeOptions) -> Result<SceneM
         m.dims.feat_lattice = kind;
         if kind != LatticeKind::General {
             m.quant_feat.basis = None;
+            m.quant_feat.regions.clear();
+            m.dims.feat_regions = 1;
         }
     }
     check_lattices(&m.dims)?;
     if options.fit_scales {
         let d = &m.dims;
-        let lattice = LatticeMatrix::new(
-            d.feat_lattice,
-            usize::from(d.feat_dim),
-            m.quant_feat.basis.as_ref(),
-        );
-        fit::fit_feature_scales(&mut m, &lattice)?;
+        let lattices = GroupLattices::new(d.feat_lattice, usize::from(d.feat_dim), &m.quant_feat);
+        fit::fit_feature_scales(&mut m, &lattices)?;
     }
     Ok(m)
 }
@@ -167,19 +171,20 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
             max: u64::from(model.dims.rates) - 1,
         });
     }
-    let chosen;
-    let model = if options.feat_lattice.is_some() || options.fit_basis || options.fit_scales {
-        chosen = choose_lattices(model, options)?;
-        &chosen
-    } else {
-        model
-    };
+    // Canonical order first: regions (§7.6) and the fits are defined on it.
     let canonical;
-    let m = if model.is_canonical() {
+    let model = if model.is_canonical() {
         model
     } else {
         canonical = model.to_canonical_order();
         &canonical
+    };
+    let chosen;
+    let m = if options.feat_lattice.is_some() || options.fit_basis || options.fit_scales {
+        chosen = choose_lattices(model, options)?;
+        &chosen
+    } else {
+        model
     };
     let d = &m.dims;
     let coord_bits = m.coord_bits();
@@ -215,11 +220,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         ),
     ]
     .map(|(kind, dim, q, tensor)| {
-        GroupSearch::new(
-            LatticeMatrix::new(kind, dim, q.basis.as_ref()),
-            options.search,
-            tensor,
-        )
+        GroupSearches::new(&GroupLattices::new(kind, dim, q), options.search, tensor)
     });
     let [fs, ss] = searches;
     let searches = [fs?, ss?];

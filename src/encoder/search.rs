@@ -206,6 +206,37 @@ impl GroupSearch {
     }
 }
 
+/// A group's searches, one per spatial region (§7.6).
+#[derive(Debug, Clone)]
+pub struct GroupSearches {
+    starts: Vec<u32>,
+    searches: Vec<GroupSearch>,
+}
+
+impl GroupSearches {
+    /// A search per region of `lattices`.
+    pub fn new(
+        lattices: &crate::quantizer::GroupLattices,
+        method: Search,
+        tensor: &'static str,
+    ) -> Result<GroupSearches> {
+        Ok(GroupSearches {
+            starts: lattices.starts().to_vec(),
+            searches: lattices
+                .matrices()
+                .iter()
+                .map(|m| GroupSearch::new(m.clone(), method, tensor))
+                .collect::<Result<_>>()?,
+        })
+    }
+
+    /// The search of the region holding canonical anchor `anchor`.
+    pub fn for_anchor(&self, anchor: u32) -> &GroupSearch {
+        let k = self.starts.partition_point(|&s| s <= anchor).max(1);
+        &self.searches[k - 1]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -144,6 +144,8 @@ impl GenParams {
             view_dims: self.view_dims,
             feat_lattice: lattice(self.feat_basis),
             scaling_lattice: lattice(self.scaling_basis),
+            feat_regions: 1,
+            scaling_regions: 1,
         }
     }
 }

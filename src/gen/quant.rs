@@ -54,5 +54,10 @@ pub fn group(
         let v = orthogonal(&mut s, dim).into_iter().map(round_f32).collect();
         Basis { u, s: sv, v }
     });
-    GroupQuantizer { step, gains, basis }
+    GroupQuantizer {
+        step,
+        gains,
+        basis,
+        regions: Vec::new(),
+    }
 }

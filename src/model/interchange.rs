@@ -14,7 +14,7 @@ use safetensors::SafeTensors;
 use super::validate::{check_field, validate_model, MAX_COORD_BITS};
 use super::{
     names, tensor_table, Anchors, Basis, Dims, Dtype, GroupQuantizer, HashGrid, LatticeKind, Mlp,
-    SceneModel, TensorEntry,
+    Region, SceneModel, TensorEntry,
 };
 use crate::error::{Error, Field, Result};
 
@@ -178,6 +178,16 @@ fn infer_dims(r: &Reader<'_>) -> Result<Dims> {
             None => Ok(LatticeKind::Identity),
         }
     };
+    // §7.6: R − 1 regions after the first, from the shape of their start tensor.
+    let regions = |name: &'static str, field: Field| -> Result<u16> {
+        if r.st.tensor(name).is_err() {
+            return Ok(1);
+        }
+        let shape = r.shape(name, Dtype::I32, 1)?;
+        Ok(check_field(field, shape[0].saturating_add(1))? as u16)
+    };
+    let feat_regions = regions(names::QUANT_FEAT_REGIONS[0], Field::FeatRegions)?;
+    let scaling_regions = regions(names::QUANT_SCALING_REGIONS[0], Field::ScalingRegions)?;
     let [feat_named, scaling_named] = &r.lattices;
     Ok(Dims {
         anchors: check_field(Field::AnchorCount, feat[0])? as u32,
@@ -195,6 +205,8 @@ fn infer_dims(r: &Reader<'_>) -> Result<Dims> {
         view_dims: check_field(Field::ViewDims, view_dims)? as u8,
         feat_lattice: lattice(feat_named, &names::QUANT_FEAT)?,
         scaling_lattice: lattice(scaling_named, &names::QUANT_SCALING)?,
+        feat_regions,
+        scaling_regions,
     })
 }
 
@@ -258,14 +270,32 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
         w1: f32s(get(n[2])),
         b1: f32s(get(n[3])),
     };
-    let group = |n: &[&str], basis: bool| GroupQuantizer {
-        step: f32s(get(n[0])).first().copied().unwrap_or(f32::NAN),
-        gains: f32s(get(n[1])),
-        basis: basis.then(|| Basis {
-            u: f32s(get(n[2])),
-            s: f32s(get(n[3])),
-            v: f32s(get(n[4])),
-        }),
+    let group = |n: &[&str], rn: &[&str; 4], dim: usize, basis: bool| {
+        // Region r's factors are slice r of each stacked tensor (shapes checked above).
+        let starts = i32s(get(rn[0]));
+        let (u, s, v) = (f32s(get(rn[1])), f32s(get(rn[2])), f32s(get(rn[3])));
+        let regions = starts
+            .iter()
+            .enumerate()
+            .map(|(r, &start)| Region {
+                start: start.max(0) as u32,
+                basis: Basis {
+                    u: u[r * dim * dim..(r + 1) * dim * dim].to_vec(),
+                    s: s[r * dim..(r + 1) * dim].to_vec(),
+                    v: v[r * dim * dim..(r + 1) * dim * dim].to_vec(),
+                },
+            })
+            .collect();
+        GroupQuantizer {
+            step: f32s(get(n[0])).first().copied().unwrap_or(f32::NAN),
+            gains: f32s(get(n[1])),
+            basis: basis.then(|| Basis {
+                u: f32s(get(n[2])),
+                s: f32s(get(n[3])),
+                v: f32s(get(n[4])),
+            }),
+            regions,
+        }
     };
     let model = SceneModel {
         origin: [origin[0], origin[1], origin[2]],
@@ -290,9 +320,19 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
         mlp_opacity: mlp(names::MLP_OPACITY),
         mlp_cov: mlp(names::MLP_COV),
         mlp_color: mlp(names::MLP_COLOR),
-        quant_feat: group(&names::QUANT_FEAT, dims.feat_lattice.has_factors()),
-        quant_scaling: group(&names::QUANT_SCALING, dims.scaling_lattice.has_factors()),
-        quant_offsets: group(&names::QUANT_OFFSETS, false),
+        quant_feat: group(
+            &names::QUANT_FEAT,
+            &names::QUANT_FEAT_REGIONS,
+            usize::from(dims.feat_dim),
+            dims.feat_lattice.has_factors(),
+        ),
+        quant_scaling: group(
+            &names::QUANT_SCALING,
+            &names::QUANT_SCALING_REGIONS,
+            usize::from(dims.scaling_dim),
+            dims.scaling_lattice.has_factors(),
+        ),
+        quant_offsets: group(&names::QUANT_OFFSETS, &[""; 4], 3, false),
         dims,
     };
     validate_model(&model)?;
@@ -337,6 +377,22 @@ fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::Resul
         (&names::QUANT_SCALING, &m.quant_scaling),
         (&names::QUANT_OFFSETS, &m.quant_offsets),
     ];
+    let region_groups = [
+        (&names::QUANT_FEAT_REGIONS, &m.quant_feat),
+        (&names::QUANT_SCALING_REGIONS, &m.quant_scaling),
+    ];
+    for (n, q) in region_groups {
+        match n.iter().position(|&x| x == name) {
+            Some(0) => return i(w, &mut q.regions.iter().map(|r| r.start as i32)),
+            Some(p) => {
+                for r in &q.regions {
+                    f(w, [&r.basis.u, &r.basis.s, &r.basis.v][p - 1])?;
+                }
+                return Ok(());
+            }
+            None => {}
+        }
+    }
     for (n, q) in groups {
         match n.iter().position(|&x| x == name) {
             Some(0) => return f(w, &[q.step]),

@@ -75,6 +75,11 @@ pub struct Dims {
     pub feat_lattice: LatticeKind,
     /// The scaling group's lattice (FS-SALVQ when not the identity).
     pub scaling_lattice: LatticeKind,
+    /// Spatial regions of the feature group, each with its own basis (Sp-SALVQ, spec §7.6):
+    /// 1, or more with a general lattice.
+    pub feat_regions: u16,
+    /// Spatial regions of the scaling group (as `feat_regions`).
+    pub scaling_regions: u16,
 }
 
 /// Entries in one hash-grid level of dimension `d` (spec §2.4): the dense grid
@@ -166,6 +171,20 @@ pub mod names {
         "quant.feat.basis_s",
         "quant.feat.basis_v",
     ];
+    /// Regions 1 … R−1 of the feature group (Sp-SALVQ, §7.6): first anchor, then the factors.
+    pub const QUANT_FEAT_REGIONS: [&str; 4] = [
+        "quant.feat.regions.start",
+        "quant.feat.regions.basis_u",
+        "quant.feat.regions.basis_s",
+        "quant.feat.regions.basis_v",
+    ];
+    /// Regions 1 … R−1 of the scaling group.
+    pub const QUANT_SCALING_REGIONS: [&str; 4] = [
+        "quant.scaling.regions.start",
+        "quant.scaling.regions.basis_u",
+        "quant.scaling.regions.basis_s",
+        "quant.scaling.regions.basis_v",
+    ];
     pub const QUANT_SCALING: [&str; 5] = [
         "quant.scaling.step",
         "quant.scaling.gains",
@@ -239,18 +258,44 @@ pub fn tensor_table(d: &Dims) -> Vec<TensorEntry> {
     mlp(&mut t, MLP_OPACITY, si, hs, k);
     mlp(&mut t, MLP_COV, si, hs, 7 * k);
     mlp(&mut t, MLP_COLOR, si, hs, 3 * k);
-    let group = |t: &mut Vec<TensorEntry>, names: &[&'static str], dim: u64, basis: bool| {
+    let group = |t: &mut Vec<TensorEntry>,
+                 names: &[&'static str],
+                 region_names: &[&'static str; 4],
+                 dim: u64,
+                 basis: bool,
+                 regions: u16| {
         t.push(e(names[0], Dtype::F32, &[1]));
         t.push(e(names[1], Dtype::F32, &[m]));
         if basis {
             t.push(e(names[2], Dtype::F32, &[dim, dim]));
             t.push(e(names[3], Dtype::F32, &[dim]));
             t.push(e(names[4], Dtype::F32, &[dim, dim]));
+            let more = u64::from(regions.max(1)) - 1;
+            if more > 0 {
+                t.push(e(region_names[0], Dtype::I32, &[more]));
+                t.push(e(region_names[1], Dtype::F32, &[more, dim, dim]));
+                t.push(e(region_names[2], Dtype::F32, &[more, dim]));
+                t.push(e(region_names[3], Dtype::F32, &[more, dim, dim]));
+            }
         }
     };
-    group(&mut t, &QUANT_FEAT, f, d.feat_lattice.has_factors());
-    group(&mut t, &QUANT_SCALING, s, d.scaling_lattice.has_factors());
-    group(&mut t, &QUANT_OFFSETS, 3, false);
+    group(
+        &mut t,
+        &QUANT_FEAT,
+        &QUANT_FEAT_REGIONS,
+        f,
+        d.feat_lattice.has_factors(),
+        d.feat_regions,
+    );
+    group(
+        &mut t,
+        &QUANT_SCALING,
+        &QUANT_SCALING_REGIONS,
+        s,
+        d.scaling_lattice.has_factors(),
+        d.scaling_regions,
+    );
+    group(&mut t, &QUANT_OFFSETS, &[""; 4], 3, false, 1);
     t
 }
 
@@ -285,8 +330,45 @@ pub struct GroupQuantizer {
     pub step: f32,
     pub gains: Vec<f32>,
     /// The factors of a general lattice basis (`Some` exactly when the group's
-    /// [`LatticeKind`] in [`Dims`] is `General`).
+    /// [`LatticeKind`] in [`Dims`] is `General`); with regions, region 0's.
     pub basis: Option<Basis>,
+    /// Regions 1 … R−1 of a general lattice (Sp-SALVQ, spec §7.6), by increasing first
+    /// anchor; empty for one region.
+    pub regions: Vec<Region>,
+}
+
+/// A spatial region of a group's anchors with its own basis (Sp-SALVQ, spec §7.6): anchors
+/// `start` … (the next region's start − 1), in canonical order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    pub start: u32,
+    pub basis: Basis,
+}
+
+impl GroupQuantizer {
+    /// The basis of the region holding canonical anchor `anchor` (`None` without a basis).
+    pub fn basis_of(&self, anchor: u32) -> Option<&Basis> {
+        let later = self.regions.partition_point(|r| r.start <= anchor);
+        match later {
+            0 => self.basis.as_ref(),
+            k => Some(&self.regions[k - 1].basis),
+        }
+    }
+
+    /// Every region's basis in order, region 0 first (empty without a basis).
+    pub fn bases(&self) -> Vec<&Basis> {
+        self.basis
+            .iter()
+            .chain(self.regions.iter().map(|r| &r.basis))
+            .collect()
+    }
+
+    /// First anchor of every region, region 0 (anchor 0) first.
+    pub fn region_starts(&self) -> Vec<u32> {
+        std::iter::once(0)
+            .chain(self.regions.iter().map(|r| r.start))
+            .collect()
+    }
 }
 
 /// The binary hash grid (spec §2.4): values are -1 or +1, row-major `[entries, C]`.

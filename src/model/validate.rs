@@ -36,6 +36,8 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::W0FracBits | Field::W1FracBits => (0, 30),
         Field::Shift0 => (0, 31),
         Field::FeatLattice | Field::ScalingLattice => (0, 3),
+        Field::FeatRegions | Field::ScalingRegions => (1, u16::MAX as u64),
+        Field::RegionStart => (1, u32::MAX as u64 - 1),
         Field::RateMask => (1, u64::MAX),
         Field::CodedRate
         | Field::FileFlags
@@ -71,6 +73,25 @@ pub fn check_lattices(d: &Dims) -> Result<()> {
                 lattice: kind.name(),
                 dim: dim.into(),
                 rule,
+            });
+        }
+    }
+    // §1.4 / §7.6: regions need a general lattice, and at most one per anchor.
+    for (field, kind, regions) in [
+        (Field::FeatRegions, d.feat_lattice, d.feat_regions),
+        (Field::ScalingRegions, d.scaling_lattice, d.scaling_regions),
+    ] {
+        let max = if kind.has_factors() {
+            u64::from(d.anchors).clamp(1, u64::from(u16::MAX))
+        } else {
+            1
+        };
+        if regions == 0 || u64::from(regions) > max {
+            return Err(Error::FieldOutOfRange {
+                field,
+                value: regions.into(),
+                min: 1,
+                max,
             });
         }
     }
@@ -352,6 +373,22 @@ pub fn validate_model(m: &SceneModel) -> Result<()> {
         s,
         d.scaling_lattice.has_factors(),
     )?;
+    check_regions(
+        qf,
+        &names::QUANT_FEAT_REGIONS,
+        &m.quant_feat,
+        d.feat_regions,
+        d.anchors,
+        f,
+    )?;
+    check_regions(
+        qs,
+        &names::QUANT_SCALING_REGIONS,
+        &m.quant_scaling,
+        d.scaling_regions,
+        d.anchors,
+        s,
+    )?;
     check_group(
         &names::QUANT_OFFSETS,
         None,
@@ -360,6 +397,43 @@ pub fn validate_model(m: &SceneModel) -> Result<()> {
         3,
         false,
     )
+}
+
+/// §7.6: `regions − 1` extra regions with strictly increasing starts in 1 … N − 1, each basis
+/// obeying §2.6.
+fn check_regions(
+    names: &[&'static str; 5],
+    region_names: &[&'static str; 4],
+    q: &GroupQuantizer,
+    regions: u16,
+    anchors: u32,
+    dim: u64,
+) -> Result<()> {
+    let more = u64::from(regions.max(1)) - 1;
+    check_len(region_names[0], q.regions.len(), &[more])?;
+    let mut min = 1u64;
+    let max = u64::from(anchors).saturating_sub(1);
+    let basis_names = [
+        names[0],
+        names[1],
+        region_names[1],
+        region_names[2],
+        region_names[3],
+    ];
+    for r in &q.regions {
+        let start = u64::from(r.start);
+        if start < min || start > max {
+            return Err(Error::FieldOutOfRange {
+                field: Field::RegionStart,
+                value: start,
+                min,
+                max,
+            });
+        }
+        min = start + 1;
+        check_basis(&basis_names, &r.basis, dim)?;
+    }
+    Ok(())
 }
 
 fn shape_err(tensor: &'static str, expected: &[u64], found: u64) -> Error {

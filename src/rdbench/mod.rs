@@ -48,53 +48,69 @@ pub struct Quantizer {
     pub lattice: Option<LatticeKind>,
     pub fit_basis: bool,
     pub search: Search,
+    /// Spatial regions of a fitted basis (Sp-SALVQ, §7.6).
+    pub regions: u16,
 }
 
 /// The quantizers of the R-D chart: USQ, D_n, E8⁶, the generator's (random, not adapted)
-/// learned basis, SALVQ with a basis fitted to the scene (KLT, Annex A.5), and USQ and SALVQ
-/// with the rate-distortion optimised search.
-pub const QUANTIZERS: [Quantizer; 7] = [
+/// learned basis, SALVQ with a basis fitted to the scene (KLT, Annex A.5), USQ and SALVQ
+/// with the rate-distortion optimised search, and Sp-SALVQ with 8 fitted regions (§7.6).
+pub const QUANTIZERS: [Quantizer; 8] = [
     Quantizer {
         label: "USQ",
         lattice: Some(LatticeKind::Identity),
         fit_basis: false,
         search: Search::Auto,
+        regions: 1,
     },
     Quantizer {
         label: "D48",
         lattice: Some(LatticeKind::Dn),
         fit_basis: false,
         search: Search::Auto,
+        regions: 1,
     },
     Quantizer {
         label: "E8^6",
         lattice: Some(LatticeKind::E8Product),
         fit_basis: false,
         search: Search::Auto,
+        regions: 1,
     },
     Quantizer {
         label: "random basis",
         lattice: Some(LatticeKind::General),
         fit_basis: false,
         search: Search::Auto,
+        regions: 1,
     },
     Quantizer {
         label: "SALVQ (fitted)",
         lattice: None,
         fit_basis: true,
         search: Search::Auto,
+        regions: 1,
     },
     Quantizer {
         label: "USQ + rdo",
         lattice: Some(LatticeKind::Identity),
         fit_basis: false,
         search: Search::Rdo { lambda_milli: 1000 },
+        regions: 1,
     },
     Quantizer {
         label: "SALVQ + rdo",
         lattice: None,
         fit_basis: true,
         search: Search::Rdo { lambda_milli: 1000 },
+        regions: 1,
+    },
+    Quantizer {
+        label: "Sp-SALVQ (8)",
+        lattice: None,
+        fit_basis: true,
+        search: Search::Auto,
+        regions: 8,
     },
 ];
 
@@ -118,6 +134,7 @@ fn options(q: &Quantizer, search: Search) -> EncodeOptions {
     EncodeOptions {
         feat_lattice: q.lattice,
         fit_basis: q.fit_basis,
+        feat_regions: q.regions,
         fit_scales: true,
         search,
         ..EncodeOptions::default()
@@ -295,8 +312,8 @@ pub fn run(p: &RdOptions) -> Result<String> {
             bd_text(&bd(&curves[0].1, c, true))
         ));
     }
-    text.push_str("\nRate-distortion optimised search vs the same quantizer's auto search (whole stream | feature chunk):\n");
-    for (base, rdo) in [(0, 5), (4, 6)] {
+    text.push_str("\nRDO search vs the same quantizer's auto search, and Sp-SALVQ vs SALVQ (whole stream | feature chunk):\n");
+    for (base, rdo) in [(0, 5), (4, 6), (4, 7)] {
         text.push_str(&format!(
             "  {:>15}: {} | {}\n",
             curves[rdo].0,
