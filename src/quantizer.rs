@@ -229,7 +229,16 @@ fn general_matrix(d: usize, f: &Basis) -> Vec<f32> {
 /// place of u).
 #[inline]
 pub fn reconstruct_value(mu: f32, delta: f32, z: f32) -> f32 {
-    mu + delta * z
+    crate::hyperprior::step::canonical_nan(mu + delta * z)
+}
+
+/// §1.6.3: the first entry `(i, j)` of a general matrix (§7.2) that is not finite, if any
+/// (finite factors can still overflow).
+pub fn general_matrix_non_finite(d: usize, f: &Basis) -> Option<(usize, usize)> {
+    general_matrix(d, f)
+        .iter()
+        .position(|v| !v.is_finite())
+        .map(|p| (p / d, p % d))
 }
 
 #[cfg(test)]
@@ -264,6 +273,16 @@ mod tests {
             let exact: f64 = (0..16).map(|j| b[i * 16 + j] * u[j] as f64).sum();
             assert_eq!(f64::from(*zi), exact);
         }
+    }
+
+    /// §7.3: a NaN reconstruction is output as 0x7FC00000 whatever NaN the arithmetic made.
+    #[test]
+    fn nan_reconstructions_are_canonical() {
+        let x = reconstruct_value(f32::INFINITY, 1.0, f32::NEG_INFINITY);
+        assert_eq!(x.to_bits(), 0x7FC0_0000);
+        let y = reconstruct_value(f32::from_bits(0xFFC0_0001), 1.0, 0.0);
+        assert_eq!(y.to_bits(), 0x7FC0_0000);
+        assert_eq!(reconstruct_value(1.0, 2.0, 3.0), 7.0);
     }
 
     #[test]

@@ -278,6 +278,36 @@ fn bad_quantizer_values_in_a_stream() {
             ));
         }
     }
+    // Finite factors whose product B overflows (§1.6.3): U = V = 0.9 everywhere, s = 3e38.
+    let s = edit_payload(&stream, ChunkTag::QUAN, |p| {
+        let u_at = 1 + 4 + 4 * rates;
+        for k in 0..f * f {
+            p[u_at + 4 * k..u_at + 4 * k + 4].copy_from_slice(&0.9f32.to_le_bytes());
+            let v = s_at + 4 * f + 4 * k;
+            p[v..v + 4].copy_from_slice(&0.9f32.to_le_bytes());
+        }
+        for k in 0..f {
+            p[s_at + 4 * k..s_at + 4 * k + 4].copy_from_slice(&3e38f32.to_le_bytes());
+        }
+    });
+    assert_eq!(
+        decode(&s).unwrap_err(),
+        Error::NonFiniteValue {
+            tensor: "quant.feat.basis_u",
+            index: vec![0, 0]
+        }
+    );
+    // A step whose product with a gain overflows (§5.4): rate 1's step is infinite.
+    let s = edit_payload(&stream, ChunkTag::QUAN, |p| {
+        p[1..5].copy_from_slice(&3e38f32.to_le_bytes())
+    });
+    assert_eq!(
+        decode(&s).unwrap_err(),
+        Error::NonFiniteValue {
+            tensor: "quant.feat.gains",
+            index: vec![1]
+        }
+    );
 }
 
 #[test]

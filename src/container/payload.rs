@@ -8,7 +8,7 @@ use crate::container::preflight::Preflight;
 use crate::error::Field;
 use crate::error::{Error, Result};
 use crate::hyperprior::IntMlp;
-use crate::model::validate::{check_finite, check_positive};
+use crate::model::validate::{check_finite, check_positive, check_rate_steps};
 use crate::model::{
     morton3, names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Mlp, Region, SceneModel,
 };
@@ -283,6 +283,7 @@ fn read_group(
     check_positive(names[0], &[step])?;
     let gains = f32s(r.take(4 * usize::from(rates))?);
     check_positive(names[1], &gains)?;
+    check_rate_steps(names[1], step, &gains)?;
     if !g.basis {
         return Ok(GroupQuantizer {
             step,
@@ -298,7 +299,7 @@ fn read_group(
     let mut min = 1u64;
     for _ in 0..more {
         let s = r.u32()?;
-        let max = u64::from(anchors).saturating_sub(1);
+        let max = u64::from(anchors).saturating_sub(1).min(i32::MAX as u64);
         if u64::from(s) < min || u64::from(s) > max {
             return Err(Error::FieldOutOfRange {
                 field: Field::RegionStart,
@@ -316,6 +317,19 @@ fn read_group(
     for start in starts {
         let basis = read_basis(r, [rn[1], rn[2], rn[3]], g.dim)?;
         regions.push(Region { start, basis });
+    }
+    // §1.6.3: each computed matrix B_r is finite.
+    let n = g.dim as usize;
+    for (r, b) in std::iter::once(&basis)
+        .chain(regions.iter().map(|x| &x.basis))
+        .enumerate()
+    {
+        if let Some((i, j)) = crate::quantizer::general_matrix_non_finite(n, b) {
+            return Err(Error::NonFiniteValue {
+                tensor: if r == 0 { names[2] } else { rn[1] },
+                index: vec![i as u64, j as u64],
+            });
+        }
     }
     Ok(GroupQuantizer {
         step,

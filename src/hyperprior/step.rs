@@ -155,7 +155,21 @@ pub fn mean_f32(y_mean: i32, frac: i32) -> f32 {
 /// §5.5 steps 3-4: μ + Δ u in binary32, given μ from [`mean_f32`].
 #[inline]
 pub fn reconstruct_from(mu: f32, delta: f32, u: i64) -> f32 {
-    mu + delta * (u as f32)
+    canonical_nan(mu + delta * (u as f32))
+}
+
+/// The quiet NaN every reconstruction outputs for a NaN result (§5.5, §7.3): platforms differ
+/// in the sign and payload of the NaN that `∞ − ∞` or `∞ · 0` produces.
+pub const CANONICAL_NAN_BITS: u32 = 0x7FC0_0000;
+
+/// `x`, or the canonical NaN if `x` is NaN.
+#[inline]
+pub fn canonical_nan(x: f32) -> f32 {
+    if x.is_nan() {
+        f32::from_bits(CANONICAL_NAN_BITS)
+    } else {
+        x
+    }
 }
 
 /// §5.5: reconstruction of one attribute value in binary32: μ + Δ u, with μ = y 2^-frac.

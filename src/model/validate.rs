@@ -186,6 +186,29 @@ pub fn check_positive(tensor: &'static str, values: &[f32]) -> Result<()> {
     }
 }
 
+/// §5.4: every rate's step `step ⊗ gain_r` (binary32) is finite and non-zero, so that its
+/// exact decomposition exists; reported on the gain: **NonFiniteValue** for an overflow,
+/// **ValueNotPositive** (value: the product) for an underflow to 0.
+pub fn check_rate_steps(tensor: &'static str, step: f32, gains: &[f32]) -> Result<()> {
+    for (r, &g) in gains.iter().enumerate() {
+        let product = step * g;
+        if !product.is_finite() {
+            return Err(Error::NonFiniteValue {
+                tensor,
+                index: vec![r as u64],
+            });
+        }
+        if product == 0.0 {
+            return Err(Error::ValueNotPositive {
+                tensor,
+                index: vec![r as u64],
+                value: product,
+            });
+        }
+    }
+    Ok(())
+}
+
 fn check_len(tensor: &'static str, found: usize, shape: &[u64]) -> Result<()> {
     let expected: u64 = shape.iter().product();
     if found as u64 != expected {
@@ -259,6 +282,12 @@ pub fn check_basis(names: &[&'static str; 5], basis: &Basis, dim: u64) -> Result
             max: MAX_BASIS_CONDITION,
         });
     }
+    if let Some((i, j)) = crate::quantizer::general_matrix_non_finite(n, basis) {
+        return Err(Error::NonFiniteValue {
+            tensor: names[2],
+            index: vec![i as u64, j as u64],
+        });
+    }
     check_orthogonal(names[2], &basis.u, n)?;
     check_orthogonal(names[4], &basis.v, n)?;
     Ok(())
@@ -275,6 +304,7 @@ fn check_group(
     check_positive(names[0], &[q.step])?;
     check_len(names[1], q.gains.len(), &[rates.into()])?;
     check_positive(names[1], &q.gains)?;
+    check_rate_steps(names[1], q.step, &q.gains)?;
     match (&q.basis, basis_names, flagged) {
         (Some(b), Some(bn), true) => check_basis(bn, b, dim),
         (None, Some(bn), true) => Err(Error::TensorMissing { tensor: bn[2] }),
@@ -412,7 +442,7 @@ fn check_regions(
     let more = u64::from(regions.max(1)) - 1;
     check_len(region_names[0], q.regions.len(), &[more])?;
     let mut min = 1u64;
-    let max = u64::from(anchors).saturating_sub(1);
+    let max = u64::from(anchors).saturating_sub(1).min(i32::MAX as u64);
     let basis_names = [
         names[0],
         names[1],
