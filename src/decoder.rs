@@ -140,7 +140,7 @@ pub fn decode_with_options(data: &[u8], options: &DecodeOptions) -> Result<Scene
             ChunkTag::MLPS => p.mlps = Some(payload::read_mlps(bytes, d)?),
             ChunkTag::QUAN => p.quan = Some(payload::read_quan(bytes, d)?),
             ChunkTag::APOS => {
-                let voxel = payload::read_apos(bytes, head)?;
+                let voxel = payload::read_apos(bytes, head, tables)?;
                 // §5.2: the touched grid entries follow from the voxels.
                 let layout = GridLayout::new(d, head.coord_bits);
                 p.touched = Some(layout.touched(&voxel, d.entries_3d(), d.entries_2d()));

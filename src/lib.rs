@@ -5,7 +5,7 @@
 //! quantization with per-rate gains). The normative text is `spec/` in this repository; every
 //! module cites the section it implements.
 //!
-//! ## Map of a stream (format 0.5)
+//! ## Map of a stream (format 0.6)
 //!
 //! | stream part | spec | module |
 //! |---|---|---|
@@ -56,6 +56,7 @@ pub mod entropy;
 pub mod error;
 pub mod extract;
 pub mod gen;
+pub mod geometry;
 pub mod hyperprior;
 pub mod info;
 pub mod io;

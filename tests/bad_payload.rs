@@ -47,36 +47,71 @@ fn padding_bits_set() {
     );
 }
 
-#[test]
-fn coordinate_out_of_range() {
-    let s = small_stream();
+/// `APOS` whose octree codes `voxels` instead of the model's (§8): the stream's other chunks
+/// are unchanged.
+fn with_voxels(voxels: &[[u32; 3]]) -> Vec<u8> {
     let coord_bits = small_model().coord_bits();
-    let s = edit_payload(&s, ChunkTag::APOS, |p| {
-        let last = p.len() - 4;
-        p[last..].copy_from_slice(&(1u32 << coord_bits).to_le_bytes());
-    });
-    assert!(matches!(
-        err(&s),
-        Error::CoordinateOutOfRange {
-            anchor: 12,
-            axis: 2,
-            ..
-        }
-    ));
+    let tables = salvq::entropy::GaussianTables::standard();
+    let body = salvq::geometry::encode(voxels, coord_bits, tables).unwrap();
+    edit_payload(&small_stream(), ChunkTag::APOS, |p| {
+        p.truncate(1);
+        p.extend_from_slice(&body);
+    })
 }
 
 #[test]
-fn anchor_order() {
+fn octree_with_more_cells_than_anchors() {
+    // One more voxel than anchors (in a free cell): the leaf depth has N + 1 cells.
     let model = small_model();
-    let s = edit_payload(&small_stream(), ChunkTag::APOS, |p| {
-        // Swap anchors 0 and 12 (different voxels, so their Morton codes differ).
-        let (a, b) = (1, 1 + 12 * 12);
-        for i in 0..12 {
-            p.swap(a + i, b + i);
+    let n = model.anchors.voxel.len();
+    let mut voxels = model.anchors.voxel.clone();
+    let bits = model.coord_bits();
+    let free = (0..1u32 << bits)
+        .map(|x| [x, 0, 0])
+        .find(|v| !voxels.contains(v))
+        .unwrap();
+    voxels.push(free);
+    voxels.sort_by_key(|v| salvq::model::morton3(*v));
+    match err(&with_voxels(&voxels)) {
+        Error::OctreeInvalid {
+            rule,
+            count,
+            anchors,
+            ..
+        } => {
+            assert_eq!(rule, salvq::geometry::MORE_NODES_THAN_ANCHORS);
+            assert_eq!((count, anchors), (n as u64 + 1, n as u32));
         }
-    });
-    assert_ne!(model.anchors.voxel[0], model.anchors.voxel[12]);
-    assert!(matches!(err(&s), Error::AnchorOrder { .. }));
+        e => panic!("{e:?}"),
+    }
+}
+
+#[test]
+fn octree_counts_that_do_not_add_up() {
+    let model = small_model();
+    let n = model.anchors.voxel.len() as u32;
+    // A voxel repeated: the counts reach N + 1.
+    let mut more = model.anchors.voxel.clone();
+    more.insert(3, more[3]);
+    match err(&with_voxels(&more)) {
+        Error::OctreeInvalid { rule, anchors, .. } => {
+            assert_eq!(rule, salvq::geometry::COUNTS_ABOVE);
+            assert_eq!(anchors, n);
+        }
+        e => panic!("{e:?}"),
+    }
+    // A voxel missing: N − 1 leaves of count 1.
+    let mut fewer = model.anchors.voxel.clone();
+    fewer.remove(5);
+    assert_eq!(
+        err(&with_voxels(&fewer)),
+        Error::OctreeInvalid {
+            rule: salvq::geometry::COUNTS_BELOW,
+            depth: model.coord_bits(),
+            count: u64::from(n) - 1,
+            anchors: n
+        }
+    );
 }
 
 #[test]

@@ -102,7 +102,6 @@ fn every_error() -> Vec<Error> {
             value: 9,
             coord_bits: 1,
         },
-        Error::AnchorOrder { anchor: 1 },
         Error::AnsStreamInvalid {
             tag: t,
             fault: salvq::error::AnsFault::OutOfWords,
@@ -180,6 +179,12 @@ fn every_error() -> Vec<Error> {
             index: [0, 1],
             deviation: 0.1,
             tolerance: 1e-3,
+        },
+        Error::OctreeInvalid {
+            rule: "x",
+            depth: 1,
+            count: 2,
+            anchors: 1,
         },
         Error::FitFailed {
             tensor: "x",

@@ -18,7 +18,7 @@ use salvq::{Error, Limits};
 #[command(
     name = "salvq",
     version,
-    about = "SALVQ compressed 3DGS scenes: reference encoder and decoder (format 0.3)"
+    about = "SALVQ compressed 3DGS scenes: reference encoder and decoder"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -339,7 +339,9 @@ fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Error> {
         }
     };
     println!(
-        "salvq demo: format 0.3, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n"
+        "salvq demo: format {}.{}, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n",
+        salvq::container::FORMAT_MAJOR,
+        salvq::container::FORMAT_MINOR
     );
     salvq::model::validate::check_field(salvq::error::Field::AnchorCount, anchors.into())?;
     let params = GenParams {

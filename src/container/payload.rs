@@ -5,12 +5,13 @@
 use crate::container::bytes::{pack_bits, packed_len, unpack_bits, PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::container::preflight::Preflight;
+use crate::entropy::GaussianTables;
 use crate::error::Field;
 use crate::error::{Error, Result};
 use crate::hyperprior::IntMlp;
 use crate::model::validate::{check_finite, check_positive, check_rate_steps};
 use crate::model::{
-    morton3, names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Mlp, Region, SceneModel,
+    names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Mlp, Region, SceneModel,
 };
 
 /// `coding_method` 0: raw little-endian values (§1.6).
@@ -385,48 +386,18 @@ pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
     Ok([feat, scaling, offsets])
 }
 
-// ---- APOS (§1.6.4) ----
+// ---- APOS (§1.6.4, §8) ----
 
-pub fn write_apos(a: &Anchors) -> Vec<u8> {
-    let mut w = PayloadWriter::default();
-    w.u8(METHOD_RAW);
-    for v in &a.voxel {
-        for c in v {
-            w.u32(*c);
-        }
-    }
-    w.buf
+/// §8.1: `APOS` of canonical-order anchors whose coordinates are below `2^coord_bits`.
+pub fn write_apos(a: &Anchors, coord_bits: u8, tables: &GaussianTables) -> Result<Vec<u8>> {
+    let mut out = vec![METHOD_CODED];
+    out.extend_from_slice(&crate::geometry::encode(&a.voxel, coord_bits, tables)?);
+    Ok(out)
 }
 
-pub fn read_apos(payload: &[u8], p: &Preflight) -> Result<Vec<[u32; 3]>> {
+/// §8.1: decodes `APOS` into the anchors' voxels, in canonical order.
+pub fn read_apos(payload: &[u8], p: &Preflight, tables: &GaussianTables) -> Result<Vec<[u32; 3]>> {
     let tag = ChunkTag::APOS;
-    let body = body(tag, payload, METHOD_RAW)?;
-    expect_len(tag, body, 12 * u64::from(p.dims.anchors))?;
-    let mut prev = 0u64;
-    let mut out = Vec::with_capacity(p.dims.anchors as usize);
-    for (i, c) in body.chunks_exact(12).enumerate() {
-        let v = [
-            u32::from_le_bytes([c[0], c[1], c[2], c[3]]),
-            u32::from_le_bytes([c[4], c[5], c[6], c[7]]),
-            u32::from_le_bytes([c[8], c[9], c[10], c[11]]),
-        ];
-        for (axis, &x) in v.iter().enumerate() {
-            if x >> p.coord_bits != 0 {
-                return Err(Error::CoordinateOutOfRange {
-                    anchor: i as u64,
-                    axis: axis as u8,
-                    value: x.into(),
-                    coord_bits: p.coord_bits,
-                });
-            }
-        }
-        // §2.2: anchors are in non-decreasing Morton order.
-        let code = morton3(v);
-        if code < prev {
-            return Err(Error::AnchorOrder { anchor: i as u64 });
-        }
-        prev = code;
-        out.push(v);
-    }
-    Ok(out)
+    let body = body(tag, payload, METHOD_CODED)?;
+    crate::geometry::decode(body, p.coord_bits, p.dims.anchors, tables)
 }

@@ -126,10 +126,6 @@ impl fmt::Display for Error {
                 f,
                 "anchor.voxel[{anchor}, {axis}]: coordinate {value} does not fit in coord_bits = {coord_bits}"
             )?,
-            AnchorOrder { anchor } => write!(
-                f,
-                "anchor.voxel[{anchor}]: Morton code is smaller than the previous anchor's (anchors must be in Morton order)"
-            )?,
             AnsStreamInvalid { tag, fault } => {
                 write!(f, "chunk {tag}: entropy-coded data invalid: {}", fault.describe())?
             }
@@ -169,6 +165,15 @@ impl fmt::Display for Error {
                 None => write!(f, "{tensor}: {reason}")?,
             },
             FitFailed { tensor, reason } => write!(f, "{tensor}: fit failed: {reason}")?,
+            OctreeInvalid {
+                rule,
+                depth,
+                count,
+                anchors,
+            } => write!(
+                f,
+                "APOS octree: {rule} (depth {depth}: {count}, anchor_count {anchors})"
+            )?,
             RateNotCoded { rate, rate_mask } => write!(
                 f,
                 "rate {rate} has no symbol layer in this stream (rate_mask {rate_mask:#x})"

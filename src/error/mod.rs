@@ -217,8 +217,6 @@ pub enum Error {
         value: i64,
         coord_bits: u8,
     },
-    /// Anchors are not in non-decreasing Morton order.
-    AnchorOrder { anchor: u64 },
 
     // ---- entropy coding (§6) ----
     /// The ANS-coded words of a chunk are malformed.
@@ -252,6 +250,14 @@ pub enum Error {
         tensor: &'static str,
         anchor: Option<u64>,
         reason: String,
+    },
+    /// The anchor octree breaks a rule of §8: more cells at a depth than anchors, or voxel
+    /// counts that do not add up to the anchor count.
+    OctreeInvalid {
+        rule: &'static str,
+        depth: u8,
+        count: u64,
+        anchors: u32,
     },
     /// The encoder's fit of a basis or of scale rows to the model's anchors (Annex A.5)
     /// failed (encoder only).
@@ -358,7 +364,7 @@ impl Error {
             ChunkSizeMismatch { tag, .. } if *tag == ChunkTag::SEND => "§1.5",
             ChunkSizeMismatch { .. } | UnknownCodingMethod { .. } | PaddingBitsSet { .. } => "§1.6",
             LimitExceeded { .. } => "§9.1",
-            CoordinateOutOfRange { .. } | AnchorOrder { .. } => "§2.2",
+            CoordinateOutOfRange { .. } => "§2.2",
             AnsStreamInvalid { .. } => "§6.2",
             EscapeOverflow { .. } => "§6.4",
             ScaleIndexOutOfRange { .. } => "§6.3",
@@ -366,6 +372,7 @@ impl Error {
             RateNotCoded { .. } => "§7.4",
             LatticeSearchFailed { .. } => "§7.3",
             FitFailed { .. } => "Annex A.5",
+            OctreeInvalid { .. } => "§8",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
             InterchangeFormat { .. }
@@ -400,7 +407,6 @@ impl Error {
             LimitExceeded { .. } => "LimitExceeded",
             PaddingBitsSet { .. } => "PaddingBitsSet",
             CoordinateOutOfRange { .. } => "CoordinateOutOfRange",
-            AnchorOrder { .. } => "AnchorOrder",
             AnsStreamInvalid { .. } => "AnsStreamInvalid",
             EscapeOverflow { .. } => "EscapeOverflow",
             ScaleIndexOutOfRange { .. } => "ScaleIndexOutOfRange",
@@ -408,6 +414,7 @@ impl Error {
             RateNotCoded { .. } => "RateNotCoded",
             LatticeSearchFailed { .. } => "LatticeSearchFailed",
             FitFailed { .. } => "FitFailed",
+            OctreeInvalid { .. } => "OctreeInvalid",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",
