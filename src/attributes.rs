@@ -12,6 +12,7 @@ use crate::error::{Error, Result};
 use crate::hyperprior::prior::{Group, Prior};
 use crate::model::{Dims, HashGrid};
 use crate::quantizer::{reconstruct_value, GroupLattices};
+use crate::tiles::{split_bodies, TileTable};
 
 /// §6.6.1: the coder frequency of a mask bit being 1, from its 16-bit probability.
 pub fn mask_freq(p_one: u16, precision: u32) -> u32 {
@@ -24,8 +25,16 @@ pub fn mask_freq(p_one: u16, precision: u32) -> u32 {
     f.clamp(1, (1 << precision) - 1)
 }
 
-/// §6.6.1: decodes `AMSK`: K slot probabilities, then the N x K mask bits, anchor by anchor.
-pub fn read_masks(payload: &[u8], d: &Dims, tables: &GaussianTables) -> Result<Vec<u8>> {
+/// §6.6.1, §10.2: decodes `AMSK` for the selected tiles: K slot probabilities, then each
+/// selected tile's N_t x K mask bits from its own body, anchor by anchor. Returns the masks
+/// of the selected tiles' anchors, in order.
+pub fn read_masks(
+    payload: &[u8],
+    d: &Dims,
+    tables: &GaussianTables,
+    tiles: &TileTable,
+    selected: &[bool],
+) -> Result<Vec<u8>> {
     let tag = ChunkTag::AMSK;
     let body = body(tag, payload, METHOD_CODED)?;
     let k = usize::from(d.offsets);
@@ -44,16 +53,39 @@ pub fn read_masks(payload: &[u8], d: &Dims, tables: &GaussianTables) -> Result<V
         freq.push(mask_freq(p, tables.precision()));
     }
     let words = &body[r.consumed()..];
-    let mut reader = SymbolReader::new(tag, words, tables)?;
-    let n = d.anchors as usize;
-    let mut mask = Vec::with_capacity(n * k);
-    for _ in 0..n {
-        for &f in &freq {
-            mask.push(u8::from(reader.bit(f)?));
+    let bodies = split_bodies(tag, 1 + r.consumed(), words, tiles.len())?;
+    let mut mask = Vec::new();
+    for (t, tile_body) in bodies.into_iter().enumerate() {
+        if !selected.get(t).copied().unwrap_or(false) {
+            continue;
         }
+        let mut reader = SymbolReader::new(tag, tile_body, tables)?;
+        for _ in tiles.range(t) {
+            for &f in &freq {
+                mask.push(u8::from(reader.bit(f)?));
+            }
+        }
+        reader.finish()?;
     }
-    reader.finish()?;
     Ok(mask)
+}
+
+/// §6.6.2, §10.2: the three layer chunks' tile bodies, `[tile][group]`, after their
+/// `coding_method` checks and framing (AFEA, ASCL, AOFF in turn).
+pub fn layer_bodies(payloads: [&[u8]; 3], tiles: usize) -> Result<Vec<[&[u8]; 3]>> {
+    let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
+    let mut split = Vec::with_capacity(3);
+    for (tag, payload) in tags.into_iter().zip(payloads) {
+        split.push(split_bodies(
+            tag,
+            1,
+            body(tag, payload, METHOD_CODED)?,
+            tiles,
+        )?);
+    }
+    Ok((0..tiles)
+        .map(|t| [split[0][t], split[1][t], split[2][t]])
+        .collect())
 }
 
 /// The priors of a block of anchors: context MLP outputs, scale indices of every value
@@ -121,12 +153,16 @@ pub struct Attributes {
 /// §6.6.2: decodes `AFEA`, `ASCL` and `AOFF` together, anchor by anchor: for anchor i, its F
 /// feature symbols from `AFEA`, its S scaling symbols from `ASCL`, then 3 symbols from `AOFF`
 /// for each offset whose mask is 1 (masked offsets decode as 0.0).
+///
+/// One tile (§10): `bodies` are the tile's three bodies, `voxels` and `masks` its anchors',
+/// `first` the canonical index of its first anchor (for spatial regions, §7.6).
 #[allow(clippy::too_many_arguments)]
 pub fn read_attributes(
-    payloads: [&[u8]; 3],
+    bodies: [&[u8]; 3],
     d: &Dims,
     voxels: &[[u32; 3]],
     masks: &[u8],
+    first: u32,
     grid: &HashGrid,
     prior: &Prior,
     lattices: &[GroupLattices; 2],
@@ -134,14 +170,10 @@ pub fn read_attributes(
 ) -> Result<Attributes> {
     let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
     let mut readers = Vec::with_capacity(3);
-    for (tag, payload) in tags.into_iter().zip(payloads) {
-        readers.push(SymbolReader::new(
-            tag,
-            body(tag, payload, METHOD_CODED)?,
-            tables,
-        )?);
+    for (tag, body) in tags.into_iter().zip(bodies) {
+        readers.push(SymbolReader::new(tag, body, tables)?);
     }
-    let n = d.anchors as usize;
+    let n = voxels.len();
     let f = usize::from(d.feat_dim);
     let s = usize::from(d.scaling_dim);
     let k = usize::from(d.offsets);
@@ -190,7 +222,7 @@ pub fn read_attributes(
                         (Group::Scaling, s, f, &mut out.scaling),
                     ] {
                         let reader = &mut readers[g as usize];
-                        let lattice = lattices[g as usize].for_anchor(i as u32);
+                        let lattice = lattices[g as usize].for_anchor(first + i as u32);
                         let delta = delta[g as usize];
                         if lattice.is_identity() {
                             for j in 0..w {

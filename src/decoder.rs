@@ -3,7 +3,9 @@
 //! has been read (§6.6.2). It never panics on any input, sizes every allocation from a
 //! preflight that passed [`Limits`], and reports the first broken rule.
 
-use crate::attributes::{read_attributes, read_masks};
+use rayon::prelude::*;
+
+use crate::attributes::{layer_bodies, read_attributes, read_masks, Attributes};
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::payload;
 use crate::container::preflight::Preflight;
@@ -15,6 +17,7 @@ use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
 use crate::model::{Anchors, GroupQuantizer, HashGrid, Mlp, SceneModel};
 use crate::quantizer::GroupLattices;
+use crate::tiles::TileTable;
 
 /// Decodes a whole stream with the default [`Limits`], at its lowest coded rate.
 pub fn decode(data: &[u8]) -> Result<SceneModel> {
@@ -27,12 +30,18 @@ pub struct DecodeOptions {
     pub limits: Limits,
     /// The rate whose symbol layer to decode (§7.4); `None`: the lowest coded rate.
     pub rate: Option<u8>,
+    /// Decode tiles on this many threads (§10.3; the output is the same for every count);
+    /// `None`: rayon's global pool.
+    pub threads: Option<usize>,
+    /// Decode only the tiles whose box intersects this world-space box (min x, y, z, max x,
+    /// y, z; §10.3); `None`: every tile.
+    pub region: Option<[f64; 6]>,
 }
 
 /// The critical chunk expected at position `i` of a stream with `layers` symbol layers
 /// (§1.5 Table 1-3 with §7.4: the layer chunks repeat once per layer).
 pub(crate) fn expected_critical(i: usize, layers: usize) -> ChunkTag {
-    const SHARED: usize = 6;
+    const SHARED: usize = 7;
     const LAYER: [ChunkTag; 3] = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
     match i.checked_sub(SHARED) {
         None => ChunkTag::CRITICAL_ORDER[i],
@@ -50,6 +59,8 @@ struct Partial<'a> {
     voxel: Option<Vec<[u32; 3]>>,
     touched: Option<[Vec<bool>; 4]>,
     grid: Option<HashGrid>,
+    tiles: Option<TileTable>,
+    selected: Vec<bool>,
     mask: Option<Vec<u8>>,
     attributes: [&'a [u8]; 3],
     /// The rate being decoded.
@@ -69,7 +80,7 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
         data,
         &DecodeOptions {
             limits: *limits,
-            rate: None,
+            ..Default::default()
         },
     )
 }
@@ -78,6 +89,19 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
 /// checked, the shared chunks and the selected layer are decoded, other layers' payloads
 /// are not parsed.
 pub fn decode_with_options(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
+    match options.threads {
+        Some(n) => match rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build()
+        {
+            Ok(pool) => pool.install(|| decode_stream(data, options)),
+            Err(_) => decode_stream(data, options),
+        },
+        None => decode_stream(data, options),
+    }
+}
+
+fn decode_stream(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
     let limits = &options.limits;
     // §1.2: signature and version.
     let (_sig, rest) = Signature::parse(data)?;
@@ -133,7 +157,7 @@ pub fn decode_with_options(data: &[u8], options: &DecodeOptions) -> Result<Scene
             continue;
         }
         // §7.4: the layer this chunk belongs to, if it is a layer chunk.
-        let layer = next_critical.checked_sub(7).map(|j| j / 3);
+        let layer = next_critical.checked_sub(8).map(|j| j / 3);
         let head = p.head.as_ref().ok_or(missing(ChunkTag::HEAD))?;
         let d = &head.dims;
         match tag {
@@ -146,11 +170,20 @@ pub fn decode_with_options(data: &[u8], options: &DecodeOptions) -> Result<Scene
                 p.touched = Some(layout.touched(&voxel, d.entries_3d(), d.entries_2d()));
                 p.voxel = Some(voxel);
             }
+            ChunkTag::TILS => {
+                let voxel = p.voxel.as_ref().ok_or(missing(ChunkTag::APOS))?;
+                let tiles = TileTable::parse(bytes, voxel)?;
+                p.selected = tiles.select(head.origin, head.voxel_size, options.region);
+                p.tiles = Some(tiles);
+            }
             ChunkTag::GRID => {
                 let touched = p.touched.as_ref().ok_or(missing(ChunkTag::APOS))?;
                 p.grid = Some(payload::read_grid(bytes, d, touched)?);
             }
-            ChunkTag::AMSK => p.mask = Some(read_masks(bytes, d, tables)?),
+            ChunkTag::AMSK => {
+                let tiles = p.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+                p.mask = Some(read_masks(bytes, d, tables, tiles, &p.selected)?);
+            }
             ChunkTag::AFEA | ChunkTag::ASCL | ChunkTag::AOFF if layer != Some(selected) => {}
             ChunkTag::AFEA => p.attributes[0] = bytes,
             ChunkTag::ASCL => p.attributes[1] = bytes,
@@ -203,16 +236,66 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
             &quant_scaling,
         ),
     ];
-    let attrs = read_attributes(
-        p.attributes,
-        d,
-        &voxel,
-        &mask,
-        &grid,
-        &prior,
-        &lattices,
-        tables,
-    )?;
+    // §10: the selected tiles, each from its own bodies, in parallel; the lowest tile's
+    // error is the one reported.
+    let tiles = p.tiles.ok_or(missing(ChunkTag::TILS))?;
+    let bodies = layer_bodies(p.attributes, tiles.len())?;
+    let k = usize::from(d.offsets);
+    let chosen: Vec<usize> = (0..tiles.len()).filter(|&t| p.selected[t]).collect();
+    let mut mask_at = Vec::with_capacity(chosen.len());
+    let mut at = 0usize;
+    for &t in &chosen {
+        mask_at.push(at);
+        at += tiles.range(t).len() * k;
+    }
+    let decoded: Vec<Result<Attributes>> = chosen
+        .par_iter()
+        .zip(mask_at.par_iter())
+        .map(|(&t, &m0)| {
+            let r = tiles.range(t);
+            read_attributes(
+                bodies[t],
+                d,
+                &voxel[r.clone()],
+                &mask[m0..m0 + r.len() * k],
+                r.start as u32,
+                &grid,
+                &prior,
+                &lattices,
+                tables,
+            )
+        })
+        .collect();
+    let (f, s) = (usize::from(d.feat_dim), usize::from(d.scaling_dim));
+    let n_out: usize = chosen.iter().map(|&t| tiles.range(t).len()).sum();
+    let mut attrs = Attributes {
+        feat: Vec::with_capacity(n_out * f),
+        scaling: Vec::with_capacity(n_out * s),
+        offsets: Vec::with_capacity(n_out * 3 * k),
+    };
+    for a in decoded {
+        let a = a?;
+        attrs.feat.extend_from_slice(&a.feat);
+        attrs.scaling.extend_from_slice(&a.scaling);
+        attrs.offsets.extend_from_slice(&a.offsets);
+    }
+    // A region decode outputs the selected tiles' anchors only (§10.3).
+    let (voxel, dims, quant_feat, quant_scaling) = if chosen.len() == tiles.len() {
+        (voxel, head.dims, quant_feat, quant_scaling)
+    } else {
+        let kept: Vec<std::ops::Range<usize>> = chosen.iter().map(|&t| tiles.range(t)).collect();
+        let voxel: Vec<[u32; 3]> = kept
+            .iter()
+            .flat_map(|r| voxel[r.clone()].iter().copied())
+            .collect();
+        let mut dims = head.dims.clone();
+        dims.anchors = voxel.len() as u32;
+        let quant_feat = rebase_regions(quant_feat, &kept);
+        let quant_scaling = rebase_regions(quant_scaling, &kept);
+        dims.feat_regions = (quant_feat.regions.len() + 1) as u16;
+        dims.scaling_regions = (quant_scaling.regions.len() + 1) as u16;
+        (voxel, dims, quant_feat, quant_scaling)
+    };
     Ok(SceneModel {
         origin: head.origin,
         voxel_size: head.voxel_size,
@@ -231,6 +314,57 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
         quant_feat,
         quant_scaling,
         quant_offsets,
-        dims: head.dims,
+        dims,
     })
+}
+
+/// §10.3: a quantizer's spatial regions (§7.6) re-based onto the anchors of the `kept`
+/// ranges (in order): a region starts at the first kept anchor at or after its start;
+/// regions left empty are dropped.
+fn rebase_regions(mut q: GroupQuantizer, kept: &[std::ops::Range<usize>]) -> GroupQuantizer {
+    if q.regions.is_empty() {
+        return q;
+    }
+    // New index of the first kept anchor at or after `a`, and the output size.
+    let total: usize = kept.iter().map(|r| r.len()).sum();
+    let new_index = |a: usize| -> usize {
+        let mut before = 0usize;
+        for r in kept {
+            if a < r.end {
+                return before + a.saturating_sub(r.start);
+            }
+            before += r.len();
+        }
+        before
+    };
+    let mut bases = Vec::with_capacity(q.regions.len() + 1);
+    let starts: Vec<usize> = q
+        .region_starts()
+        .iter()
+        .map(|&s| new_index(s as usize))
+        .collect();
+    if let Some(b) = q.basis.take() {
+        bases.push(b);
+    }
+    bases.extend(q.regions.drain(..).map(|r| r.basis));
+    // Region r covers new indices starts[r] .. starts[r + 1]; keep the non-empty ones, the
+    // first of them as region 0.
+    let mut kept_regions: Vec<(usize, crate::model::Basis)> = Vec::new();
+    for (r, b) in bases.into_iter().enumerate() {
+        let end = starts.get(r + 1).copied().unwrap_or(total);
+        if end > starts[r] {
+            kept_regions.push((starts[r], b));
+        }
+    }
+    let mut it = kept_regions.into_iter();
+    if let Some((_, b)) = it.next() {
+        q.basis = Some(b);
+    }
+    q.regions = it
+        .map(|(start, basis)| crate::model::Region {
+            start: start as u32,
+            basis,
+        })
+        .collect();
+    q
 }

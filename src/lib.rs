@@ -65,6 +65,7 @@ pub mod limits;
 pub mod model;
 pub mod quantizer;
 pub mod rdbench;
+pub mod tiles;
 
 pub use decoder::{decode, decode_with_limits, decode_with_options, DecodeOptions};
 pub use encoder::{encode, encode_with_options, EncodeOptions, Search};

@@ -202,8 +202,23 @@ fn corrupt_entropy_coded_words() {
             err(&s)
         );
     }
-    // Words dropped from the end: the coder runs out or ends in the wrong state.
+    // The small stream has one tile: bytes 1..5 of a layer chunk are its body's length
+    // (§10.2). Words dropped from the end with the length kept: the lengths no longer add up.
     let s = edit_payload(&small_stream(), ChunkTag::AOFF, |p| p.truncate(p.len() - 4));
+    assert!(matches!(
+        err(&s),
+        Error::ChunkSizeMismatch {
+            tag: ChunkTag::AOFF,
+            ..
+        }
+    ));
+    // With the length fixed too: the coder runs out or ends in the wrong state.
+    let shorten = |p: &mut Vec<u8>, by: usize| {
+        p.truncate(p.len() - by);
+        let len = u32::from_le_bytes([p[1], p[2], p[3], p[4]]) - by as u32;
+        p[1..5].copy_from_slice(&len.to_le_bytes());
+    };
+    let s = edit_payload(&small_stream(), ChunkTag::AOFF, |p| shorten(p, 4));
     assert!(matches!(
         err(&s),
         Error::AnsStreamInvalid {
@@ -212,9 +227,7 @@ fn corrupt_entropy_coded_words() {
         }
     ));
     // A body that is not whole words.
-    let s = edit_payload(&small_stream(), ChunkTag::ASCL, |p| {
-        p.pop();
-    });
+    let s = edit_payload(&small_stream(), ChunkTag::ASCL, |p| shorten(p, 1));
     assert!(matches!(
         err(&s),
         Error::AnsStreamInvalid {

@@ -28,6 +28,7 @@ fn decode_rate(stream: &[u8], rate: u8) -> salvq::Result<salvq::SceneModel> {
         &DecodeOptions {
             limits: Limits::default(),
             rate: Some(rate),
+            ..Default::default()
         },
     )
 }

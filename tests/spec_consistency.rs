@@ -180,6 +180,11 @@ fn every_error() -> Vec<Error> {
             deviation: 0.1,
             tolerance: 1e-3,
         },
+        Error::TileBoxMismatch {
+            tile: 0,
+            stated: [0; 6],
+            actual: [0; 6],
+        },
         Error::OctreeInvalid {
             rule: "x",
             depth: 1,

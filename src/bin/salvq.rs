@@ -74,6 +74,9 @@ enum Command {
         /// anchor count in Morton order (Sp-SALVQ, spec §7.6).
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
         regions: u16,
+        /// Anchors per tile (spec §10): tiles decode independently, in parallel or alone.
+        #[arg(long, default_value_t = salvq::tiles::DEFAULT_TILE_ANCHORS, value_parser = clap::value_parser!(u32).range(1..))]
+        tile_anchors: u32,
         /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
         /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`,
         /// `closest` (Schnorr-Euchner, bounded) or `rdo` (auto's point refined for rate and
@@ -97,6 +100,18 @@ enum Command {
         /// The rate to decode (default: the lowest rate the stream carries).
         #[arg(long)]
         rate: Option<u8>,
+        /// Decode tiles on N threads (spec §10.3; the output is the same for every N).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+        threads: Option<u32>,
+        /// Decode only the tiles that intersect this world-space box:
+        /// `xmin,ymin,zmin,xmax,ymax,zmax` (spec §10.3).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            num_args = 6,
+            allow_negative_numbers = true
+        )]
+        region: Option<Vec<f64>>,
     },
     /// Write the single-rate stream of one rate of a multi-rate stream, without re-coding
     /// (byte-identical to encoding that rate alone).
@@ -206,6 +221,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             search,
             fit_scales,
             regions,
+            tile_anchors,
             no_stats,
             json,
         } => {
@@ -227,6 +243,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 fit_basis: quantizer == "klt",
                 feat_regions: regions,
                 fit_scales,
+                tile_anchors,
             };
             let encoded = salvq::encoder::encode_full(&model, &options)?;
             let stream = &encoded.stream;
@@ -272,14 +289,23 @@ fn run(cli: Cli) -> Result<(), Error> {
             input,
             output,
             rate,
+            threads,
+            region,
         } => {
             let t = Instant::now();
             let stream = salvq::io::read_file(&input)?;
+            let region = region.map(|r| [r[0], r[1], r[2], r[3], r[4], r[5]]);
             let options = salvq::DecodeOptions {
                 limits: Limits::default(),
                 rate,
+                threads: threads.map(|n| n as usize),
+                region,
             };
             let model = salvq::decode_with_options(&stream, &options)?;
+            if model.dims.anchors == 0 {
+                eprintln!("salvq: the region intersects no tile; nothing written");
+                return Ok(());
+            }
             write_model(&model, &output)?;
             println!(
                 "decoded {} anchors into {} in {:.2} s",

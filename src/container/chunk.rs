@@ -21,6 +21,8 @@ impl ChunkTag {
     pub const QUAN: ChunkTag = ChunkTag(*b"QUAN");
     /// Anchor voxel coordinates (§1.6.4). Critical.
     pub const APOS: ChunkTag = ChunkTag(*b"APOS");
+    /// Tile table (§10.1).
+    pub const TILS: ChunkTag = ChunkTag(*b"TILS");
     /// Anchor offset masks (§1.6.5). Critical.
     pub const AMSK: ChunkTag = ChunkTag(*b"AMSK");
     /// Anchor latent features (§1.6.6). Critical.
@@ -37,11 +39,12 @@ impl ChunkTag {
     pub const ESTS: ChunkTag = ChunkTag(*b"ests");
 
     /// Critical chunks in the order a stream must carry them (spec Table 1-3).
-    pub const CRITICAL_ORDER: [ChunkTag; 10] = [
+    pub const CRITICAL_ORDER: [ChunkTag; 11] = [
         Self::HEAD,
         Self::MLPS,
         Self::QUAN,
         Self::APOS,
+        Self::TILS,
         Self::GRID,
         Self::AMSK,
         Self::AFEA,

@@ -13,6 +13,7 @@ use crate::entropy::{GaussianTables, SymbolWriter};
 use crate::error::Result;
 use crate::hyperprior::prior::{Group, Prior};
 use crate::model::SceneModel;
+use crate::tiles::{join_bodies, TileTable};
 
 use super::float_prior::FloatPrior;
 use super::search::GroupSearches;
@@ -172,7 +173,7 @@ fn slot_probabilities(m: &SceneModel) -> Vec<u16> {
 }
 
 /// §6.6.1: the `AMSK` payload (shared by every rate) of a canonical-order model.
-pub fn code_masks(m: &SceneModel, tables: &GaussianTables) -> Vec<u8> {
+pub fn code_masks(m: &SceneModel, tables: &GaussianTables, tiles: &TileTable) -> Vec<u8> {
     let p_one = slot_probabilities(m);
     let mut amsk = vec![METHOD_CODED];
     for p in &p_one {
@@ -182,11 +183,19 @@ pub fn code_masks(m: &SceneModel, tables: &GaussianTables) -> Vec<u8> {
         .iter()
         .map(|&p| mask_freq(p, tables.precision()))
         .collect();
-    let mut w = SymbolWriter::new(ChunkTag::AMSK, tables);
-    for (i, &b) in m.anchors.mask.iter().enumerate() {
-        w.bit(b != 0, freq[i % freq.len()]);
-    }
-    amsk.extend_from_slice(&w.finish());
+    // §10.2: one body per tile.
+    let k = freq.len();
+    let bodies: Vec<Vec<u8>> = (0..tiles.len())
+        .map(|t| {
+            let r = tiles.range(t);
+            let mut w = SymbolWriter::new(ChunkTag::AMSK, tables);
+            for (i, &b) in m.anchors.mask[r.start * k..r.end * k].iter().enumerate() {
+                w.bit(b != 0, freq[i % k]);
+            }
+            w.finish()
+        })
+        .collect();
+    amsk.extend_from_slice(&join_bodies(&bodies));
     amsk
 }
 
@@ -198,10 +207,14 @@ pub fn code_attributes(
     float: &FloatPrior,
     searches: &[GroupSearches; 2],
     tables: &GaussianTables,
+    tiles: &TileTable,
 ) -> Result<CodedAttributes> {
-    // Attributes (§6.6.2): symbols in parallel, coded in stream order.
-    let mut writers =
-        [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF].map(|tag| SymbolWriter::new(tag, tables));
+    // Attributes (§6.6.2): symbols in parallel, coded in stream order, one body per tile
+    // (§10.2).
+    let new_writers = || {
+        [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF].map(|tag| SymbolWriter::new(tag, tables))
+    };
+    let mut bodies: [Vec<Vec<u8>>; 3] = Default::default();
     let mut stats: [GroupStats; 3] = Group::ALL.map(|g| GroupStats {
         group: g.name().to_string(),
         ..GroupStats::default()
@@ -214,35 +227,42 @@ pub fn code_attributes(
     ];
     let mut recon = widths.map(|w| Vec::with_capacity(m.n() * w));
     const BLOCK: usize = 1 << 14;
-    for start in (0..m.n()).step_by(BLOCK) {
-        let end = (start + BLOCK).min(m.n());
-        let block: Vec<AnchorSymbols> = (start..end)
-            .into_par_iter()
-            .map(|i| symbols_of(m, i, prior, float, searches, tables))
-            .collect::<Result<_>>()?;
-        for a in block {
-            for (r, v) in recon.iter_mut().zip(&a.recon) {
-                r.extend_from_slice(v);
-            }
-            for g in 0..3 {
-                for &(u, ki) in &a.groups[g] {
-                    writers[g].symbol(u, ki)?;
-                    let st = &mut stats[g];
-                    st.symbols += 1;
-                    st.ideal_bits_integer += tables.ideal_bits(ki, u);
-                    if u.unsigned_abs() > u64::from(tables.radius(ki)) {
-                        st.escapes += 1;
-                    }
+    for t in 0..tiles.len() {
+        let tile = tiles.range(t);
+        let mut writers = new_writers();
+        for start in tile.clone().step_by(BLOCK) {
+            let end = (start + BLOCK).min(tile.end);
+            let block: Vec<AnchorSymbols> = (start..end)
+                .into_par_iter()
+                .map(|i| symbols_of(m, i, prior, float, searches, tables))
+                .collect::<Result<_>>()?;
+            for a in block {
+                for (r, v) in recon.iter_mut().zip(&a.recon) {
+                    r.extend_from_slice(v);
                 }
-                stats[g].ideal_bits_float += a.float_bits[g];
-                stats[g].max_error_steps = stats[g].max_error_steps.max(a.max_error_steps[g]);
-                stats[g].squared_error += a.squared_error[g];
+                for g in 0..3 {
+                    for &(u, ki) in &a.groups[g] {
+                        writers[g].symbol(u, ki)?;
+                        let st = &mut stats[g];
+                        st.symbols += 1;
+                        st.ideal_bits_integer += tables.ideal_bits(ki, u);
+                        if u.unsigned_abs() > u64::from(tables.radius(ki)) {
+                            st.escapes += 1;
+                        }
+                    }
+                    stats[g].ideal_bits_float += a.float_bits[g];
+                    stats[g].max_error_steps = stats[g].max_error_steps.max(a.max_error_steps[g]);
+                    stats[g].squared_error += a.squared_error[g];
+                }
             }
         }
+        for (b, w) in bodies.iter_mut().zip(writers) {
+            b.push(w.finish());
+        }
     }
-    let chunks = writers.map(|w| {
+    let chunks = bodies.map(|b| {
         let mut c = vec![METHOD_CODED];
-        c.extend_from_slice(&w.finish());
+        c.extend_from_slice(&join_bodies(&b));
         c
     });
     for (st, c) in stats.iter_mut().zip(&chunks) {

@@ -40,6 +40,8 @@ pub struct EncodeOptions {
     pub feat_lattice: Option<LatticeKind>,
     /// How the encoder picks lattice points (§7.3 leaves it free).
     pub search: Search,
+    /// Anchors per tile (§10); 0: [`crate::tiles::DEFAULT_TILE_ANCHORS`].
+    pub tile_anchors: u32,
     /// Replace the feature group's lattice by a basis fitted to the anchors (the KLT,
     /// [`fit::fit_klt_basis`]); `feat_lattice` must then be `None` or the general kind.
     pub fit_basis: bool,
@@ -224,7 +226,13 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     });
     let [fs, ss] = searches;
     let searches = [fs?, ss?];
-    let amsk = attributes::code_masks(m, tables);
+    // §10: tiles of consecutive canonical anchors.
+    let tile_anchors = match options.tile_anchors {
+        0 => crate::tiles::DEFAULT_TILE_ANCHORS,
+        t => t,
+    };
+    let tiles = crate::tiles::TileTable::cut(&m.anchors.voxel, tile_anchors);
+    let amsk = attributes::code_masks(m, tables, &tiles);
     let grid_entries_stored = touched
         .iter()
         .map(|t| t.iter().filter(|&&u| u).count() as u64)
@@ -243,6 +251,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         ChunkTag::APOS,
         &payload::write_apos(&m.anchors, coord_bits, tables)?,
     );
+    write_chunk(&mut out, ChunkTag::TILS, &tiles.to_payload());
     write_chunk(
         &mut out,
         ChunkTag::GRID,
@@ -274,7 +283,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         let r = usize::from(rate);
         let prior = Prior::new(d, coord_bits, int_mlp.clone(), quant, r);
         let float = float_prior::FloatPrior::new(m, coord_bits, r);
-        let coded = attributes::code_attributes(m, &prior, &float, &searches, tables)?;
+        let coded = attributes::code_attributes(m, &prior, &float, &searches, tables, &tiles)?;
         let report = EncodeReport {
             anchors: d.anchors.into(),
             rate,

@@ -165,6 +165,14 @@ impl fmt::Display for Error {
                 None => write!(f, "{tensor}: {reason}")?,
             },
             FitFailed { tensor, reason } => write!(f, "{tensor}: fit failed: {reason}")?,
+            TileBoxMismatch {
+                tile,
+                stated,
+                actual,
+            } => write!(
+                f,
+                "TILS: tile {tile}: box {stated:?} is not its anchors' box {actual:?}"
+            )?,
             OctreeInvalid {
                 rule,
                 depth,

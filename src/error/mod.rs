@@ -66,6 +66,8 @@ pub enum Field {
     FeatRegions,
     ScalingRegions,
     RegionStart,
+    TileCount,
+    TileStart,
     W0FracBits,
     Shift0,
     W1FracBits,
@@ -103,6 +105,8 @@ impl Field {
             Field::FeatRegions => "feat_regions",
             Field::ScalingRegions => "scaling_regions",
             Field::RegionStart => "region_start",
+            Field::TileCount => "tile_count",
+            Field::TileStart => "tile_start",
             Field::W0FracBits => "w0_frac_bits",
             Field::Shift0 => "shift0",
             Field::W1FracBits => "w1_frac_bits",
@@ -251,6 +255,12 @@ pub enum Error {
         anchor: Option<u64>,
         reason: String,
     },
+    /// A tile's stated bounding box is not its anchors' (§10.1).
+    TileBoxMismatch {
+        tile: u32,
+        stated: [u32; 6],
+        actual: [u32; 6],
+    },
     /// The anchor octree breaks a rule of §8: more cells at a depth than anchors, or voxel
     /// counts that do not add up to the anchor count.
     OctreeInvalid {
@@ -373,6 +383,7 @@ impl Error {
             LatticeSearchFailed { .. } => "§7.3",
             FitFailed { .. } => "Annex A.5",
             OctreeInvalid { .. } => "§8",
+            TileBoxMismatch { .. } => "§10.1",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
             InterchangeFormat { .. }
@@ -415,6 +426,7 @@ impl Error {
             LatticeSearchFailed { .. } => "LatticeSearchFailed",
             FitFailed { .. } => "FitFailed",
             OctreeInvalid { .. } => "OctreeInvalid",
+            TileBoxMismatch { .. } => "TileBoxMismatch",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",

@@ -38,6 +38,8 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::FeatLattice | Field::ScalingLattice => (0, 3),
         Field::FeatRegions | Field::ScalingRegions => (1, u16::MAX as u64),
         Field::RegionStart => (1, u32::MAX as u64 - 1),
+        Field::TileCount => (1, u32::MAX as u64),
+        Field::TileStart => (1, u32::MAX as u64 - 1),
         Field::RateMask => (1, u64::MAX),
         Field::CodedRate
         | Field::FileFlags

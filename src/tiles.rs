@@ -1,0 +1,210 @@
+//! Tiles (spec §10): runs of canonical anchors whose entropy-coded bodies are independent.
+//! The tile table (`TILS`), the per-tile framing of the entropy-coded chunks, and region
+//! selection.
+
+use crate::container::bytes::{PayloadReader, PayloadWriter};
+use crate::container::chunk::ChunkTag;
+use crate::container::payload::{body, expect_len, METHOD_RAW};
+use crate::error::{Error, Field, Result};
+
+/// The reference encoder's tile size (anchors per tile) when none is asked for.
+pub const DEFAULT_TILE_ANCHORS: u32 = 16_384;
+
+/// The tile table of a stream (§10.1).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TileTable {
+    /// First anchor of each tile; `starts[0] = 0`.
+    pub starts: Vec<u32>,
+    /// Per tile: min x, y, z, then max x, y, z of its anchors' voxels.
+    pub boxes: Vec<[u32; 6]>,
+    /// N.
+    pub anchors: u32,
+}
+
+/// The smallest box holding `voxels` (which is not empty).
+fn bounding_box(voxels: &[[u32; 3]]) -> [u32; 6] {
+    let mut b = [u32::MAX, u32::MAX, u32::MAX, 0, 0, 0];
+    for v in voxels {
+        for a in 0..3 {
+            b[a] = b[a].min(v[a]);
+            b[3 + a] = b[3 + a].max(v[a]);
+        }
+    }
+    b
+}
+
+impl TileTable {
+    /// Tiles of `per_tile` anchors (the last one shorter) over canonical `voxels`.
+    pub fn cut(voxels: &[[u32; 3]], per_tile: u32) -> TileTable {
+        let n = voxels.len() as u32;
+        let per = per_tile.max(1);
+        let starts: Vec<u32> = (0..n.div_ceil(per).max(1)).map(|t| t * per).collect();
+        let mut table = TileTable {
+            starts,
+            boxes: Vec::new(),
+            anchors: n,
+        };
+        table.boxes = (0..table.len())
+            .map(|t| bounding_box(&voxels[table.range(t)]))
+            .collect();
+        table
+    }
+
+    /// T.
+    pub fn len(&self) -> usize {
+        self.starts.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.starts.is_empty()
+    }
+
+    /// Anchor indices of tile `t`.
+    pub fn range(&self, t: usize) -> std::ops::Range<usize> {
+        let end = self.starts.get(t + 1).copied().unwrap_or(self.anchors);
+        self.starts[t] as usize..end as usize
+    }
+
+    /// §10.1: the `TILS` payload.
+    pub fn to_payload(&self) -> Vec<u8> {
+        let mut w = PayloadWriter::default();
+        w.u8(METHOD_RAW);
+        w.u32(self.len() as u32);
+        for &s in &self.starts[1..] {
+            w.u32(s);
+        }
+        for b in &self.boxes {
+            for &c in b {
+                w.u32(c);
+            }
+        }
+        w.buf
+    }
+
+    /// §10.1: reads and checks `TILS` against the decoded voxels (N of them, canonical).
+    pub fn parse(payload: &[u8], voxels: &[[u32; 3]]) -> Result<TileTable> {
+        let tag = ChunkTag::TILS;
+        let b = body(tag, payload, METHOD_RAW)?;
+        let n = voxels.len() as u64;
+        if b.len() < 4 {
+            return Err(Error::ChunkSizeMismatch {
+                tag,
+                expected: 5,
+                found: b.len() as u64 + 1,
+            });
+        }
+        let mut r = PayloadReader::new(tag, b);
+        let t = u64::from(r.u32()?);
+        if t == 0 || t > n {
+            return Err(Error::FieldOutOfRange {
+                field: Field::TileCount,
+                value: t,
+                min: 1,
+                max: n,
+            });
+        }
+        expect_len(tag, b, 4 + 4 * (t - 1) + 24 * t)?;
+        let mut starts = Vec::with_capacity(t as usize);
+        starts.push(0u32);
+        let mut min = 1u64;
+        for _ in 1..t {
+            let s = r.u32()?;
+            if u64::from(s) < min || u64::from(s) > n - 1 {
+                return Err(Error::FieldOutOfRange {
+                    field: Field::TileStart,
+                    value: s.into(),
+                    min,
+                    max: n - 1,
+                });
+            }
+            min = u64::from(s) + 1;
+            starts.push(s);
+        }
+        let mut table = TileTable {
+            starts,
+            boxes: Vec::with_capacity(t as usize),
+            anchors: n as u32,
+        };
+        for tile in 0..t as usize {
+            let mut stated = [0u32; 6];
+            for c in &mut stated {
+                *c = r.u32()?;
+            }
+            if stated != bounding_box(&voxels[table.range(tile)]) {
+                return Err(Error::TileBoxMismatch {
+                    tile: tile as u32,
+                    stated,
+                    actual: bounding_box(&voxels[table.range(tile)]),
+                });
+            }
+            table.boxes.push(stated);
+        }
+        r.finish()?;
+        Ok(table)
+    }
+
+    /// §10.3: the tiles whose box, in world coordinates, intersects `region` (min x, y, z,
+    /// max x, y, z, binary64); every tile without a region.
+    pub fn select(&self, origin: [f32; 3], voxel_size: f32, region: Option<[f64; 6]>) -> Vec<bool> {
+        let Some(r) = region else {
+            return vec![true; self.len()];
+        };
+        let vs = f64::from(voxel_size);
+        self.boxes
+            .iter()
+            .map(|b| {
+                (0..3).all(|a| {
+                    let o = f64::from(origin[a]);
+                    let lo = o + f64::from(b[a]) * vs;
+                    let hi = o + (f64::from(b[3 + a]) + 1.0) * vs;
+                    lo <= r[3 + a] && r[a] <= hi
+                })
+            })
+            .collect()
+    }
+}
+
+/// §10.2: splits the words of a tiled chunk into its T tile bodies; `prefix` is the number
+/// of payload bytes before the words (for the lengths errors report).
+pub fn split_bodies(
+    tag: ChunkTag,
+    prefix: usize,
+    words: &[u8],
+    tiles: usize,
+) -> Result<Vec<&[u8]>> {
+    let mut r = PayloadReader::new(tag, words);
+    let mut lens = Vec::with_capacity(tiles.min(words.len() / 4 + 1));
+    let mut total = 0u64;
+    for _ in 0..tiles {
+        let l = r.u32()?;
+        total += u64::from(l);
+        lens.push(l as usize);
+    }
+    let rest = &words[r.consumed()..];
+    if rest.len() as u64 != total {
+        return Err(Error::ChunkSizeMismatch {
+            tag,
+            expected: (prefix + words.len() - rest.len()) as u64 + total,
+            found: (prefix + words.len()) as u64,
+        });
+    }
+    let mut out = Vec::with_capacity(tiles);
+    let mut at = 0usize;
+    for l in lens {
+        out.push(&rest[at..at + l]);
+        at += l;
+    }
+    Ok(out)
+}
+
+/// §10.2: the words of a tiled chunk from its tile bodies.
+pub fn join_bodies(bodies: &[Vec<u8>]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(4 * bodies.len() + bodies.iter().map(Vec::len).sum::<usize>());
+    for b in bodies {
+        out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    }
+    for b in bodies {
+        out.extend_from_slice(b);
+    }
+    out
+}

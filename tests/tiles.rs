@@ -1,0 +1,236 @@
+//! Tiles (spec §10): any number of threads gives the same model; a region decode is the
+//! full decode's selected tiles; broken tile tables and tile framing are typed errors, and the
+//! lowest tile's error is the one reported.
+
+mod common;
+
+use common::*;
+use salvq::container::chunk::ChunkTag;
+use salvq::encoder::{encode_full, EncodeOptions};
+use salvq::error::Field;
+use salvq::gen::{generate, GenParams};
+use salvq::tiles::TileTable;
+use salvq::{decode, decode_with_options, extract_rate, DecodeOptions, Error, Limits};
+
+fn model(n: u32) -> salvq::SceneModel {
+    generate(&GenParams {
+        feat_dim: 16,
+        ..GenParams::small(n, 5)
+    })
+}
+
+fn tiled(m: &salvq::SceneModel, per_tile: u32) -> salvq::encoder::Encoded {
+    encode_full(
+        m,
+        &EncodeOptions {
+            tile_anchors: per_tile,
+            rates: vec![0, 1],
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+fn with(threads: Option<usize>, region: Option<[f64; 6]>) -> DecodeOptions {
+    DecodeOptions {
+        threads,
+        region,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn every_thread_count_decodes_the_same_model() {
+    let m = model(1000);
+    let e = tiled(&m, 97);
+    assert_eq!(&decode(&e.stream).unwrap(), e.expected());
+    for threads in [1, 2, 3, 8] {
+        let d = decode_with_options(&e.stream, &with(Some(threads), None)).unwrap();
+        assert_eq!(&d, e.expected(), "{threads} threads");
+    }
+    // Extraction of a tiled multi-rate stream is still byte-identical.
+    let alone = encode_full(
+        &m,
+        &EncodeOptions {
+            tile_anchors: 97,
+            rates: vec![1],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        extract_rate(&e.stream, 1, &Limits::default()).unwrap(),
+        alone.stream
+    );
+}
+
+#[test]
+fn a_region_decodes_the_intersecting_tiles_only() {
+    let m = model(1200);
+    let e = tiled(&m, 100);
+    let full = e.expected();
+    let tiles = TileTable::cut(&full.anchors.voxel, 100);
+    assert_eq!(tiles.len(), 12);
+    // A box around tile 4's voxels, in world coordinates.
+    let b = tiles.boxes[4];
+    let vs = f64::from(full.voxel_size);
+    let o = full.origin.map(f64::from);
+    let region = [
+        o[0] + f64::from(b[0]) * vs + 0.25 * vs,
+        o[1] + f64::from(b[1]) * vs + 0.25 * vs,
+        o[2] + f64::from(b[2]) * vs + 0.25 * vs,
+        o[0] + f64::from(b[3]) * vs + 0.75 * vs,
+        o[1] + f64::from(b[4]) * vs + 0.75 * vs,
+        o[2] + f64::from(b[5]) * vs + 0.75 * vs,
+    ];
+    let selected = tiles.select(full.origin, full.voxel_size, Some(region));
+    assert!(selected[4]);
+    assert!(selected.iter().filter(|&&s| s).count() < 12);
+    let part = decode_with_options(&e.stream, &with(Some(2), Some(region))).unwrap();
+    let kept: Vec<usize> = (0..12)
+        .filter(|&t| selected[t])
+        .flat_map(|t| tiles.range(t))
+        .collect();
+    assert_eq!(part.dims.anchors as usize, kept.len());
+    let (f, s, k) = (16, 6, usize::from(full.dims.offsets));
+    for (j, &i) in kept.iter().enumerate() {
+        assert_eq!(part.anchors.voxel[j], full.anchors.voxel[i]);
+        assert_eq!(
+            part.anchors.feat[j * f..(j + 1) * f],
+            full.anchors.feat[i * f..(i + 1) * f]
+        );
+        assert_eq!(
+            part.anchors.scaling[j * s..(j + 1) * s],
+            full.anchors.scaling[i * s..(i + 1) * s]
+        );
+        assert_eq!(
+            part.anchors.offsets[j * 3 * k..(j + 1) * 3 * k],
+            full.anchors.offsets[i * 3 * k..(i + 1) * 3 * k]
+        );
+        assert_eq!(
+            part.anchors.mask[j * k..(j + 1) * k],
+            full.anchors.mask[i * k..(i + 1) * k]
+        );
+    }
+    assert_eq!(part.grid, full.grid);
+    // The partial model is a valid model file.
+    let bytes = salvq::model::interchange::model_to_safetensors(&part);
+    salvq::model::interchange::model_from_safetensors(&bytes).unwrap();
+}
+
+#[test]
+fn region_decodes_rebase_spatial_quantizer_regions() {
+    let m = model(900);
+    let e = encode_full(
+        &m,
+        &EncodeOptions {
+            fit_basis: true,
+            feat_regions: 3,
+            tile_anchors: 100,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let full = e.expected();
+    let tiles = TileTable::cut(&full.anchors.voxel, 100);
+    // Tiles 2 and 3 (anchors 200..400) straddle region boundary 300.
+    let b2 = tiles.boxes[2];
+    let vs = f64::from(full.voxel_size);
+    let o = full.origin.map(f64::from);
+    let region = [0, 1, 2, 3, 4, 5].map(|c| o[c % 3] + (f64::from(b2[c]) + 0.5) * vs);
+    let part = decode_with_options(&e.stream, &with(None, Some(region))).unwrap();
+    let bytes = salvq::model::interchange::model_to_safetensors(&part);
+    let back = salvq::model::interchange::model_from_safetensors(&bytes).unwrap();
+    assert_eq!(back, part);
+    assert!(part.dims.anchors < 900);
+}
+
+#[test]
+fn broken_tile_tables_are_typed_errors() {
+    let m = model(500);
+    let e = tiled(&m, 100);
+    let s = &e.stream;
+    // TILS: method, tile_count, 4 starts, 5 boxes.
+    let bad = edit_payload(s, ChunkTag::TILS, |p| {
+        p[1..5].copy_from_slice(&0u32.to_le_bytes())
+    });
+    assert_eq!(
+        decode(&bad).unwrap_err(),
+        Error::FieldOutOfRange {
+            field: Field::TileCount,
+            value: 0,
+            min: 1,
+            max: 500
+        }
+    );
+    let bad = edit_payload(s, ChunkTag::TILS, |p| {
+        p[1..5].copy_from_slice(&501u32.to_le_bytes())
+    });
+    assert!(matches!(
+        decode(&bad).unwrap_err(),
+        Error::FieldOutOfRange {
+            field: Field::TileCount,
+            ..
+        }
+    ));
+    // Starts out of order (tile 2 before tile 1's start).
+    let bad = edit_payload(s, ChunkTag::TILS, |p| {
+        p[9..13].copy_from_slice(&50u32.to_le_bytes())
+    });
+    assert_eq!(
+        decode(&bad).unwrap_err(),
+        Error::FieldOutOfRange {
+            field: Field::TileStart,
+            value: 50,
+            min: 101,
+            max: 499
+        }
+    );
+    // A box that is not its anchors'.
+    let box_at = 1 + 4 + 4 * 4 + 24 * 3;
+    let bad = edit_payload(s, ChunkTag::TILS, |p| p[box_at] ^= 1);
+    assert!(matches!(
+        decode(&bad).unwrap_err(),
+        Error::TileBoxMismatch { tile: 3, .. }
+    ));
+    // Tile lengths that do not add up to the chunk.
+    let bad = edit_payload(s, ChunkTag::AFEA, |p| {
+        let l = u32::from_le_bytes([p[5], p[6], p[7], p[8]]) + 4;
+        p[5..9].copy_from_slice(&l.to_le_bytes());
+    });
+    assert!(matches!(
+        decode(&bad).unwrap_err(),
+        Error::ChunkSizeMismatch {
+            tag: ChunkTag::AFEA,
+            ..
+        }
+    ));
+}
+
+#[test]
+fn the_lowest_tile_error_is_reported() {
+    let m = model(500);
+    let e = tiled(&m, 100);
+    // Zero the top word of tile 1's AOFF body and of tile 3's AFEA body: tile 1 comes first.
+    let zero_top = |p: &mut Vec<u8>, tile: usize| {
+        let lens: Vec<usize> = (0..5)
+            .map(|t| {
+                u32::from_le_bytes([p[1 + 4 * t], p[2 + 4 * t], p[3 + 4 * t], p[4 + 4 * t]])
+                    as usize
+            })
+            .collect();
+        let at = 1 + 4 * 5 + lens[..tile].iter().sum::<usize>();
+        p[at..at + 4].copy_from_slice(&[0; 4]);
+    };
+    let bad = edit_payload(&e.stream, ChunkTag::AOFF, |p| zero_top(p, 1));
+    let bad = edit_payload(&bad, ChunkTag::AFEA, |p| zero_top(p, 3));
+    for threads in [1, 4] {
+        assert_eq!(
+            decode_with_options(&bad, &with(Some(threads), None)).unwrap_err(),
+            Error::AnsStreamInvalid {
+                tag: ChunkTag::AOFF,
+                fault: salvq::error::AnsFault::ZeroTopWord
+            }
+        );
+    }
+}
