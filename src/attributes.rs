@@ -150,12 +150,20 @@ pub struct Attributes {
     pub offsets: Vec<f32>,
 }
 
+/// Where one tile's decoded attributes go: its anchors' rows of the output tensors.
+pub struct AttributesMut<'a> {
+    pub feat: &'a mut [f32],
+    pub scaling: &'a mut [f32],
+    pub offsets: &'a mut [f32],
+}
+
 /// §6.6.2: decodes `AFEA`, `ASCL` and `AOFF` together, anchor by anchor: for anchor i, its F
 /// feature symbols from `AFEA`, its S scaling symbols from `ASCL`, then 3 symbols from `AOFF`
 /// for each offset whose mask is 1 (masked offsets decode as 0.0).
 ///
 /// One tile (§10): `bodies` are the tile's three bodies, `voxels` and `masks` its anchors',
-/// `first` the canonical index of its first anchor (for spatial regions, §7.6).
+/// `first` the canonical index of its first anchor (for spatial regions, §7.6); the values
+/// are written into `out` (the tile's rows, zero where an offset is masked).
 #[allow(clippy::too_many_arguments)]
 pub fn read_attributes(
     bodies: [&[u8]; 3],
@@ -167,7 +175,8 @@ pub fn read_attributes(
     prior: &Prior,
     lattices: &[GroupLattices; 2],
     tables: &GaussianTables,
-) -> Result<Attributes> {
+    out: AttributesMut<'_>,
+) -> Result<()> {
     let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
     let mut readers = Vec::with_capacity(3);
     for (tag, body) in tags.into_iter().zip(bodies) {
@@ -177,11 +186,12 @@ pub fn read_attributes(
     let f = usize::from(d.feat_dim);
     let s = usize::from(d.scaling_dim);
     let k = usize::from(d.offsets);
-    let mut out = Attributes {
-        feat: Vec::with_capacity(n * f),
-        scaling: Vec::with_capacity(n * s),
-        offsets: Vec::with_capacity(n * k * 3),
-    };
+    if out.feat.len() != n * f || out.scaling.len() != n * s || out.offsets.len() != n * 3 * k {
+        return Err(Error::DecodedSizeMismatch {
+            stated: (n * (f + s + 3 * k)) as u64,
+            computed: (out.feat.len() + out.scaling.len() + out.offsets.len()) as u64,
+        });
+    }
     // The prior of every anchor is independent of the symbols: it is computed for a block of
     // anchors in parallel (the same values whatever the thread count), then the symbols are
     // read anchor by anchor in the order of §6.6.2.
@@ -218,16 +228,17 @@ pub fn read_attributes(
                     let kk = &current.ks[b * width..(b + 1) * width];
                     let delta = current.deltas[b];
                     for (g, w, at, dst) in [
-                        (Group::Feature, f, 0, &mut out.feat),
-                        (Group::Scaling, s, f, &mut out.scaling),
+                        (Group::Feature, f, 0, &mut *out.feat),
+                        (Group::Scaling, s, f, &mut *out.scaling),
                     ] {
+                        let dst = &mut dst[i * w..(i + 1) * w];
                         let reader = &mut readers[g as usize];
                         let lattice = lattices[g as usize].for_anchor(first + i as u32);
                         let delta = delta[g as usize];
                         if lattice.is_identity() {
-                            for j in 0..w {
+                            for (j, x) in dst.iter_mut().enumerate() {
                                 let u = reader.symbol(kk[at + j])?;
-                                dst.push(prior.reconstruct(y, g, j, delta, u));
+                                *x = prior.reconstruct(y, g, j, delta, u);
                             }
                             continue;
                         }
@@ -236,21 +247,21 @@ pub fn read_attributes(
                             *uj = reader.symbol(kk[at + j])?;
                         }
                         lattice.apply(&u[..w], &mut z[..w]);
-                        for (j, &zj) in z[..w].iter().enumerate() {
-                            dst.push(reconstruct_value(prior.mean_f32(y, g, j), delta, zj));
+                        for (j, (x, &zj)) in dst.iter_mut().zip(&z[..w]).enumerate() {
+                            *x = reconstruct_value(prior.mean_f32(y, g, j), delta, zj);
                         }
                     }
                     let reader = &mut readers[2];
+                    let row = &mut out.offsets[i * 3 * k..(i + 1) * 3 * k];
                     for slot in 0..k {
                         if masks[i * k + slot] == 0 {
-                            out.offsets.extend_from_slice(&[0.0; 3]);
+                            row[3 * slot..3 * slot + 3].fill(0.0);
                             continue;
                         }
                         for c in 0..3 {
                             let j = 3 * slot + c;
                             let u = reader.symbol(kk[f + s + j])?;
-                            out.offsets
-                                .push(prior.reconstruct(y, Group::Offsets, j, delta[2], u));
+                            row[j] = prior.reconstruct(y, Group::Offsets, j, delta[2], u);
                         }
                     }
                 }
@@ -263,5 +274,5 @@ pub fn read_attributes(
     for r in readers {
         r.finish()?;
     }
-    Ok(out)
+    Ok(())
 }

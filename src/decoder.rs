@@ -5,7 +5,7 @@
 
 use rayon::prelude::*;
 
-use crate::attributes::{layer_bodies, read_attributes, read_masks, Attributes};
+use crate::attributes::{layer_bodies, read_attributes, read_masks, Attributes, AttributesMut};
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::payload;
 use crate::container::preflight::Preflight;
@@ -248,10 +248,39 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
         mask_at.push(at);
         at += tiles.range(t).len() * k;
     }
-    let decoded: Vec<Result<Attributes>> = chosen
+    let (f, s) = (usize::from(d.feat_dim), usize::from(d.scaling_dim));
+    let n_out: usize = chosen.iter().map(|&t| tiles.range(t).len()).sum();
+    // The output tensors, allocated once and cut into each tile's rows.
+    let mut attrs = Attributes {
+        feat: vec![0f32; n_out * f],
+        scaling: vec![0f32; n_out * s],
+        offsets: vec![0f32; n_out * 3 * k],
+    };
+    let mut rows = Vec::with_capacity(chosen.len());
+    {
+        let (mut fe, mut sc, mut of) = (
+            &mut attrs.feat[..],
+            &mut attrs.scaling[..],
+            &mut attrs.offsets[..],
+        );
+        for &t in &chosen {
+            let m = tiles.range(t).len();
+            let (a, rest_f) = std::mem::take(&mut fe).split_at_mut(m * f);
+            let (b, rest_s) = std::mem::take(&mut sc).split_at_mut(m * s);
+            let (c, rest_o) = std::mem::take(&mut of).split_at_mut(m * 3 * k);
+            (fe, sc, of) = (rest_f, rest_s, rest_o);
+            rows.push(AttributesMut {
+                feat: a,
+                scaling: b,
+                offsets: c,
+            });
+        }
+    }
+    let decoded: Vec<Result<()>> = chosen
         .par_iter()
         .zip(mask_at.par_iter())
-        .map(|(&t, &m0)| {
+        .zip(rows.into_par_iter())
+        .map(|((&t, &m0), out)| {
             let r = tiles.range(t);
             read_attributes(
                 bodies[t],
@@ -263,21 +292,12 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
                 &prior,
                 &lattices,
                 tables,
+                out,
             )
         })
         .collect();
-    let (f, s) = (usize::from(d.feat_dim), usize::from(d.scaling_dim));
-    let n_out: usize = chosen.iter().map(|&t| tiles.range(t).len()).sum();
-    let mut attrs = Attributes {
-        feat: Vec::with_capacity(n_out * f),
-        scaling: Vec::with_capacity(n_out * s),
-        offsets: Vec::with_capacity(n_out * 3 * k),
-    };
-    for a in decoded {
-        let a = a?;
-        attrs.feat.extend_from_slice(&a.feat);
-        attrs.scaling.extend_from_slice(&a.scaling);
-        attrs.offsets.extend_from_slice(&a.offsets);
+    for result in decoded {
+        result?;
     }
     // A region decode outputs the selected tiles' anchors only (§10.3).
     let (voxel, dims, quant_feat, quant_scaling) = if chosen.len() == tiles.len() {
