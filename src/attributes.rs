@@ -54,18 +54,26 @@ pub fn read_masks(
     }
     let words = &body[r.consumed()..];
     let bodies = split_bodies(tag, 1 + r.consumed(), words, tiles.len())?;
-    let mut mask = Vec::new();
-    for (t, tile_body) in bodies.into_iter().enumerate() {
-        if !selected.get(t).copied().unwrap_or(false) {
-            continue;
-        }
-        let mut reader = SymbolReader::new(tag, tile_body, tables)?;
-        for _ in tiles.range(t) {
-            for &f in &freq {
-                mask.push(u8::from(reader.bit(f)?));
+    // Selected tiles in parallel; the lowest tile's error is reported (§10.3).
+    let decoded: Vec<Result<Vec<u8>>> = bodies
+        .into_par_iter()
+        .enumerate()
+        .filter(|(t, _)| selected.get(*t).copied().unwrap_or(false))
+        .map(|(t, tile_body)| {
+            let mut reader = SymbolReader::new(tag, tile_body, tables)?;
+            let mut mask = Vec::with_capacity(tiles.range(t).len() * k);
+            for _ in tiles.range(t) {
+                for &f in &freq {
+                    mask.push(u8::from(reader.bit(f)?));
+                }
             }
-        }
-        reader.finish()?;
+            reader.finish()?;
+            Ok(mask)
+        })
+        .collect();
+    let mut mask = Vec::new();
+    for m in decoded {
+        mask.extend_from_slice(&m?);
     }
     Ok(mask)
 }

@@ -6,6 +6,7 @@ use crate::container::bytes::{PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, expect_len, METHOD_RAW};
 use crate::error::{Error, Field, Result};
+use crate::model::morton3;
 
 /// The reference encoder's tile size (anchors per tile) when none is asked for.
 pub const DEFAULT_TILE_ANCHORS: u32 = 16_384;
@@ -34,11 +35,67 @@ fn bounding_box(voxels: &[[u32; 3]]) -> [u32; 6] {
 }
 
 impl TileTable {
-    /// Tiles of `per_tile` anchors (the last one shorter) over canonical `voxels`.
+    /// The reference encoder's tiles over canonical `voxels` (informative, §10.3): octree
+    /// cells, split from the whole cube down until a cell holds at most `per_tile` anchors
+    /// (or is a single voxel), then consecutive cells merged while the merged run still holds
+    /// at most `per_tile` anchors and stays inside one cell of twice their size. Each tile is
+    /// a contiguous Morton run (as §10 requires) and spatially compact, so a region selects
+    /// few tiles.
     pub fn cut(voxels: &[[u32; 3]], per_tile: u32) -> TileTable {
         let n = voxels.len() as u32;
-        let per = per_tile.max(1);
-        let starts: Vec<u32> = (0..n.div_ceil(per).max(1)).map(|t| t * per).collect();
+        let per = per_tile.max(1) as usize;
+        let codes: Vec<u64> = voxels.iter().map(|v| morton3(*v)).collect();
+        // Cells as (first anchor, end, level): `level` = log2 of the cell's side.
+        let mut cells: Vec<(usize, usize, u32)> = Vec::new();
+        let mut stack = vec![(0usize, codes.len(), 21u32)];
+        while let Some((a, b, level)) = stack.pop() {
+            if b - a <= per || level == 0 {
+                cells.push((a, b, level));
+                continue;
+            }
+            // Children of the cell in Morton order: split on the 3 bits below `level`.
+            let shift = 3 * (level - 1);
+            let mut bounds = [a; 9];
+            for (c, bound) in bounds.iter_mut().enumerate().skip(1) {
+                let base = codes[a] >> (shift + 3) << (shift + 3);
+                let limit = base + ((c as u64) << shift);
+                *bound = a + codes[a..b].partition_point(|&m| m < limit);
+            }
+            bounds[8] = b;
+            for c in (0..8).rev() {
+                if bounds[c + 1] > bounds[c] {
+                    stack.push((bounds[c], bounds[c + 1], level - 1));
+                }
+            }
+        }
+        cells.sort_unstable();
+        let mut starts: Vec<u32> = Vec::new();
+        let mut run: Option<(usize, usize, u32)> = None;
+        for (a, b, level) in cells {
+            match run {
+                Some((ra, rb, rl))
+                    if b - ra <= per
+                        && level.max(rl) < 21
+                        && codes[ra] >> (3 * (level.max(rl) + 1))
+                            == codes[b - 1] >> (3 * (level.max(rl) + 1)) =>
+                {
+                    let _ = rb;
+                    run = Some((ra, b, level.max(rl)));
+                }
+                _ => {
+                    if let Some((ra, _, _)) = run {
+                        starts.push(ra as u32);
+                    }
+                    run = Some((a, b, level));
+                }
+            }
+        }
+        if let Some((ra, _, _)) = run {
+            starts.push(ra as u32);
+        }
+        if starts.is_empty() {
+            starts.push(0);
+        }
         let mut table = TileTable {
             starts,
             boxes: Vec::new(),

@@ -105,13 +105,12 @@ enum Command {
         threads: Option<u32>,
         /// Decode only the tiles that intersect this world-space box:
         /// `xmin,ymin,zmin,xmax,ymax,zmax` (spec §10.3).
-        #[arg(
-            long,
-            value_delimiter = ',',
-            num_args = 6,
-            allow_negative_numbers = true
-        )]
-        region: Option<Vec<f64>>,
+        #[arg(long, value_parser = parse_box, allow_hyphen_values = true)]
+        region: Option<[f64; 6]>,
+        /// Measure instead of writing: print the decode time and the process's peak resident
+        /// memory (used by `bench scale`).
+        #[arg(long, hide = true)]
+        measure: bool,
     },
     /// Write the single-rate stream of one rate of a multi-rate stream, without re-coding
     /// (byte-identical to encoding that rate alone).
@@ -169,6 +168,31 @@ enum Bench {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// Decode time and peak memory against scene size (1 k … `--max` anchors) with 1 and 2
+    /// threads, and a region decode of one octant: SVG chart, CSV and summary in OUT.
+    Scale {
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// Largest scene (anchors).
+        #[arg(long, default_value_t = 2_000_000)]
+        max: u32,
+    },
+}
+
+/// `xmin,ymin,zmin,xmax,ymax,zmax`: six finite numbers, each min ≤ its max.
+fn parse_box(s: &str) -> Result<[f64; 6], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("'{x}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let b: [f64; 6] = v
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("6 numbers expected, {} given", v.len()))?;
+    if b.iter().any(|x| !x.is_finite()) || (0..3).any(|a| b[a] > b[a + 3]) {
+        return Err("the box needs finite numbers and min <= max on each axis".into());
+    }
+    Ok(b)
 }
 
 fn sha256_hex(bytes: &[u8]) -> String {
@@ -291,10 +315,10 @@ fn run(cli: Cli) -> Result<(), Error> {
             rate,
             threads,
             region,
+            measure,
         } => {
             let t = Instant::now();
             let stream = salvq::io::read_file(&input)?;
-            let region = region.map(|r| [r[0], r[1], r[2], r[3], r[4], r[5]]);
             let options = salvq::DecodeOptions {
                 limits: Limits::default(),
                 rate,
@@ -302,6 +326,16 @@ fn run(cli: Cli) -> Result<(), Error> {
                 region,
             };
             let model = salvq::decode_with_options(&stream, &options)?;
+            if measure {
+                println!(
+                    "measure decode_secs={} peak_rss_bytes={} anchors={} decoded_bytes={}",
+                    secs(t),
+                    salvq::rdbench::scale::peak_rss_bytes().unwrap_or(0),
+                    model.dims.anchors,
+                    salvq::model::decoded_bytes(&model.dims)
+                );
+                return Ok(());
+            }
             if model.dims.anchors == 0 {
                 eprintln!("salvq: the region intersects no tile; nothing written");
                 return Ok(());
@@ -337,6 +371,18 @@ fn run(cli: Cli) -> Result<(), Error> {
             })?;
             print!("{text}");
             println!("wrote rd.svg, rd_correlation.svg, search_speed.svg, stability.svg, rd.csv, summary.txt to {} in {:.1} s", out.display(), secs(t));
+        }
+        Command::Bench {
+            which: Bench::Scale { out, max },
+        } => {
+            let t = Instant::now();
+            let text = salvq::rdbench::scale::run(&out, max)?;
+            print!("{text}");
+            println!(
+                "wrote scale.svg, scale.csv, scale.txt to {} in {:.1} s",
+                out.display(),
+                secs(t)
+            );
         }
         Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref())?,
     }

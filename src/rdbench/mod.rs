@@ -10,6 +10,7 @@
 //! SNR `10 log10(var(x) / MSE)` in dB.
 
 mod charts;
+pub mod scale;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
