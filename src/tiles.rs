@@ -37,10 +37,10 @@ fn bounding_box(voxels: &[[u32; 3]]) -> [u32; 6] {
 impl TileTable {
     /// The reference encoder's tiles over canonical `voxels` (informative, §10.3): octree
     /// cells, split from the whole cube down until a cell holds at most `per_tile` anchors
-    /// (or is a single voxel), then consecutive cells merged while the merged run still holds
-    /// at most `per_tile` anchors and stays inside one cell of twice their size. Each tile is
-    /// a contiguous Morton run (as §10 requires) and spatially compact, so a region selects
-    /// few tiles.
+    /// (or is a single voxel), then consecutive sibling cells (same size, same parent)
+    /// merged while the run holds at most `per_tile` anchors. Each tile is a contiguous
+    /// Morton run (as §10 requires) inside one cell of twice its cells' size, so a region
+    /// selects few tiles.
     pub fn cut(voxels: &[[u32; 3]], per_tile: u32) -> TileTable {
         let n = voxels.len() as u32;
         let per = per_tile.max(1) as usize;
@@ -70,18 +70,17 @@ impl TileTable {
         }
         cells.sort_unstable();
         let mut starts: Vec<u32> = Vec::new();
+        // Merge consecutive sibling cells (same level, same parent) while the run holds at
+        // most `per_tile` anchors.
         let mut run: Option<(usize, usize, u32)> = None;
         for (a, b, level) in cells {
+            let sibling = |ra: usize, rl: u32| {
+                rl == level
+                    && level < 21
+                    && codes[ra] >> (3 * (level + 1)) == codes[a] >> (3 * (level + 1))
+            };
             match run {
-                Some((ra, rb, rl))
-                    if b - ra <= per
-                        && level.max(rl) < 21
-                        && codes[ra] >> (3 * (level.max(rl) + 1))
-                            == codes[b - 1] >> (3 * (level.max(rl) + 1)) =>
-                {
-                    let _ = rb;
-                    run = Some((ra, b, level.max(rl)));
-                }
+                Some((ra, _, rl)) if b - ra <= per && sibling(ra, rl) => run = Some((ra, b, rl)),
                 _ => {
                     if let Some((ra, _, _)) = run {
                         starts.push(ra as u32);

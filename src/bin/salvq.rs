@@ -169,7 +169,8 @@ enum Bench {
         seed: u64,
     },
     /// Decode time and peak memory against scene size (1 k … `--max` anchors) with 1 and 2
-    /// threads, and a region decode of one octant: SVG chart, CSV and summary in OUT.
+    /// threads, and a region decode of an eighth of the scene: SVG chart, CSV and summary
+    /// in OUT.
     Scale {
         /// Output folder.
         #[arg(long, default_value = "charts")]
