@@ -164,15 +164,15 @@ fn decode_stream(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
             ChunkTag::MLPS => p.mlps = Some(payload::read_mlps(bytes, d)?),
             ChunkTag::QUAN => p.quan = Some(payload::read_quan(bytes, d)?),
             ChunkTag::APOS => {
-                let voxel = payload::read_apos(bytes, head, tables)?;
+                let tiles = p.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+                let voxel = payload::read_apos(bytes, tiles, tables)?;
                 // §5.2: the touched grid entries follow from the voxels.
                 let layout = GridLayout::new(d, head.coord_bits);
                 p.touched = Some(layout.touched(&voxel, d.entries_3d(), d.entries_2d()));
                 p.voxel = Some(voxel);
             }
             ChunkTag::TILS => {
-                let voxel = p.voxel.as_ref().ok_or(missing(ChunkTag::APOS))?;
-                let tiles = TileTable::parse(bytes, voxel)?;
+                let tiles = TileTable::parse(bytes, d.anchors, head.coord_bits)?;
                 p.selected = tiles.select(head.origin, head.voxel_size, options.region);
                 p.tiles = Some(tiles);
             }

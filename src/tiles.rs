@@ -8,6 +8,9 @@ use crate::container::payload::{body, expect_len, METHOD_RAW};
 use crate::error::{Error, Field, Result};
 use crate::model::morton3;
 
+/// Bytes per tile in `TILS`: count, cell level, cell, box.
+pub const TILE_ENTRY_BYTES: u64 = 4 + 1 + 12 + 24;
+
 /// The reference encoder's tile size (anchors per tile) when none is asked for.
 pub const DEFAULT_TILE_ANCHORS: u32 = 16_384;
 
@@ -16,10 +19,21 @@ pub const DEFAULT_TILE_ANCHORS: u32 = 16_384;
 pub struct TileTable {
     /// First anchor of each tile; `starts[0] = 0`.
     pub starts: Vec<u32>,
+    /// Per tile: the aligned octree cell its geometry is coded in (§8 per tile): side
+    /// `2^level`, covering voxels `cell · 2^level …`.
+    pub cells: Vec<(u8, [u32; 3])>,
     /// Per tile: min x, y, z, then max x, y, z of its anchors' voxels.
     pub boxes: Vec<[u32; 6]>,
     /// N.
     pub anchors: u32,
+}
+
+/// The smallest aligned cell holding every voxel of a Morton run from `first` to `last`.
+fn enclosing_cell(first: [u32; 3], last: [u32; 3]) -> (u8, [u32; 3]) {
+    let (a, b) = (morton3(first), morton3(last));
+    let differing = 64 - (a ^ b).leading_zeros();
+    let level = differing.div_ceil(3);
+    (level as u8, first.map(|c| c >> level))
 }
 
 /// The smallest box holding `voxels` (which is not empty).
@@ -97,13 +111,25 @@ impl TileTable {
         }
         let mut table = TileTable {
             starts,
+            cells: Vec::new(),
             boxes: Vec::new(),
             anchors: n,
         };
         table.boxes = (0..table.len())
             .map(|t| bounding_box(&voxels[table.range(t)]))
             .collect();
+        table.cells = (0..table.len())
+            .map(|t| {
+                let r = table.range(t);
+                enclosing_cell(voxels[r.start], voxels[r.end - 1])
+            })
+            .collect();
         table
+    }
+
+    /// Anchors of tile `t`.
+    pub fn count(&self, t: usize) -> u32 {
+        self.range(t).len() as u32
     }
 
     /// T.
@@ -126,22 +152,27 @@ impl TileTable {
         let mut w = PayloadWriter::default();
         w.u8(METHOD_RAW);
         w.u32(self.len() as u32);
-        for &s in &self.starts[1..] {
-            w.u32(s);
-        }
-        for b in &self.boxes {
-            for &c in b {
+        for t in 0..self.len() {
+            w.u32(self.count(t));
+            let (level, cell) = self.cells[t];
+            w.u8(level);
+            for c in cell {
+                w.u32(c);
+            }
+            for c in self.boxes[t] {
                 w.u32(c);
             }
         }
         w.buf
     }
 
-    /// §10.1: reads and checks `TILS` against the decoded voxels (N of them, canonical).
-    pub fn parse(payload: &[u8], voxels: &[[u32; 3]]) -> Result<TileTable> {
+    /// §10.1: reads and checks `TILS` against the preflight (N anchors, coordinates below
+    /// `2^coord_bits`). The boxes are checked later, against the decoded geometry
+    /// ([`TileTable::check_geometry`]).
+    pub fn parse(payload: &[u8], anchors: u32, coord_bits: u8) -> Result<TileTable> {
         let tag = ChunkTag::TILS;
         let b = body(tag, payload, METHOD_RAW)?;
-        let n = voxels.len() as u64;
+        let n = u64::from(anchors);
         if b.len() < 4 {
             return Err(Error::ChunkSizeMismatch {
                 tag,
@@ -159,44 +190,87 @@ impl TileTable {
                 max: n,
             });
         }
-        expect_len(tag, b, 4 + 4 * (t - 1) + 24 * t)?;
-        let mut starts = Vec::with_capacity(t as usize);
-        starts.push(0u32);
-        let mut min = 1u64;
-        for _ in 1..t {
-            let s = r.u32()?;
-            if u64::from(s) < min || u64::from(s) > n - 1 {
+        expect_len(tag, b, 4 + TILE_ENTRY_BYTES * t)?;
+        let mut table = TileTable {
+            starts: Vec::with_capacity(t as usize),
+            cells: Vec::with_capacity(t as usize),
+            boxes: Vec::with_capacity(t as usize),
+            anchors,
+        };
+        let mut start = 0u64;
+        for tile in 0..t {
+            // Every later tile needs at least one anchor.
+            let max = n - start - (t - 1 - tile);
+            let count = u64::from(r.u32()?);
+            if count == 0 || count > max {
                 return Err(Error::FieldOutOfRange {
-                    field: Field::TileStart,
-                    value: s.into(),
-                    min,
-                    max: n - 1,
+                    field: Field::TileAnchors,
+                    value: count,
+                    min: 1,
+                    max,
                 });
             }
-            min = u64::from(s) + 1;
-            starts.push(s);
-        }
-        let mut table = TileTable {
-            starts,
-            boxes: Vec::with_capacity(t as usize),
-            anchors: n as u32,
-        };
-        for tile in 0..t as usize {
+            if tile + 1 == t && count != max {
+                return Err(Error::FieldOutOfRange {
+                    field: Field::TileAnchors,
+                    value: count,
+                    min: max,
+                    max,
+                });
+            }
+            table.starts.push(start as u32);
+            start += count;
+            let level = r.u8()?;
+            if level > coord_bits {
+                return Err(Error::FieldOutOfRange {
+                    field: Field::TileCellLevel,
+                    value: level.into(),
+                    min: 0,
+                    max: coord_bits.into(),
+                });
+            }
+            let side_cells = 1u64 << (coord_bits - level);
+            let mut cell = [0u32; 3];
+            for c in &mut cell {
+                *c = r.u32()?;
+                if u64::from(*c) >= side_cells {
+                    return Err(Error::FieldOutOfRange {
+                        field: Field::TileCell,
+                        value: (*c).into(),
+                        min: 0,
+                        max: side_cells - 1,
+                    });
+                }
+            }
+            table.cells.push((level, cell));
             let mut stated = [0u32; 6];
             for c in &mut stated {
                 *c = r.u32()?;
-            }
-            if stated != bounding_box(&voxels[table.range(tile)]) {
-                return Err(Error::TileBoxMismatch {
-                    tile: tile as u32,
-                    stated,
-                    actual: bounding_box(&voxels[table.range(tile)]),
-                });
             }
             table.boxes.push(stated);
         }
         r.finish()?;
         Ok(table)
+    }
+
+    /// §10.1: after the geometry, each tile's box must be its anchors' box, and the tiles'
+    /// voxels must follow each other in Morton order (no voxel shared between tiles).
+    pub fn check_geometry(&self, voxels: &[[u32; 3]]) -> Result<()> {
+        for t in 0..self.len() {
+            let r = self.range(t);
+            let actual = bounding_box(&voxels[r.clone()]);
+            if actual != self.boxes[t] {
+                return Err(Error::TileBoxMismatch {
+                    tile: t as u32,
+                    stated: self.boxes[t],
+                    actual,
+                });
+            }
+            if t > 0 && morton3(voxels[r.start]) <= morton3(voxels[r.start - 1]) {
+                return Err(Error::TileOrder { tile: t as u32 });
+            }
+        }
+        Ok(())
     }
 
     /// §10.3: the tiles whose box, in world coordinates, intersects `region` (min x, y, z,

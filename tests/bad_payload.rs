@@ -47,14 +47,31 @@ fn padding_bits_set() {
     );
 }
 
-/// `APOS` whose octree codes `voxels` instead of the model's (§8): the stream's other chunks
-/// are unchanged.
+/// The small stream's one tile cell: (level, cell) from its `TILS` (§10.1).
+fn tile_cell() -> (u8, [u32; 3]) {
+    let tils = chunks(&small_stream())
+        .into_iter()
+        .find(|(t, _)| *t == ChunkTag::TILS)
+        .unwrap()
+        .1;
+    assert_eq!(u32::from_le_bytes([tils[1], tils[2], tils[3], tils[4]]), 1);
+    let c = |at: usize| u32::from_le_bytes(tils[at..at + 4].try_into().unwrap());
+    (tils[9], [c(10), c(14), c(18)])
+}
+
+/// `APOS` whose one tile's octree codes `voxels` (inside the tile's cell) instead of the
+/// model's (§8, §10.2): the stream's other chunks are unchanged.
 fn with_voxels(voxels: &[[u32; 3]]) -> Vec<u8> {
-    let coord_bits = small_model().coord_bits();
+    let (level, cell) = tile_cell();
+    let local: Vec<[u32; 3]> = voxels
+        .iter()
+        .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
+        .collect();
     let tables = salvq::entropy::GaussianTables::standard();
-    let body = salvq::geometry::encode(voxels, coord_bits, tables).unwrap();
+    let body = salvq::geometry::encode(&local, level, tables).unwrap();
     edit_payload(&small_stream(), ChunkTag::APOS, |p| {
         p.truncate(1);
+        p.extend_from_slice(&(body.len() as u32).to_le_bytes());
         p.extend_from_slice(&body);
     })
 }
@@ -65,9 +82,9 @@ fn octree_with_more_cells_than_anchors() {
     let model = small_model();
     let n = model.anchors.voxel.len();
     let mut voxels = model.anchors.voxel.clone();
-    let bits = model.coord_bits();
-    let free = (0..1u32 << bits)
-        .map(|x| [x, 0, 0])
+    let (level, cell) = tile_cell();
+    let free = (0..1u32 << level)
+        .map(|x| [(cell[0] << level) + x, cell[1] << level, cell[2] << level])
         .find(|v| !voxels.contains(v))
         .unwrap();
     voxels.push(free);
@@ -107,7 +124,7 @@ fn octree_counts_that_do_not_add_up() {
         err(&with_voxels(&fewer)),
         Error::OctreeInvalid {
             rule: salvq::geometry::COUNTS_BELOW,
-            depth: model.coord_bits(),
+            depth: tile_cell().0,
             count: u64::from(n) - 1,
             anchors: n
         }

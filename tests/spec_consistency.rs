@@ -180,6 +180,7 @@ fn every_error() -> Vec<Error> {
             deviation: 0.1,
             tolerance: 1e-3,
         },
+        Error::TileOrder { tile: 1 },
         Error::TileBoxMismatch {
             tile: 0,
             stated: [0; 6],

@@ -148,20 +148,28 @@ fn region_decodes_rebase_spatial_quantizer_regions() {
     assert!(part.dims.anchors < 900);
 }
 
+/// TILS entries: count (4), cell level (1), cell (12), box (24), after method and T.
+const ENTRY: usize = 41;
+
+fn tils_of(stream: &[u8]) -> Vec<u8> {
+    chunks(stream)
+        .into_iter()
+        .find(|(t, _)| *t == ChunkTag::TILS)
+        .unwrap()
+        .1
+}
+
 #[test]
 fn broken_tile_tables_are_typed_errors() {
     let m = model(500);
     let e = tiled(&m, 100);
     let s = &e.stream;
-    // TILS: method, tile_count T, T − 1 starts, T boxes.
-    let tils = chunks(s)
-        .into_iter()
-        .find(|(t, _)| *t == ChunkTag::TILS)
-        .unwrap()
-        .1;
+    let tils = tils_of(s);
     let nt = u32::from_le_bytes([tils[1], tils[2], tils[3], tils[4]]) as usize;
-    let start1 = u32::from_le_bytes([tils[5], tils[6], tils[7], tils[8]]);
-    assert!(nt >= 3 && start1 > 1);
+    assert!(nt >= 3);
+    let count_at = |t: usize| 5 + ENTRY * t;
+    let count0 = u32::from_le_bytes(tils[5..9].try_into().unwrap());
+    // T = 0 and T > N.
     let bad = edit_payload(s, ChunkTag::TILS, |p| {
         p[1..5].copy_from_slice(&0u32.to_le_bytes())
     });
@@ -184,30 +192,53 @@ fn broken_tile_tables_are_typed_errors() {
             ..
         }
     ));
-    // Starts out of order (tile 2 starting before tile 1).
-    let tils = chunks(s)
-        .into_iter()
-        .find(|(t, _)| *t == ChunkTag::TILS)
-        .unwrap()
-        .1;
-    let nt = u32::from_le_bytes([tils[1], tils[2], tils[3], tils[4]]) as usize;
-    let start1 = u32::from_le_bytes([tils[5], tils[6], tils[7], tils[8]]);
-    assert!(nt >= 3 && start1 > 1);
+    // Counts: tile 0 taking every anchor leaves none for the others; counts that fall
+    // short of N at the last tile.
     let bad = edit_payload(s, ChunkTag::TILS, |p| {
-        p[9..13].copy_from_slice(&1u32.to_le_bytes())
+        p[count_at(0)..count_at(0) + 4].copy_from_slice(&500u32.to_le_bytes())
     });
     assert_eq!(
         decode(&bad).unwrap_err(),
         Error::FieldOutOfRange {
-            field: Field::TileStart,
-            value: 1,
-            min: u64::from(start1) + 1,
-            max: 499
+            field: Field::TileAnchors,
+            value: 500,
+            min: 1,
+            max: 500 - (nt as u64 - 1)
         }
     );
+    let bad = edit_payload(s, ChunkTag::TILS, |p| {
+        p[count_at(0)..count_at(0) + 4].copy_from_slice(&(count0 - 1).to_le_bytes())
+    });
+    assert!(matches!(
+        decode(&bad).unwrap_err(),
+        Error::FieldOutOfRange {
+            field: Field::TileAnchors,
+            ..
+        }
+    ));
+    // A cell level above coord_bits, and a cell outside the cube.
+    let bits = e.expected().coord_bits();
+    let bad = edit_payload(s, ChunkTag::TILS, |p| p[count_at(0) + 4] = bits + 1);
+    assert!(matches!(
+        decode(&bad).unwrap_err(),
+        Error::FieldOutOfRange {
+            field: Field::TileCellLevel,
+            ..
+        }
+    ));
+    let bad = edit_payload(s, ChunkTag::TILS, |p| {
+        let at = count_at(0) + 5;
+        p[at..at + 4].copy_from_slice(&(1u32 << bits).to_le_bytes())
+    });
+    assert!(matches!(
+        decode(&bad).unwrap_err(),
+        Error::FieldOutOfRange {
+            field: Field::TileCell,
+            ..
+        }
+    ));
     // A box that is not its anchors'.
-    let box_at = 1 + 4 + 4 * (nt - 1) + 24 * 2;
-    let bad = edit_payload(s, ChunkTag::TILS, |p| p[box_at] ^= 1);
+    let bad = edit_payload(s, ChunkTag::TILS, |p| p[count_at(2) + 17] ^= 1);
     assert!(matches!(
         decode(&bad).unwrap_err(),
         Error::TileBoxMismatch { tile: 2, .. }
@@ -224,6 +255,47 @@ fn broken_tile_tables_are_typed_errors() {
             ..
         }
     ));
+}
+
+/// Tiles 0 and 1 swapped (their TILS entries and APOS bodies): each decodes, but tile 1's
+/// voxels now precede tile 0's.
+#[test]
+fn tiles_out_of_order_are_refused() {
+    let m = model(300);
+    let e = tiled(&m, 100);
+    let tils = tils_of(&e.stream);
+    let nt = u32::from_le_bytes([tils[1], tils[2], tils[3], tils[4]]) as usize;
+    assert!(nt >= 2);
+    let bad = edit_payload(&e.stream, ChunkTag::TILS, |p| {
+        let (a, b) = (
+            p[5..5 + ENTRY].to_vec(),
+            p[5 + ENTRY..5 + 2 * ENTRY].to_vec(),
+        );
+        p[5..5 + ENTRY].copy_from_slice(&b);
+        p[5 + ENTRY..5 + 2 * ENTRY].copy_from_slice(&a);
+    });
+    let bad = edit_payload(&bad, ChunkTag::APOS, |p| {
+        let lens: Vec<usize> = (0..nt)
+            .map(|t| u32::from_le_bytes(p[1 + 4 * t..5 + 4 * t].try_into().unwrap()) as usize)
+            .collect();
+        let base = 1 + 4 * nt;
+        let mut bodies: Vec<Vec<u8>> = (0..nt)
+            .map(|t| {
+                let a = base + lens[..t].iter().sum::<usize>();
+                p[a..a + lens[t]].to_vec()
+            })
+            .collect();
+        bodies.swap(0, 1);
+        let mut out = p[..1].to_vec();
+        for b in &bodies {
+            out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+        }
+        for b in &bodies {
+            out.extend_from_slice(b);
+        }
+        *p = out;
+    });
+    assert_eq!(decode(&bad).unwrap_err(), Error::TileOrder { tile: 1 });
 }
 
 #[test]

@@ -4,7 +4,8 @@
 
 use crate::container::bytes::{pack_bits, packed_len, unpack_bits, PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
-use crate::container::preflight::Preflight;
+use rayon::prelude::*;
+
 use crate::entropy::GaussianTables;
 use crate::error::Field;
 use crate::error::{Error, Result};
@@ -13,6 +14,7 @@ use crate::model::validate::{check_finite, check_positive, check_rate_steps};
 use crate::model::{
     names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Mlp, Region, SceneModel,
 };
+use crate::tiles::{join_bodies, split_bodies, TileTable};
 
 /// `coding_method` 0: raw little-endian values (§1.6).
 pub const METHOD_RAW: u8 = 0;
@@ -388,16 +390,51 @@ pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
 
 // ---- APOS (§1.6.4, §8) ----
 
-/// §8.1: `APOS` of canonical-order anchors whose coordinates are below `2^coord_bits`.
-pub fn write_apos(a: &Anchors, coord_bits: u8, tables: &GaussianTables) -> Result<Vec<u8>> {
+/// §8.1, §10: `APOS` of canonical-order anchors, one octree per tile, each in its tile's
+/// cell.
+pub fn write_apos(a: &Anchors, tiles: &TileTable, tables: &GaussianTables) -> Result<Vec<u8>> {
+    let bodies: Vec<Vec<u8>> = (0..tiles.len())
+        .into_par_iter()
+        .map(|t| {
+            let (level, cell) = tiles.cells[t];
+            let local: Vec<[u32; 3]> = a.voxel[tiles.range(t)]
+                .iter()
+                .map(|v| [0, 1, 2].map(|k| v[k] - (cell[k] << level)))
+                .collect();
+            crate::geometry::encode(&local, level, tables)
+        })
+        .collect::<Result<_>>()?;
     let mut out = vec![METHOD_CODED];
-    out.extend_from_slice(&crate::geometry::encode(&a.voxel, coord_bits, tables)?);
+    out.extend_from_slice(&join_bodies(&bodies));
     Ok(out)
 }
 
-/// §8.1: decodes `APOS` into the anchors' voxels, in canonical order.
-pub fn read_apos(payload: &[u8], p: &Preflight, tables: &GaussianTables) -> Result<Vec<[u32; 3]>> {
+/// §8.1, §10: decodes `APOS` into the anchors' voxels, in canonical order: every tile's
+/// octree in parallel (the lowest tile's error reported), then the tiles' boxes and order.
+pub fn read_apos(
+    payload: &[u8],
+    tiles: &TileTable,
+    tables: &GaussianTables,
+) -> Result<Vec<[u32; 3]>> {
     let tag = ChunkTag::APOS;
     let body = body(tag, payload, METHOD_CODED)?;
-    crate::geometry::decode(body, p.coord_bits, p.dims.anchors, tables)
+    let bodies = split_bodies(tag, 1, body, tiles.len())?;
+    let decoded: Vec<Result<Vec<[u32; 3]>>> = bodies
+        .into_par_iter()
+        .enumerate()
+        .map(|(t, b)| {
+            let (level, cell) = tiles.cells[t];
+            let local = crate::geometry::decode(b, level, tiles.count(t), tables)?;
+            Ok(local
+                .into_iter()
+                .map(|v| [0, 1, 2].map(|k| v[k] + (cell[k] << level)))
+                .collect())
+        })
+        .collect();
+    let mut voxels = Vec::with_capacity(tiles.anchors as usize);
+    for d in decoded {
+        voxels.extend_from_slice(&d?);
+    }
+    tiles.check_geometry(&voxels)?;
+    Ok(voxels)
 }

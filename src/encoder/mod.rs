@@ -246,12 +246,12 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     }
     write_chunk(&mut out, ChunkTag::MLPS, &payload::write_mlps(&int_mlp, m));
     write_chunk(&mut out, ChunkTag::QUAN, &payload::write_quan(m));
+    write_chunk(&mut out, ChunkTag::TILS, &tiles.to_payload());
     write_chunk(
         &mut out,
         ChunkTag::APOS,
-        &payload::write_apos(&m.anchors, coord_bits, tables)?,
+        &payload::write_apos(&m.anchors, &tiles, tables)?,
     );
-    write_chunk(&mut out, ChunkTag::TILS, &tiles.to_payload());
     write_chunk(
         &mut out,
         ChunkTag::GRID,

@@ -165,6 +165,10 @@ impl fmt::Display for Error {
                 None => write!(f, "{tensor}: {reason}")?,
             },
             FitFailed { tensor, reason } => write!(f, "{tensor}: fit failed: {reason}")?,
+            TileOrder { tile } => write!(
+                f,
+                "TILS/APOS: tile {tile}'s first voxel does not follow the previous tile's last in Morton order"
+            )?,
             TileBoxMismatch {
                 tile,
                 stated,

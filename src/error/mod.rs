@@ -67,7 +67,9 @@ pub enum Field {
     ScalingRegions,
     RegionStart,
     TileCount,
-    TileStart,
+    TileAnchors,
+    TileCellLevel,
+    TileCell,
     W0FracBits,
     Shift0,
     W1FracBits,
@@ -106,7 +108,9 @@ impl Field {
             Field::ScalingRegions => "scaling_regions",
             Field::RegionStart => "region_start",
             Field::TileCount => "tile_count",
-            Field::TileStart => "tile_start",
+            Field::TileAnchors => "tile_anchors",
+            Field::TileCellLevel => "cell_level",
+            Field::TileCell => "cell",
             Field::W0FracBits => "w0_frac_bits",
             Field::Shift0 => "shift0",
             Field::W1FracBits => "w1_frac_bits",
@@ -255,6 +259,9 @@ pub enum Error {
         anchor: Option<u64>,
         reason: String,
     },
+    /// A tile's first voxel does not come after the previous tile's last in Morton order
+    /// (§10.1).
+    TileOrder { tile: u32 },
     /// A tile's stated bounding box is not its anchors' (§10.1).
     TileBoxMismatch {
         tile: u32,
@@ -383,7 +390,7 @@ impl Error {
             LatticeSearchFailed { .. } => "§7.3",
             FitFailed { .. } => "Annex A.5",
             OctreeInvalid { .. } => "§8",
-            TileBoxMismatch { .. } => "§10.1",
+            TileBoxMismatch { .. } | TileOrder { .. } => "§10.1",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
             InterchangeFormat { .. }
@@ -427,6 +434,7 @@ impl Error {
             FitFailed { .. } => "FitFailed",
             OctreeInvalid { .. } => "OctreeInvalid",
             TileBoxMismatch { .. } => "TileBoxMismatch",
+            TileOrder { .. } => "TileOrder",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",

@@ -39,7 +39,9 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::FeatRegions | Field::ScalingRegions => (1, u16::MAX as u64),
         Field::RegionStart => (1, u32::MAX as u64 - 1),
         Field::TileCount => (1, u32::MAX as u64),
-        Field::TileStart => (1, u32::MAX as u64 - 1),
+        Field::TileAnchors => (1, u32::MAX as u64),
+        Field::TileCellLevel => (0, MAX_COORD_BITS as u64),
+        Field::TileCell => (0, u32::MAX as u64),
         Field::RateMask => (1, u64::MAX),
         Field::CodedRate
         | Field::FileFlags
