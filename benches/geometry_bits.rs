@@ -8,7 +8,6 @@
 //! `base / 2^l` (`base` from `anchor_info.bin`), `round((p − origin) / voxel)` with `origin`
 //! the level-0 minimum, then shifted so the smallest coordinate of the level is 0.
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -16,31 +15,6 @@ use salvq::entropy::GaussianTables;
 use salvq::gen::{generate, GenParams};
 use salvq::geometry::{decode, encode};
 use salvq::model::morton3;
-
-/// Order-0 entropy (bits) of the occupancy bytes, per depth.
-fn order0_bits(voxels: &[[u32; 3]], depth: u8) -> f64 {
-    let mut total = 0.0;
-    for k in 0..u32::from(depth) {
-        let shift = u32::from(depth) - k - 1;
-        let mut bytes: BTreeMap<u64, u8> = BTreeMap::new();
-        for v in voxels {
-            let c = v.map(|x| x >> shift);
-            let i = (c[0] & 1) | ((c[1] & 1) << 1) | ((c[2] & 1) << 2);
-            *bytes.entry(morton3(c.map(|x| x >> 1))).or_default() |= 1 << i;
-        }
-        let mut hist = [0u64; 256];
-        for b in bytes.values() {
-            hist[usize::from(*b)] += 1;
-        }
-        let n = bytes.len() as f64;
-        total += hist
-            .iter()
-            .filter(|&&h| h > 0)
-            .map(|&h| -(h as f64) * (h as f64 / n).log2())
-            .sum::<f64>();
-    }
-    total
-}
 
 fn depth_of(voxels: &[[u32; 3]]) -> u8 {
     let max = voxels.iter().flatten().copied().max().unwrap_or(0);
@@ -65,7 +39,7 @@ fn measure(label: &str, mut voxels: Vec<[u32; 3]>) {
         assert_eq!(back, voxels, "{label}: lossless");
     }
     let bits = body.len() as f64 * 8.0 / n as f64;
-    let o0 = order0_bits(&distinct, depth) / n as f64;
+    let o0 = salvq::geometry::order0_occupancy_bits(&distinct, depth) / n as f64;
     println!(
         "{label:<34} {n:>9} {:>9} {depth:>5} {bits:>8.3} {o0:>8.3} {:>7.1} % {:>8.0} {:>8.0}",
         distinct.len(),

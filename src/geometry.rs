@@ -298,3 +298,30 @@ pub fn decode(
     reader.finish()?;
     Ok(voxels)
 }
+
+/// The order-0 entropy, in bits, of the octree's occupancy bytes over distinct `voxels`
+/// (coordinates below `2^depth`), each depth with its own byte histogram: the baseline the
+/// contexts of §8.3 are measured against (informative; benches and tests).
+pub fn order0_occupancy_bits(voxels: &[[u32; 3]], depth: u8) -> f64 {
+    let mut total = 0.0;
+    for k in 0..u32::from(depth) {
+        let shift = u32::from(depth) - k - 1;
+        let mut bytes: FxHashMap<u64, u8> = FxHashMap::default();
+        for v in voxels {
+            let c = v.map(|x| x >> shift);
+            let i = (c[0] & 1) | ((c[1] & 1) << 1) | ((c[2] & 1) << 2);
+            *bytes.entry(morton3(c.map(|x| x >> 1))).or_default() |= 1 << i;
+        }
+        let mut hist = [0u64; 256];
+        for b in bytes.values() {
+            hist[usize::from(*b)] += 1;
+        }
+        let n = bytes.len() as f64;
+        total += hist
+            .iter()
+            .filter(|&&h| h > 0)
+            .map(|&h| -(h as f64) * (h as f64 / n).log2())
+            .sum::<f64>();
+    }
+    total
+}

@@ -75,31 +75,6 @@ fn models_with_shared_voxels_decode_exactly() {
     assert_eq!(d.anchors.voxel, m.to_canonical_order().anchors.voxel);
 }
 
-/// Order-0 entropy (bits) of the octree's occupancy bytes, all depths pooled per depth.
-fn order0_bits(voxels: &[[u32; 3]], depth: u8) -> f64 {
-    let mut total = 0.0;
-    for k in 0..u32::from(depth) {
-        let shift = u32::from(depth) - k - 1;
-        let mut bytes: std::collections::BTreeMap<u64, u8> = Default::default();
-        for v in voxels {
-            let c = v.map(|x| x >> shift);
-            let i = (c[0] & 1) | ((c[1] & 1) << 1) | ((c[2] & 1) << 2);
-            *bytes.entry(morton3(c.map(|x| x >> 1))).or_default() |= 1 << i;
-        }
-        let mut hist = [0u64; 256];
-        for b in bytes.values() {
-            hist[usize::from(*b)] += 1;
-        }
-        let n = bytes.len() as f64;
-        total += hist
-            .iter()
-            .filter(|&&h| h > 0)
-            .map(|&h| -(h as f64) * (h as f64 / n).log2())
-            .sum::<f64>();
-    }
-    total
-}
-
 #[test]
 fn contexts_beat_order_zero_on_a_generated_scene() {
     let m = generate(&GenParams {
@@ -109,7 +84,7 @@ fn contexts_beat_order_zero_on_a_generated_scene() {
     let depth = m.coord_bits();
     let bytes = round_trip(m.anchors.voxel.clone(), depth);
     let coded = bytes as f64 * 8.0;
-    let order0 = order0_bits(&m.anchors.voxel, depth);
+    let order0 = salvq::geometry::order0_occupancy_bits(&m.anchors.voxel, depth);
     assert!(
         coded < 0.95 * order0,
         "coded {:.2} vs order-0 {:.2} bits/anchor",

@@ -16,6 +16,43 @@ const COLORS: [RGBColor; 6] = [
     RGBColor(204, 121, 167),
 ];
 
+/// Draws `xy` as a labelled line with dots, and its legend entry.
+pub(super) fn labelled_line<'a, DB, CT>(
+    c: &mut ChartContext<'a, DB, CT>,
+    label: &str,
+    color: RGBColor,
+    xy: Vec<(f64, f64)>,
+) -> std::result::Result<(), Box<dyn std::error::Error + 'a>>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    c.draw_series(LineSeries::new(xy.clone(), color.stroke_width(2)))?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+    c.draw_series(xy.into_iter().map(|p| Circle::new(p, 3, color.filled())))?;
+    Ok(())
+}
+
+/// Draws the legend box at `position` and writes the file.
+pub(super) fn finish<'a, DB, CT>(
+    mut c: ChartContext<'a, DB, CT>,
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    position: SeriesLabelPosition,
+) -> std::result::Result<(), Box<dyn std::error::Error + 'a>>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate,
+{
+    c.configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.9))
+        .position(position)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
 fn err(path: &Path) -> impl Fn(String) -> Error + '_ {
     move |_| Error::Io {
         op: IoOp::Write,
@@ -61,17 +98,9 @@ fn draw(
     for (i, (label, pts)) in curves.iter().enumerate() {
         let color = COLORS[i % COLORS.len()];
         let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.bits_per_anchor, p.snr_db)).collect();
-        c.draw_series(LineSeries::new(xy.clone(), color.stroke_width(2)))?
-            .label(*label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-        c.draw_series(xy.into_iter().map(|p| Circle::new(p, 3, color.filled())))?;
+        labelled_line(&mut c, label, color, xy).map_err(|e| e.to_string())?;
     }
-    c.configure_series_labels()
-        .border_style(BLACK)
-        .background_style(WHITE.mix(0.9))
-        .position(SeriesLabelPosition::LowerRight)
-        .draw()?;
-    root.present()?;
+    finish(c, &root, SeriesLabelPosition::LowerRight).map_err(|e| e.to_string())?;
     Ok(())
 }
 

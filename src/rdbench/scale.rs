@@ -279,16 +279,8 @@ fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::erro
             .iter()
             .map(|r| (f64::from(r.anchors), get(r)))
             .collect();
-        c.draw_series(LineSeries::new(xy.clone(), color.stroke_width(2)))?
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-        c.draw_series(xy.into_iter().map(|p| Circle::new(p, 3, color.filled())))?;
+        super::charts::labelled_line(&mut c, label, color, xy).map_err(|e| e.to_string())?;
     }
-    c.configure_series_labels()
-        .border_style(BLACK)
-        .background_style(WHITE.mix(0.9))
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()?;
-    root.present()?;
+    super::charts::finish(c, &root, SeriesLabelPosition::UpperLeft).map_err(|e| e.to_string())?;
     Ok(())
 }
