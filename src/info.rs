@@ -155,6 +155,16 @@ pub struct StreamInfo {
     pub model_parts: Vec<ModelPart>,
     /// The encoder's measurements, one per `ests` chunk (one per layer, §7.4), in stream order.
     pub encoder: Vec<EncodeReport>,
+    /// The tile table (§10.1), summarised.
+    pub tiles: Option<TilesInfo>,
+}
+
+/// How a stream is cut into tiles (§10).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TilesInfo {
+    pub count: u64,
+    pub min_anchors: u32,
+    pub max_anchors: u32,
 }
 
 /// The per-group table of an encoder report.
@@ -205,6 +215,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     let mut head = None;
     let mut preflight = None;
     let mut encoder = Vec::new();
+    let mut tiles = None;
     let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
     while let Some(c) = reader.next_chunk()? {
         if c.tag == ChunkTag::HEAD && head.is_none() {
@@ -214,6 +225,15 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
         }
         if c.tag == ChunkTag::ESTS {
             encoder.extend(serde_json::from_slice::<EncodeReport>(c.payload).ok());
+        }
+        if let (ChunkTag::TILS, Some(p)) = (c.tag, &preflight) {
+            let t = crate::tiles::TileTable::parse(c.payload, p.dims.anchors, p.coord_bits)?;
+            let counts = (0..t.len()).map(|i| t.count(i));
+            tiles = Some(TilesInfo {
+                count: t.len() as u64,
+                min_anchors: counts.clone().min().unwrap_or(0),
+                max_anchors: counts.max().unwrap_or(0),
+            });
         }
         let total = c.payload.len() as u64 + CHUNK_OVERHEAD;
         let class = byte_class(c.tag);
@@ -251,6 +271,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
         head,
         chunks,
         encoder,
+        tiles,
         totals: Totals {
             file_bytes,
             model_bytes: model,
@@ -293,6 +314,13 @@ impl StreamInfo {
                 "MLPs: context hidden {}, scaffold hidden {}, view dims {}",
                 d.context_hidden, d.scaffold_hidden, d.view_dims
             );
+            if let Some(t) = &self.tiles {
+                let _ = writeln!(
+                    s,
+                    "tiles: {} ({} … {} anchors each)",
+                    t.count, t.min_anchors, t.max_anchors
+                );
+            }
             let _ = writeln!(
                 s,
                 "quantizers: feature lattice {}, scaling lattice {}, offsets identity",

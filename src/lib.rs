@@ -5,7 +5,7 @@
 //! quantization with per-rate gains). The normative text is `spec/` in this repository; every
 //! module cites the section it implements.
 //!
-//! ## Map of a stream (format 0.6)
+//! ## Map of a stream (format 0.8)
 //!
 //! | stream part | spec | module |
 //! |---|---|---|
@@ -13,7 +13,9 @@
 //! | chunk framing: length, tag, payload, CRC-32C | §1.3 | [`container::chunk`] |
 //! | `HEAD` preflight: dimensions, geometry, decoded size | §1.4 | [`container::preflight`] |
 //! | chunk order, critical / ancillary, `SEND` | §1.5 | [`decoder`] |
-//! | model payload chunks `MLPS` `QUAN` `APOS` `GRID` | §1.6 | [`container::payload`] |
+//! | model payload chunks `MLPS` `QUAN` `GRID` | §1.6 | [`container::payload`] |
+//! | anchor positions `APOS`: an octree per tile, adaptive contexts, voxel counts | §8 | [`geometry`] |
+//! | tiles: `TILS`, per-tile bodies, parallel and region decoding | §10 | [`tiles`], [`decoder`] |
 //! | integer hyperprior: grid features, fixed-point MLP, steps, scale indices | §5 | [`hyperprior`] |
 //! | ANS, frequency tables, escapes | §6.1-§6.5 | [`entropy`] |
 //! | anchor attribute chunks `AMSK` `AFEA` `ASCL` `AOFF` | §6.6 | [`attributes`] (decoder), [`encoder::attributes`] |
@@ -21,7 +23,9 @@
 //! | model validation (finite, masks, bases, gains) | §2.3, §2.6 | [`model::validate`] |
 //! | limits and errors | §9 | [`limits`], [`error`] |
 //! | safetensors interchange | Annex A | [`model::interchange`] |
-//! | quantizers: lattices, reconstruction, rate layers | §7 | [`quantizer`], [`encoder::search`], [`extract`] |
+//! | quantizers: lattices, reconstruction, rate layers, spatial regions | §7 | [`quantizer`], [`encoder::search`], [`extract`] |
+//! | encoder-side fits: KLT basis, scale rows | Annex A.5 | [`encoder::fit`] |
+//! | measurements: R-D, search, stability, scaling | — | [`rdbench`] |
 //! | synthetic scene generator | Annex B | [`gen`] |
 //!
 //! ## Use
