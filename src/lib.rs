@@ -59,6 +59,7 @@ pub mod encoder;
 pub mod entropy;
 pub mod error;
 pub mod extract;
+pub mod fuzzing;
 pub mod gen;
 pub mod geometry;
 pub mod hyperprior;

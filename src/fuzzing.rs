@@ -1,0 +1,182 @@
+//! What the fuzz targets (`fuzz/`) check, shared with the regression tests that replay their
+//! findings (`tests/fuzz_regressions.rs`), so a finding replays through exactly the code
+//! that found it. Each function panics only when a property is broken: any input the
+//! decoder refuses with an error is a pass.
+
+use crate::container::signature::Signature;
+use crate::decoder::{decode_with_options, DecodeOptions};
+use crate::encoder::{encode_full, EncodeOptions, Search};
+use crate::entropy::GaussianTables;
+use crate::extract::extract_rate;
+use crate::gen::{generate, GenParams};
+use crate::limits::Limits;
+use crate::model::{decoded_bytes, morton3, LatticeKind};
+
+/// The limits the fuzz targets decode under: small enough that a hostile header cannot make
+/// a run slow or large.
+pub fn fuzz_limits() -> Limits {
+    Limits {
+        max_anchors: 1 << 14,
+        max_alloc_bytes: 64 << 20,
+        max_chunk_bytes: 16 << 20,
+    }
+}
+
+/// Whole-stream decode: never panics; a decoded model stays within the limits; a decoded
+/// stream whose model the encoder accepts re-encodes to a stream that decodes.
+pub fn decode_input(data: &[u8]) {
+    let limits = fuzz_limits();
+    let options = DecodeOptions {
+        limits,
+        rate: data.last().map(|b| b % 4),
+        threads: None,
+        region: None,
+    };
+    let Ok(model) = decode_with_options(data, &options) else {
+        return;
+    };
+    let size = decoded_bytes(&model.dims);
+    assert!(
+        size <= limits.max_alloc_bytes,
+        "decoded {size} bytes past the limit"
+    );
+    if let Ok(e) = encode_full(&model, &EncodeOptions::default()) {
+        let again = decode_with_options(&e.stream, &DecodeOptions::default());
+        assert!(again.is_ok(), "re-encoded stream fails: {:?}", again.err());
+    }
+}
+
+/// Extraction: never panics; what it writes decodes at that rate, and extracting the same
+/// rate from it gives the same bytes.
+pub fn extract_input(data: &[u8]) {
+    let Some((&first, stream)) = data.split_first() else {
+        return;
+    };
+    let rate = first % 4;
+    let limits = fuzz_limits();
+    let Ok(single) = extract_rate(stream, rate, &limits) else {
+        return;
+    };
+    assert!(Signature::parse(&single).is_ok());
+    let again = extract_rate(&single, rate, &limits).expect("an extracted stream extracts");
+    assert_eq!(again, single, "extraction is not idempotent");
+    let _ = decode_with_options(
+        &single,
+        &DecodeOptions {
+            limits,
+            rate: Some(rate),
+            ..Default::default()
+        },
+    );
+}
+
+/// The octree decoder (§8) on arbitrary bytes: never panics; what it decodes has the asked
+/// count, coordinates below `2^depth` in Morton order, and re-encodes to a body that decodes
+/// to the same voxels.
+pub fn geometry_input(data: &[u8]) {
+    let [d, a0, a1, body @ ..] = data else {
+        return;
+    };
+    let depth = d % 22;
+    let anchors = 1 + u32::from(u16::from_le_bytes([*a0, *a1]) % 4096);
+    let tables = GaussianTables::standard();
+    let Ok(voxels) = crate::geometry::decode(body, depth, anchors, tables) else {
+        return;
+    };
+    assert_eq!(voxels.len(), anchors as usize);
+    assert!(voxels
+        .iter()
+        .flatten()
+        .all(|&c| u64::from(c) < 1u64 << depth));
+    assert!(voxels.windows(2).all(|w| morton3(w[0]) <= morton3(w[1])));
+    let again = crate::geometry::encode(&voxels, depth, tables).expect("decoded voxels encode");
+    let back = crate::geometry::decode(&again, depth, anchors, tables).expect("re-encoded decodes");
+    assert_eq!(back, voxels);
+}
+
+/// Parameters of a structured round trip, each reduced to a small range.
+#[derive(Debug, Clone, Copy)]
+pub struct RoundTrip {
+    pub anchors: u16,
+    pub seed: u64,
+    pub feat_dim: u8,
+    pub rates: u8,
+    pub lattice: u8,
+    pub search: u8,
+    pub tile_anchors: u16,
+    pub fit: bool,
+}
+
+impl RoundTrip {
+    /// Reads the parameters from the first 19 bytes of `data` (little-endian, in field
+    /// order; missing bytes are 0), so that a fuzzer's raw input and a stored finding replay
+    /// the same way.
+    pub fn from_bytes(data: &[u8]) -> RoundTrip {
+        let mut b = [0u8; 19];
+        for (dst, src) in b.iter_mut().zip(data) {
+            *dst = *src;
+        }
+        let u16_at = |i: usize| u16::from_le_bytes([b[i], b[i + 1]]);
+        let mut seed = [0u8; 8];
+        seed.copy_from_slice(&b[2..10]);
+        RoundTrip {
+            anchors: u16_at(0),
+            seed: u64::from_le_bytes(seed),
+            feat_dim: b[10],
+            rates: b[11],
+            lattice: b[12],
+            search: b[13],
+            tile_anchors: u16_at(14),
+            fit: b[16] & 1 == 1,
+        }
+    }
+}
+
+/// A small generated scene encoded with the given options: the encoder either refuses with a
+/// typed error or writes a stream that decodes, at every coded rate, to exactly its prediction.
+pub fn round_trip(p: RoundTrip) {
+    let params = GenParams {
+        feat_dim: 1 + u16::from(p.feat_dim % 24),
+        rates: 1 + p.rates % 3,
+        feat_basis: p.lattice % 5 == 3,
+        ..GenParams::small(1 + u32::from(p.anchors % 400), p.seed)
+    };
+    let model = generate(&params);
+    let lattice = match p.lattice % 5 {
+        0 => Some(LatticeKind::Identity),
+        1 => Some(LatticeKind::Dn),
+        2 => Some(LatticeKind::E8Product),
+        3 => Some(LatticeKind::General),
+        _ => None,
+    };
+    let search = match p.search % 5 {
+        0 => Search::Auto,
+        1 => Search::Rounding,
+        2 => Search::NearestPlane,
+        3 => Search::Closest { max_nodes: 200 },
+        _ => Search::Rdo { lambda_milli: 1000 },
+    };
+    let rates: Vec<u8> = (0..params.rates).collect();
+    let options = EncodeOptions {
+        rates: rates.clone(),
+        feat_lattice: lattice,
+        search,
+        tile_anchors: 1 + u32::from(p.tile_anchors % 500),
+        fit_scales: p.fit,
+        ..Default::default()
+    };
+    let Ok(e) = encode_full(&model, &options) else {
+        return;
+    };
+    for layer in &e.layers {
+        let d = decode_with_options(
+            &e.stream,
+            &DecodeOptions {
+                rate: Some(layer.rate),
+                ..Default::default()
+            },
+        )
+        .expect("an encoded stream decodes");
+        assert_eq!(d, layer.expected, "rate {}", layer.rate);
+    }
+}
