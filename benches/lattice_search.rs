@@ -18,6 +18,7 @@
 use std::hint::black_box;
 use std::time::Instant;
 
+use salvq::gen::rng::Stream as Rng;
 use salvq::lattice::linalg::{from_svd, mat_vec, qr};
 use salvq::lattice::{
     closest_dn, closest_e8, closest_e8_product, dn_basis, e8_basis, e8_product_basis, Lattice,
@@ -25,27 +26,6 @@ use salvq::lattice::{
 };
 
 const SEED: u64 = 0x5A17_BE4C;
-
-/// SplitMix64.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = 1.0 - self.uniform();
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-}
 
 fn env_f64(name: &str, default: f64) -> f64 {
     std::env::var(name)
@@ -207,7 +187,7 @@ fn main() {
         "{:>3} {:>5} {:<24} {:>11} {:>10} {:>9} {:>8} {:>6} {:>9}",
         "n", "cond", "method", "ns/vector", "MSE/dim", "vs best", "not opt", "exact", "nodes"
     );
-    let mut rng = Rng(SEED);
+    let mut rng = Rng::new(SEED, 0, 0);
     for cfg in &configs {
         let n = cfg.n;
         let vectors = ((cfg.vectors as f64 * scale).round() as usize).max(1);

@@ -3,6 +3,7 @@
 
 use super::linalg::{det_i64, inverse_from_qr, mat_mul, qr};
 use super::*;
+use crate::gen::rng::Stream as Rng;
 
 fn close(a: &[f64], b: &[f64], tol: f64) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
@@ -184,35 +185,19 @@ fn node_bound_zero_returns_nearest_plane_unproven() {
     assert_eq!(cp.u, np.u);
 }
 
-/// SplitMix64 for the randomized unit tests.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn symmetric(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-}
-
 #[test]
 fn enumeration_on_an_unreduced_basis_agrees_with_the_reduced_one() {
     // On an LLL basis the optimum rarely lies beyond the first two children of a node; on a
     // skewed basis it often does, which exercises the whole zig-zag and the lazy center sums.
-    let mut rng = Rng(0x5A17_00AA);
+    let mut rng = Rng::new(0x5A17_00AA, 0, 0);
     let mut far = 0;
     for case in 0..200 {
         let n = 2 + case % 5;
-        let mut b: Vec<f64> = (0..n * n).map(|_| rng.symmetric()).collect();
+        let mut b: Vec<f64> = (0..n * n).map(|_| 2.0 * rng.uniform() - 1.0).collect();
         for _ in 0..3 * n {
-            let i = (rng.next() % n as u64) as usize;
-            let j = (rng.next() % n as u64) as usize;
-            let m = (rng.next() % 7) as f64 - 3.0;
+            let i = (rng.next_u64() % n as u64) as usize;
+            let j = (rng.next_u64() % n as u64) as usize;
+            let m = (rng.next_u64() % 7) as f64 - 3.0;
             if i != j {
                 for r in 0..n {
                     b[r * n + i] += m * b[r * n + j];
@@ -224,7 +209,7 @@ fn enumeration_on_an_unreduced_basis_agrees_with_the_reduced_one() {
         };
         let tri = search::Triangular::new(n, &b, SINGULAR_RTOL).unwrap();
         for _ in 0..5 {
-            let y: Vec<f64> = (0..n).map(|_| 20.0 * rng.symmetric()).collect();
+            let y: Vec<f64> = (0..n).map(|_| 20.0 * 2.0 * rng.uniform() - 1.0).collect();
             let ys = tri.scaled_target(&y);
             let start = tri.nearest_plane(&ys).unwrap();
             let f = tri.closest(&ys, start, u64::MAX);
