@@ -10,9 +10,10 @@ use salvq::container::chunk::{ChunkReader, ChunkTag};
 use salvq::container::payload::{body, read_mlps, read_quan, METHOD_CODED};
 use salvq::container::preflight::Preflight;
 use salvq::encoder::{encode_full, EncodeOptions};
-use salvq::entropy::{measure, GaussianTables, SymbolReader};
+use salvq::entropy::{GaussianTables, SymbolReader};
 use salvq::gen::{generate, GenParams};
 use salvq::hyperprior::prior::{Group, Prior};
+use salvq::rdbench::coder as measure;
 use salvq::Limits;
 
 fn median_secs(runs: usize, mut f: impl FnMut()) -> f64 {

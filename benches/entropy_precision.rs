@@ -16,11 +16,11 @@ use std::time::Instant;
 use plotters::prelude::*;
 use salvq::container::chunk::ChunkTag;
 use salvq::entropy::analysis::discretized_gaussian_bits;
-use salvq::entropy::measure::{
-    bare_coder_decode_ns, median, sigma_to_q16, synthetic_samples, Sample,
-};
 use salvq::entropy::{
     scale_index, GaussianTables, SymbolReader, SymbolWriter, PRECISION, R_MAX, SIGMA_Q16, TAIL_Q4,
+};
+use salvq::rdbench::coder::{
+    bare_coder_decode_ns, median, sigma_to_q16, synthetic_samples, Sample,
 };
 
 const PRECISIONS: [u32; 5] = [12, 14, 16, 20, 24];

@@ -7,7 +7,6 @@ use constriction::stream::stack::AnsCoder;
 use constriction::stream::Encode;
 use constriction::UnwrapInfallible;
 use salvq::container::chunk::ChunkTag;
-use salvq::entropy::measure::{sigma_to_q16, synthetic_samples};
 use salvq::entropy::reference;
 use salvq::entropy::{
     checked_scale_index, scale_index, GaussianTables, SymbolReader, SymbolWriter, PRECISION,
@@ -15,6 +14,7 @@ use salvq::entropy::{
 };
 use salvq::error::Error;
 use salvq::gen::rng::Stream;
+use salvq::rdbench::coder::{sigma_to_q16, synthetic_samples};
 
 const TAG: ChunkTag = ChunkTag::AFEA;
 

@@ -10,6 +10,7 @@
 //! SNR `10 log10(var(x) / MSE)` in dB.
 
 mod charts;
+pub mod coder;
 pub mod scale;
 
 use std::path::{Path, PathBuf};
