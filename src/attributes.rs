@@ -158,11 +158,23 @@ pub struct Attributes {
     pub offsets: Vec<f32>,
 }
 
-/// Where one tile's decoded attributes go: its anchors' rows of the output tensors.
+/// The decoded symbols (lattice coordinates, §6.6.2) of one rate, for the canonical decoded
+/// form (§11.1): features [N, F], scalings [N, S], offsets [N, K, 3] (0 where masked).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Symbols {
+    pub feat: Vec<i64>,
+    pub scaling: Vec<i64>,
+    pub offsets: Vec<i64>,
+}
+
+/// Where one tile's decoded attributes go: its anchors' rows of the output tensors, and of
+/// the symbol tensors when they are kept.
 pub struct AttributesMut<'a> {
     pub feat: &'a mut [f32],
     pub scaling: &'a mut [f32],
     pub offsets: &'a mut [f32],
+    /// Rows of [`Symbols`]' tensors, in the same order (`None`: symbols are not kept).
+    pub symbols: Option<[&'a mut [i64]; 3]>,
 }
 
 /// §6.6.2: decodes `AFEA`, `ASCL` and `AOFF` together, anchor by anchor: for anchor i, its F
@@ -183,7 +195,7 @@ pub fn read_attributes(
     prior: &Prior,
     lattices: &[GroupLattices; 2],
     tables: &GaussianTables,
-    out: AttributesMut<'_>,
+    mut out: AttributesMut<'_>,
 ) -> Result<()> {
     let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
     let mut readers = Vec::with_capacity(3);
@@ -235,25 +247,32 @@ pub fn read_attributes(
                     let y = &current.ys[b * cout..(b + 1) * cout];
                     let kk = &current.ks[b * width..(b + 1) * width];
                     let delta = current.deltas[b];
-                    for (g, w, at, dst) in [
-                        (Group::Feature, f, 0, &mut *out.feat),
-                        (Group::Scaling, s, f, &mut *out.scaling),
+                    let [sym_f, sym_s, sym_o] = match out.symbols.as_mut() {
+                        Some([a, b, c]) => [Some(&mut **a), Some(&mut **b), Some(&mut **c)],
+                        None => [None, None, None],
+                    };
+                    for (g, w, at, dst, sym) in [
+                        (Group::Feature, f, 0, &mut *out.feat, sym_f),
+                        (Group::Scaling, s, f, &mut *out.scaling, sym_s),
                     ] {
                         let dst = &mut dst[i * w..(i + 1) * w];
                         let reader = &mut readers[g as usize];
                         let lattice = lattices[g as usize].for_anchor(first + i as u32);
                         let delta = delta[g as usize];
-                        if lattice.is_identity() {
-                            for (j, x) in dst.iter_mut().enumerate() {
-                                let u = reader.symbol(kk[at + j])?;
-                                *x = prior.reconstruct(y, g, j, delta, u);
-                            }
-                            continue;
-                        }
-                        // §7.3: all of the group's coordinates, then μ + Δ·(B u).
+                        // §6.6.2: the group's w coordinates, in order.
                         for (j, uj) in u[..w].iter_mut().enumerate() {
                             *uj = reader.symbol(kk[at + j])?;
                         }
+                        if let Some(sym) = sym {
+                            sym[i * w..(i + 1) * w].copy_from_slice(&u[..w]);
+                        }
+                        if lattice.is_identity() {
+                            for (j, (x, &uj)) in dst.iter_mut().zip(&u[..w]).enumerate() {
+                                *x = prior.reconstruct(y, g, j, delta, uj);
+                            }
+                            continue;
+                        }
+                        // §7.3: μ + Δ·(B u).
                         lattice.apply(&u[..w], &mut z[..w]);
                         for (j, (x, &zj)) in dst.iter_mut().zip(&z[..w]).enumerate() {
                             *x = reconstruct_value(prior.mean_f32(y, g, j), delta, zj);
@@ -261,6 +280,7 @@ pub fn read_attributes(
                     }
                     let reader = &mut readers[2];
                     let row = &mut out.offsets[i * 3 * k..(i + 1) * 3 * k];
+                    let mut sym_row = sym_o.map(|o| &mut o[i * 3 * k..(i + 1) * 3 * k]);
                     for slot in 0..k {
                         if masks[i * k + slot] == 0 {
                             row[3 * slot..3 * slot + 3].fill(0.0);
@@ -269,6 +289,9 @@ pub fn read_attributes(
                         for c in 0..3 {
                             let j = 3 * slot + c;
                             let u = reader.symbol(kk[f + s + j])?;
+                            if let Some(sr) = sym_row.as_deref_mut() {
+                                sr[j] = u;
+                            }
                             row[j] = prior.reconstruct(y, Group::Offsets, j, delta[2], u);
                         }
                     }

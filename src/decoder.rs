@@ -5,7 +5,9 @@
 
 use rayon::prelude::*;
 
-use crate::attributes::{layer_bodies, read_attributes, read_masks, Attributes, AttributesMut};
+use crate::attributes::{
+    layer_bodies, read_attributes, read_masks, Attributes, AttributesMut, Symbols,
+};
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::payload;
 use crate::container::preflight::Preflight;
@@ -36,6 +38,19 @@ pub struct DecodeOptions {
     /// Decode only the tiles whose box intersects this world-space box (min x, y, z, max x,
     /// y, z; §10.3); `None`: every tile.
     pub region: Option<[f64; 6]>,
+    /// A deliberate decoder bug, for proving that the conformance vectors catch it (§11);
+    /// never set outside tests.
+    #[doc(hidden)]
+    pub fault: Option<Fault>,
+}
+
+/// Deliberate decoder bugs ([`DecodeOptions::fault`]).
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fault {
+    /// One wrong entry in scale `k`'s frequency table
+    /// ([`GaussianTables::with_one_wrong_entry`]).
+    FrequencyTable { scale: u8 },
 }
 
 /// The critical chunk expected at position `i` of a stream with `layers` symbol layers
@@ -89,19 +104,36 @@ pub fn decode_with_limits(data: &[u8], limits: &Limits) -> Result<SceneModel> {
 /// checked, the shared chunks and the selected layer are decoded, other layers' payloads
 /// are not parsed.
 pub fn decode_with_options(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
+    in_pool(options, || decode_stream(data, options, false)).map(|(m, _)| m)
+}
+
+/// Decodes like [`decode_with_options`] and also returns the selected layer's symbols (the
+/// lattice coordinates, §6.6.2), which the canonical decoded form hashes (§11.1). Keeping
+/// them needs `8·N·(F + S + 3K)` bytes more, checked against the allocation limit on top of
+/// the decoded size.
+pub fn decode_with_symbols(data: &[u8], options: &DecodeOptions) -> Result<(SceneModel, Symbols)> {
+    in_pool(options, || decode_stream(data, options, true))
+        .map(|(m, sy)| (m, sy.unwrap_or_default()))
+}
+
+fn in_pool<T: Send>(options: &DecodeOptions, f: impl FnOnce() -> T + Send) -> T {
     match options.threads {
         Some(n) => match rayon::ThreadPoolBuilder::new()
             .num_threads(n.max(1))
             .build()
         {
-            Ok(pool) => pool.install(|| decode_stream(data, options)),
-            Err(_) => decode_stream(data, options),
+            Ok(pool) => pool.install(f),
+            Err(_) => f(),
         },
-        None => decode_stream(data, options),
+        None => f(),
     }
 }
 
-fn decode_stream(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
+fn decode_stream(
+    data: &[u8],
+    options: &DecodeOptions,
+    keep_symbols: bool,
+) -> Result<(SceneModel, Option<Symbols>)> {
     let limits = &options.limits;
     // §1.2: signature and version.
     let (_sig, rest) = Signature::parse(data)?;
@@ -110,7 +142,14 @@ fn decode_stream(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
     let mut p = Partial::default();
     // Layers in the stream and the index of the selected one, known once HEAD is read.
     let (mut layers, mut selected) = (0usize, 0usize);
-    let tables = GaussianTables::standard();
+    let faulty;
+    let tables = match options.fault {
+        Some(Fault::FrequencyTable { scale }) => {
+            faulty = GaussianTables::standard().with_one_wrong_entry(scale);
+            &faulty
+        }
+        None => GaussianTables::standard(),
+    };
     loop {
         let Some(chunk) = reader.next_chunk()? else {
             // §1.5 rule 4: the stream ends only with SEND.
@@ -203,7 +242,7 @@ fn decode_stream(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
                         bytes: trailing as u64,
                     });
                 }
-                return assemble(p, tables);
+                return assemble(p, tables, keep_symbols.then_some(&options.limits));
             }
         }
     }
@@ -211,7 +250,12 @@ fn decode_stream(data: &[u8], options: &DecodeOptions) -> Result<SceneModel> {
 
 /// §6.6.2: decodes the attributes and builds the model once every critical chunk has been
 /// read (the order rules guarantee each part is present).
-fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
+/// `symbol_limits`: keep the symbols, within these limits.
+fn assemble(
+    p: Partial<'_>,
+    tables: &GaussianTables,
+    symbol_limits: Option<&Limits>,
+) -> Result<(SceneModel, Option<Symbols>)> {
     let head = p.head.ok_or(missing(ChunkTag::HEAD))?;
     let (int_mlp, [mlp_opacity, mlp_cov, mlp_color]) = p.mlps.ok_or(missing(ChunkTag::MLPS))?;
     let [quant_feat, quant_scaling, quant_offsets] = p.quan.ok_or(missing(ChunkTag::QUAN))?;
@@ -256,6 +300,25 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
         scaling: vec![0f32; n_out * s],
         offsets: vec![0f32; n_out * 3 * k],
     };
+    let mut symbols = if let Some(limits) = symbol_limits {
+        // The symbol tensors are extra to the decoded size the preflight checked (§1.4 step 6).
+        let extra = (n_out as u64).saturating_mul((f + s + 3 * k) as u64 * 8);
+        let requested = head.decoded_bytes.saturating_add(extra);
+        if requested > limits.max_alloc_bytes {
+            return Err(Error::LimitExceeded {
+                limit: crate::limits::LimitKind::AllocationBytes,
+                requested,
+                allowed: limits.max_alloc_bytes,
+            });
+        }
+        Some(Symbols {
+            feat: vec![0; n_out * f],
+            scaling: vec![0; n_out * s],
+            offsets: vec![0; n_out * 3 * k],
+        })
+    } else {
+        None
+    };
     let mut rows = Vec::with_capacity(chosen.len());
     {
         let (mut fe, mut sc, mut of) = (
@@ -263,16 +326,27 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
             &mut attrs.scaling[..],
             &mut attrs.offsets[..],
         );
+        let mut sy = symbols
+            .as_mut()
+            .map(|sy| [&mut sy.feat[..], &mut sy.scaling[..], &mut sy.offsets[..]]);
         for &t in &chosen {
             let m = tiles.range(t).len();
             let (a, rest_f) = std::mem::take(&mut fe).split_at_mut(m * f);
             let (b, rest_s) = std::mem::take(&mut sc).split_at_mut(m * s);
             let (c, rest_o) = std::mem::take(&mut of).split_at_mut(m * 3 * k);
             (fe, sc, of) = (rest_f, rest_s, rest_o);
+            let tile_symbols = sy.as_mut().map(|[sf, ss, so]| {
+                let (x, rest_x) = std::mem::take(sf).split_at_mut(m * f);
+                let (y, rest_y) = std::mem::take(ss).split_at_mut(m * s);
+                let (z, rest_z) = std::mem::take(so).split_at_mut(m * 3 * k);
+                (*sf, *ss, *so) = (rest_x, rest_y, rest_z);
+                [x, y, z]
+            });
             rows.push(AttributesMut {
                 feat: a,
                 scaling: b,
                 offsets: c,
+                symbols: tile_symbols,
             });
         }
     }
@@ -316,7 +390,7 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
         dims.scaling_regions = (quant_scaling.regions.len() + 1) as u16;
         (voxel, dims, quant_feat, quant_scaling)
     };
-    Ok(SceneModel {
+    let model = SceneModel {
         origin: head.origin,
         voxel_size: head.voxel_size,
         anchors: Anchors {
@@ -335,7 +409,8 @@ fn assemble(p: Partial<'_>, tables: &GaussianTables) -> Result<SceneModel> {
         quant_scaling,
         quant_offsets,
         dims,
-    })
+    };
+    Ok((model, symbols))
 }
 
 /// §10.3: a quantizer's spatial regions (§7.6) re-based onto the anchors of the `kept`

@@ -57,8 +57,7 @@ pub fn decode_checked(data: &[u8]) {
     let options = DecodeOptions {
         limits,
         rate: data.last().map(|b| b % 4),
-        threads: None,
-        region: None,
+        ..Default::default()
     };
     let Ok(model) = decode_with_options(data, &options) else {
         return;

@@ -26,6 +26,7 @@
 //! | quantizers: lattices, reconstruction, rate layers, spatial regions | §7 | [`quantizer`], [`encoder::search`], [`extract`] |
 //! | encoder-side fits: KLT basis, scale rows | Annex A.5 | [`encoder::fit`] |
 //! | measurements: R-D, search, stability, scaling | — | [`rdbench`] |
+//! | canonical decoded form, hashes, vectors, runner | §11 | [`conformance`] |
 //! | synthetic scene generator | Annex B | [`gen`] |
 //!
 //! ## Use
@@ -53,6 +54,7 @@
 
 pub mod attributes;
 pub mod bdrate;
+pub mod conformance;
 pub mod container;
 pub mod decoder;
 pub mod encoder;

@@ -111,6 +111,44 @@ enum Command {
         /// memory (used by `bench scale`).
         #[arg(long, hide = true)]
         measure: bool,
+        /// Write the canonical decoded form instead of the model file: the model's tensors
+        /// and the decoded symbols, as the conformance runner reads them (spec §11.1).
+        #[arg(long)]
+        canonical: bool,
+        /// Decode with a deliberate bug (`table:K`: one wrong entry in scale K's frequency
+        /// table), to show that the conformance vectors catch it (spec §11).
+        #[arg(long, hide = true, value_parser = parse_fault)]
+        inject_fault: Option<salvq::decoder::Fault>,
+    },
+    /// Run a decoder on the conformance vectors and compare its output with the manifest
+    /// (spec §11.5). The decoder command gets `{in}`, `{out}` and `{rate}` substituted, or
+    /// the three appended.
+    Conformance {
+        /// The decoder under test (default: this program's `decode --canonical`).
+        #[arg(long)]
+        decoder: Option<String>,
+        /// The vectors folder (with manifest.json).
+        #[arg(long, default_value = "conformance/vectors")]
+        vectors: PathBuf,
+        /// Run only the vectors whose name contains this text.
+        #[arg(long)]
+        filter: Option<String>,
+    },
+    /// Generate the conformance vectors, manifest and coverage table (spec §11.4), or with
+    /// `--check` verify that the committed ones are what the generator writes.
+    MakeVectors {
+        /// The vectors folder.
+        #[arg(long, default_value = "conformance/vectors")]
+        out: PathBuf,
+        /// The README whose coverage table is regenerated.
+        #[arg(long, default_value = "conformance/README.md")]
+        readme: PathBuf,
+        /// The spec folder (for the list of normative sections).
+        #[arg(long, default_value = "spec")]
+        spec: PathBuf,
+        /// Compare instead of writing; fail on any difference.
+        #[arg(long)]
+        check: bool,
     },
     /// Write the single-rate stream of one rate of a multi-rate stream, without re-coding
     /// (byte-identical to encoding that rate alone).
@@ -317,6 +355,8 @@ fn run(cli: Cli) -> Result<(), Error> {
             threads,
             region,
             measure,
+            canonical,
+            inject_fault,
         } => {
             let t = Instant::now();
             let stream = salvq::io::read_file(&input)?;
@@ -325,7 +365,15 @@ fn run(cli: Cli) -> Result<(), Error> {
                 rate,
                 threads: threads.map(|n| n as usize),
                 region,
+                fault: inject_fault,
             };
+            if canonical {
+                let (model, symbols) = salvq::decoder::decode_with_symbols(&stream, &options)?;
+                let tensors = salvq::conformance::canonical::canonical_tensors(&model, &symbols);
+                let bytes = salvq::conformance::canonical::to_safetensors(&tensors);
+                salvq::io::write_bytes_atomic(&output, &bytes)?;
+                return Ok(());
+            }
             let model = salvq::decode_with_options(&stream, &options)?;
             if measure {
                 println!(
@@ -349,6 +397,8 @@ fn run(cli: Cli) -> Result<(), Error> {
                 secs(t)
             );
         }
+        // Handled in `main`: their failures are mismatches, not stream errors.
+        Command::Conformance { .. } | Command::MakeVectors { .. } => {}
         Command::Info { input, json } => {
             let stream = salvq::io::read_file(&input)?;
             let info = inspect(&stream, &Limits::default())?;
@@ -526,8 +576,106 @@ fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Error> {
     Ok(())
 }
 
+fn parse_fault(s: &str) -> Result<salvq::decoder::Fault, String> {
+    let k = s
+        .strip_prefix("table:")
+        .and_then(|k| k.parse::<u8>().ok())
+        .ok_or_else(|| format!("`{s}`: expected table:K"))?;
+    Ok(salvq::decoder::Fault::FrequencyTable { scale: k })
+}
+
+fn conformance(
+    decoder: Option<String>,
+    vectors: &Path,
+    filter: Option<&str>,
+) -> Result<(), String> {
+    let template = match decoder {
+        Some(d) => d,
+        None => {
+            let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+            format!(
+                "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical",
+                exe.display()
+            )
+        }
+    };
+    let (_, report) = salvq::conformance::runner::run(vectors, &template, filter)?;
+    for o in &report.outcomes {
+        let verdict = if o.passed { "pass" } else { "FAIL" };
+        println!("{verdict}  {:<32} {}", o.label, o.detail);
+    }
+    println!("{}", report.summary());
+    if report.failed() > 0 {
+        return Err(format!(
+            "{} of {} conformance checks failed",
+            report.failed(),
+            report.outcomes.len()
+        ));
+    }
+    Ok(())
+}
+
+fn make_vectors(out: &Path, readme: &Path, spec: &Path, check: bool) -> Result<(), String> {
+    let t = Instant::now();
+    let g = salvq::conformance::generate::build(spec)?;
+    let bytes: usize = g.files.values().map(Vec::len).sum();
+    if check {
+        let diffs = salvq::conformance::generate::check(&g, out, readme);
+        for d in &diffs {
+            println!("stale: {d}");
+        }
+        if !diffs.is_empty() {
+            return Err(format!(
+                "{} conformance files differ from a fresh generation; run `salvq make-vectors` \
+                 (and bump the format version if the format changed)",
+                diffs.len()
+            ));
+        }
+        println!(
+            "{} vectors, {} files, {bytes} bytes: identical to a fresh generation ({:.1} s)",
+            g.manifest.vectors.len(),
+            g.files.len(),
+            secs(t)
+        );
+        return Ok(());
+    }
+    salvq::conformance::generate::write(&g, out, readme)?;
+    println!(
+        "wrote {} vectors ({} files, {bytes} bytes) to {} in {:.1} s",
+        g.manifest.vectors.len(),
+        g.files.len(),
+        out.display(),
+        secs(t)
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // The conformance tools fail on mismatches, not on stream errors: plain messages.
+    let tool = match &cli.command {
+        Command::Conformance {
+            decoder,
+            vectors,
+            filter,
+        } => Some(conformance(decoder.clone(), vectors, filter.as_deref())),
+        Command::MakeVectors {
+            out,
+            readme,
+            spec,
+            check,
+        } => Some(make_vectors(out, readme, spec, *check)),
+        _ => None,
+    };
+    if let Some(result) = tool {
+        return match result {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("salvq: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

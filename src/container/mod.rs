@@ -5,6 +5,7 @@ pub mod chunk;
 pub mod payload;
 pub mod preflight;
 pub mod signature;
+pub mod surgery;
 
 pub use chunk::{Chunk, ChunkReader, ChunkTag};
 pub use preflight::Preflight;

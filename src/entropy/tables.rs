@@ -131,6 +131,27 @@ impl GaussianTables {
         let scales: Vec<ScaleTable> = (0..SCALE_COUNT)
             .map(|k| build_scale(SIGMA_Q16[k], precision, tail_q4, r_max))
             .collect();
+        Self::from_scales(precision, tail_q4, r_max, scales)
+    }
+
+    /// A deliberately wrong copy for conformance tests (a broken decoder must fail the
+    /// vectors): in scale `k`'s table one unit of frequency moves from u = 0 to u = 1, so one
+    /// cumulative entry is off by one while the table still sums to 2^P.
+    #[doc(hidden)]
+    pub fn with_one_wrong_entry(&self, k: u8) -> GaussianTables {
+        let mut scales = self.scales.clone();
+        if let Some(t) = scales.get_mut(usize::from(k)) {
+            let zero = t.radius as usize;
+            if t.freq[zero] > 1 {
+                t.freq[zero] -= 1;
+                t.freq[zero + 1] += 1;
+                t.cum[zero + 1] -= 1;
+            }
+        }
+        Self::from_scales(self.precision, self.tail_q4, self.r_max, scales)
+    }
+
+    fn from_scales(precision: u32, tail_q4: u32, r_max: u32, scales: Vec<ScaleTable>) -> Self {
         // The coarse search table: bucket b's first quantile is b << shift.
         let bits = precision.min(COARSE_BITS);
         let shift = precision - bits;

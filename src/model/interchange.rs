@@ -345,7 +345,7 @@ pub fn read_model(path: &Path) -> Result<SceneModel> {
 }
 
 /// A tensor's little-endian bytes, streamed to `w`.
-fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::Result<()> {
+pub(crate) fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::Result<()> {
     let f = |w: &mut dyn Write, v: &[f32]| -> std::io::Result<()> {
         for x in v {
             w.write_all(&x.to_le_bytes())?;

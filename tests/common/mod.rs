@@ -2,9 +2,10 @@
 //! keeps CRCs valid so a test reaches the rule it targets.
 #![allow(dead_code)]
 
-use salvq::container::chunk::{write_chunk, ChunkReader, ChunkTag};
+use salvq::container::chunk::ChunkTag;
+use salvq::container::surgery;
 use salvq::gen::{generate, GenParams};
-use salvq::{Limits, SceneModel};
+use salvq::SceneModel;
 
 /// 13 anchors of the small configuration with the identity basis (what format 0.2 codes).
 pub fn small_model() -> SceneModel {
@@ -34,41 +35,20 @@ pub fn small_expected() -> SceneModel {
 
 /// The stream's chunks as (tag, payload).
 pub fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
-    let mut r = ChunkReader::new(&stream[12..], 12, &Limits::default());
-    let mut out = Vec::new();
-    while let Some(c) = r.next_chunk().expect("valid stream") {
-        out.push((c.tag, c.payload.to_vec()));
-    }
-    out
+    surgery::chunks(stream).expect("valid stream")
 }
 
 /// Re-assembles a stream from its signature and (tag, payload) pairs, with valid CRCs.
 pub fn assemble(signature: &[u8], chunks: &[(ChunkTag, Vec<u8>)]) -> Vec<u8> {
-    let mut out = signature[..12].to_vec();
-    for (tag, payload) in chunks {
-        write_chunk(&mut out, *tag, payload);
-    }
-    out
+    surgery::assemble(signature, chunks)
 }
 
 /// The stream with one chunk's payload changed by `f` (CRC recomputed).
 pub fn edit_payload(stream: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
-    let mut cs = chunks(stream);
-    let c = cs
-        .iter_mut()
-        .find(|(t, _)| *t == tag)
-        .expect("chunk present");
-    f(&mut c.1);
-    assemble(stream, &cs)
+    surgery::edit_payload(stream, tag, f).expect("chunk present")
 }
 
 /// Byte offset of a chunk's length field.
 pub fn chunk_offset(stream: &[u8], tag: ChunkTag) -> usize {
-    let mut r = ChunkReader::new(&stream[12..], 12, &Limits::default());
-    while let Some(c) = r.next_chunk().expect("valid stream") {
-        if c.tag == tag {
-            return c.offset as usize;
-        }
-    }
-    panic!("no chunk {tag}");
+    surgery::chunk_offset(stream, tag).unwrap_or_else(|| panic!("no chunk {tag}"))
 }
