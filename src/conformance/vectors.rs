@@ -285,7 +285,7 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
             anchors: 0,
             feat_dim: 2,
             offsets: 1,
-            scaling_dim: 1,
+            scaling_dim: 8,
             rates: 1,
             grid_channels: 16,
             res_3d: (0..32).map(|l| 1 + l % 4).collect(),
@@ -295,8 +295,8 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
             context_hidden: 1,
             scaffold_hidden: 1,
             view_dims: 0,
-            feat_lattice: LatticeKind::Identity,
-            scaling_lattice: LatticeKind::Identity,
+            feat_lattice: LatticeKind::Dn,
+            scaling_lattice: LatticeKind::E8Product,
             feat_regions: 1,
             scaling_regions: 1,
         },
@@ -305,8 +305,9 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
     );
     out.push(vector(
         "max-grid",
-        "largest grid: C = 16, L3 = 32, L2 = 32 (context input 2 048), dense and hashed levels",
-        &[],
+        "largest grid: C = 16, L3 = 32, L2 = 32 (context input 2 048), dense and hashed \
+         levels; feature on D_2, scaling (S = 8) on E8",
+        &["§7.2"],
         encode_full(&max_grid, &options(&[0]))?,
     ));
 
