@@ -22,6 +22,17 @@ pub fn fuzz_limits() -> Limits {
     }
 }
 
+/// The most heap a decode of a `stream_len`-byte stream whose preflight gives
+/// `decoded_bytes` may use at its peak (§9.1: the decoded size plus the stream's size, with
+/// room for the decoder's working buffers): `3 · (decoded_bytes + stream_len) + 4 MiB`. The
+/// fuzz targets enforce it with a capping allocator; `tests/allocation_bound.rs` measures it.
+pub fn allocation_bound(decoded_bytes: u64, stream_len: u64) -> u64 {
+    decoded_bytes
+        .saturating_add(stream_len)
+        .saturating_mul(3)
+        .saturating_add(4 << 20)
+}
+
 /// `data` with every well-framed chunk's CRC-32C recomputed (§1.3), so that a mutated
 /// payload reaches the payload's own checks instead of stopping at its CRC.
 pub fn with_fixed_crcs(data: &[u8]) -> Vec<u8> {
@@ -43,23 +54,68 @@ pub fn with_fixed_crcs(data: &[u8]) -> Vec<u8> {
     out
 }
 
+/// Caps the heap a decode may take: a fuzz target backs it with a capping global allocator,
+/// so a decode that allocates past [`allocation_bound`] fails its allocation and aborts,
+/// which the fuzzer reports as a crash with the input.
+pub trait AllocationMeter {
+    /// From now on allow `extra` bytes on top of what is allocated; `None`: no cap.
+    fn cap(&self, extra: Option<u64>);
+}
+
+/// No cap (the regression tests; `tests/allocation_bound.rs` measures the bound instead).
+pub struct NoMeter;
+
+impl AllocationMeter for NoMeter {
+    fn cap(&self, _extra: Option<u64>) {}
+}
+
+/// The decoded size the stream's `HEAD` states (0 when it does not parse): what the
+/// decoder's preflight allows it to allocate (§1.4 step 6).
+pub fn stated_decoded_bytes(data: &[u8], limits: &Limits) -> u64 {
+    let Ok((_, rest)) = Signature::parse(data) else {
+        return 0;
+    };
+    let mut reader = crate::container::chunk::ChunkReader::new(
+        rest,
+        crate::container::signature::SIGNATURE_LEN as u64,
+        limits,
+    );
+    match reader.next_chunk() {
+        Ok(Some(c)) if c.tag == crate::container::chunk::ChunkTag::HEAD => {
+            crate::container::preflight::Preflight::parse(c.payload, limits)
+                .map_or(0, |p| p.decoded_bytes)
+        }
+        _ => 0,
+    }
+}
+
 /// Whole-stream decode of `data` as it is and with its CRCs fixed ([`with_fixed_crcs`]): see
 /// [`decode_checked`].
 pub fn decode_input(data: &[u8]) {
-    decode_checked(data);
-    decode_checked(&with_fixed_crcs(data));
+    decode_input_metered(data, &NoMeter);
 }
 
-/// Whole-stream decode: never panics; a decoded model stays within the limits; a decoded
-/// stream whose model the encoder accepts re-encodes to a stream that decodes.
-pub fn decode_checked(data: &[u8]) {
+/// [`decode_input`] with each decode's heap capped by `meter` at [`allocation_bound`].
+pub fn decode_input_metered(data: &[u8], meter: &dyn AllocationMeter) {
+    decode_checked(data, meter);
+    decode_checked(&with_fixed_crcs(data), meter);
+}
+
+/// Whole-stream decode: never panics; allocates at most [`allocation_bound`] of what the
+/// preflight allows; a decoded model stays within the limits; a decoded stream whose model
+/// the encoder accepts re-encodes to a stream that decodes.
+pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
     let limits = fuzz_limits();
     let options = DecodeOptions {
         limits,
         rate: data.last().map(|b| b % 4),
         ..Default::default()
     };
-    let Ok(model) = decode_with_options(data, &options) else {
+    let allowed = stated_decoded_bytes(data, &limits).min(limits.max_alloc_bytes);
+    meter.cap(Some(allocation_bound(allowed, data.len() as u64)));
+    let decoded = decode_with_options(data, &options);
+    meter.cap(None);
+    let Ok(model) = decoded else {
         return;
     };
     let size = decoded_bytes(&model.dims);

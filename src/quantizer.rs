@@ -6,7 +6,7 @@
 
 use serde::Serialize;
 
-use crate::lattice::{dn_basis, e8_product_basis};
+use crate::lattice::root::E8_BASIS_TWICE;
 use crate::model::{Basis, GroupQuantizer};
 
 /// The lattice of an attribute group (spec §7.1, Table 7-1).
@@ -80,72 +80,124 @@ impl LatticeKind {
 }
 
 /// The reconstruction matrix B of one group in binary32 (§7.2, §7.3 step 1).
+///
+/// A learned basis is dense; the fixed generators of D_n and E8 products are stored by their
+/// non-zero entries only (column by column), so a decoder's memory and work for them grow
+/// with d, not d² — F = 1 024 on E8 would otherwise take a 4 MiB matrix and a million
+/// multiplications per anchor. Skipping zero entries changes no result (§7.3: a zero term
+/// adds nothing to a sum that is never −0).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LatticeMatrix {
     pub kind: LatticeKind,
     pub dim: usize,
-    /// Column-major: `b[j * d + i]` is component i of basis vector j (so `B u` runs over
-    /// contiguous columns and vectorises; each `z_i` still sums in increasing j). Empty for
-    /// the identity.
+    /// Dense, column-major: `b[j * d + i]` is component i of basis vector j (so `B u` runs
+    /// over contiguous columns and vectorises; each `z_i` still sums in increasing j). Empty
+    /// unless the lattice is general.
     b: Vec<f32>,
+    /// Sparse, column-major (fixed generators): column j's entries are
+    /// `sparse_rows/vals[sparse_start[j] .. sparse_start[j + 1]]`. Empty otherwise.
+    sparse_start: Vec<u32>,
+    sparse_rows: Vec<u32>,
+    sparse_vals: Vec<f32>,
 }
 
 impl LatticeMatrix {
     /// §7.3 step 1. `basis` is used (and required) for [`LatticeKind::General`] only; a
     /// general lattice without factors is treated as the identity (callers validate first).
     pub fn new(kind: LatticeKind, dim: usize, basis: Option<&Basis>) -> LatticeMatrix {
-        let row_major = match (kind, basis) {
-            (LatticeKind::Identity, _) | (LatticeKind::General, None) => Vec::new(),
-            // §7.2: the generators have integer and half-integer entries, exact in binary32.
-            (LatticeKind::Dn, _) => dn_basis(dim).into_iter().map(|v| v as f32).collect(),
-            (LatticeKind::E8Product, _) => e8_product_basis(dim)
-                .into_iter()
-                .map(|v| v as f32)
-                .collect(),
-            (LatticeKind::General, Some(f)) => general_matrix(dim, f),
+        let mut m = LatticeMatrix {
+            kind,
+            dim,
+            b: Vec::new(),
+            sparse_start: Vec::new(),
+            sparse_rows: Vec::new(),
+            sparse_vals: Vec::new(),
         };
-        let b = if row_major.is_empty() {
-            row_major
-        } else {
-            (0..dim * dim)
-                .map(|c| row_major[(c % dim) * dim + c / dim])
-                .collect()
+        // §7.2: the generators have integer and half-integer entries, exact in binary32.
+        let mut column = |entries: &mut dyn Iterator<Item = (usize, f32)>| {
+            if m.sparse_start.is_empty() {
+                m.sparse_start.push(0);
+            }
+            for (i, v) in entries {
+                m.sparse_rows.push(i as u32);
+                m.sparse_vals.push(v);
+            }
+            m.sparse_start.push(m.sparse_rows.len() as u32);
         };
-        let kind = if b.is_empty() {
-            LatticeKind::Identity
-        } else {
-            kind
-        };
-        LatticeMatrix { kind, dim, b }
+        match (kind, basis) {
+            (LatticeKind::Dn, _) if dim >= 1 => {
+                // Columns e_j − e_{d−1} (j < d − 1), then 2·e_{d−1}.
+                let last = dim - 1;
+                for j in 0..last {
+                    column(&mut [(j, 1.0), (last, -1.0)].into_iter());
+                }
+                column(&mut std::iter::once((last, 2.0)));
+            }
+            (LatticeKind::E8Product, _) => {
+                for j in 0..dim - dim % 8 {
+                    let (block, jj) = (j / 8 * 8, j % 8);
+                    column(
+                        &mut (0..8)
+                            .map(|ii| (block + ii, f32::from(E8_BASIS_TWICE[ii * 8 + jj]) / 2.0))
+                            .filter(|&(_, v)| v != 0.0),
+                    );
+                }
+            }
+            (LatticeKind::General, Some(f)) => {
+                let row_major = general_matrix(dim, f);
+                m.b = (0..dim * dim)
+                    .map(|c| row_major[(c % dim) * dim + c / dim])
+                    .collect();
+            }
+            _ => {}
+        }
+        if m.b.is_empty() && m.sparse_start.is_empty() {
+            m.kind = LatticeKind::Identity;
+        }
+        m
     }
 
     /// B as f64 (row-major), for an encoder's lattice search: the exact values the decoder
     /// multiplies by.
     pub fn to_f64(&self) -> Vec<f64> {
-        if self.b.is_empty() {
-            let mut id = vec![0.0; self.dim * self.dim];
-            for i in 0..self.dim {
-                id[i * self.dim + i] = 1.0;
+        let d = self.dim;
+        let mut out = vec![0.0; d * d];
+        if !self.b.is_empty() {
+            for (r, o) in out.iter_mut().enumerate() {
+                *o = f64::from(self.b[(r % d) * d + r / d]);
             }
-            id
+        } else if !self.sparse_start.is_empty() {
+            for j in 0..d {
+                for k in self.column_range(j) {
+                    out[self.sparse_rows[k] as usize * d + j] = f64::from(self.sparse_vals[k]);
+                }
+            }
         } else {
-            let d = self.dim;
-            (0..d * d)
-                .map(|r| f64::from(self.b[(r % d) * d + r / d]))
-                .collect()
+            for i in 0..d {
+                out[i * d + i] = 1.0;
+            }
+        }
+        out
+    }
+
+    fn column_range(&self, j: usize) -> std::ops::Range<usize> {
+        match (self.sparse_start.get(j), self.sparse_start.get(j + 1)) {
+            (Some(&a), Some(&b)) => a as usize..b as usize,
+            _ => 0..0,
         }
     }
 
     pub fn is_identity(&self) -> bool {
-        self.b.is_empty()
+        self.kind == LatticeKind::Identity
     }
 
     /// §7.3 step 2: `z = B u` in binary32: `z_i = (((+0 + B_i0·u_0) + B_i1·u_1) + …)`, every
     /// product and sum rounded to binary32, `u_j` converted to binary32 first. A term with
-    /// `u_j = 0` adds ±0 to a sum that is never −0, so skipping it changes nothing.
+    /// `u_j = 0` or `B_ij = 0` adds ±0 to a sum that is never −0, so skipping it changes
+    /// nothing.
     pub fn apply(&self, u: &[i64], z: &mut [f32]) {
         let d = self.dim;
-        if self.b.is_empty() {
+        if self.is_identity() {
             for (zi, &ui) in z.iter_mut().zip(u) {
                 *zi = ui as f32;
             }
@@ -153,6 +205,19 @@ impl LatticeMatrix {
         }
         let z = &mut z[..d];
         z.fill(0.0);
+        if self.b.is_empty() {
+            for (j, &uj) in u.iter().enumerate().take(d) {
+                if uj == 0 {
+                    continue;
+                }
+                let uf = uj as f32;
+                for k in self.column_range(j) {
+                    let i = self.sparse_rows[k] as usize;
+                    z[i] += self.sparse_vals[k] * uf;
+                }
+            }
+            return;
+        }
         for (column, &uj) in self.b.chunks_exact(d).zip(u) {
             if uj == 0 {
                 continue;

@@ -464,3 +464,23 @@ fn extreme_finite_inputs_do_not_panic() {
         let _ = closest_dn(&y);
     }
 }
+
+#[test]
+fn fixed_generators_are_stored_sparse_but_equal_the_dense_definitions() {
+    use salvq::quantizer::LatticeMatrix;
+    use salvq::LatticeKind;
+    for n in [2usize, 3, 8, 50, 1024] {
+        let m = LatticeMatrix::new(LatticeKind::Dn, n, None);
+        assert_eq!(m.to_f64(), dn_basis(n), "D_{n}");
+    }
+    for n in [8usize, 24, 1024] {
+        let m = LatticeMatrix::new(LatticeKind::E8Product, n, None);
+        assert_eq!(m.to_f64(), e8_product_basis(n), "E8^{}", n / 8);
+        // B u through the sparse columns equals the dense product (integer-valued, exact).
+        let u: Vec<i64> = (0..n as i64).map(|i| (i * 7) % 5 - 2).collect();
+        let mut z = vec![0f32; n];
+        m.apply(&u, &mut z);
+        let dense = times(n, &e8_product_basis(n), &u);
+        assert!(z.iter().zip(&dense).all(|(a, b)| f64::from(*a) == *b));
+    }
+}

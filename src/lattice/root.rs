@@ -54,7 +54,7 @@ pub fn e8_basis() -> Vec<f64> {
 }
 
 /// Table 7-2 times 2 (row-major): twice the E8 generator block.
-const E8_BASIS_TWICE: [i8; 64] = [
+pub(crate) const E8_BASIS_TWICE: [i8; 64] = [
     2, 2, 2, 2, 2, 1, 1, 0, //
     0, 2, 2, 2, 2, 1, 1, 0, //
     0, 0, 2, 2, 2, 1, 1, 0, //
