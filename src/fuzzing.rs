@@ -3,6 +3,7 @@
 //! that found it. Each function panics only when a property is broken: any input the
 //! decoder refuses with an error is a pass.
 
+use crate::container::chunk::ChunkTag;
 use crate::container::signature::Signature;
 use crate::decoder::{decode_with_options, DecodeOptions};
 use crate::encoder::{encode_full, EncodeOptions, Search};
@@ -127,6 +128,66 @@ pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
         let again = decode_with_options(&e.stream, &DecodeOptions::default());
         assert!(again.is_ok(), "re-encoded stream fails: {:?}", again.err());
     }
+}
+
+/// The payload chunks [`payload_input`] replaces, selected by its first byte.
+pub const PAYLOAD_TAGS: [ChunkTag; 9] = [
+    ChunkTag::MLPS,
+    ChunkTag::QUAN,
+    ChunkTag::TILS,
+    ChunkTag::APOS,
+    ChunkTag::GRID,
+    ChunkTag::AMSK,
+    ChunkTag::AFEA,
+    ChunkTag::ASCL,
+    ChunkTag::AOFF,
+];
+
+/// The valid stream [`payload_input`] splices into: 24 anchors with a learned feature basis,
+/// two rates, tiles of at most 8 anchors (built once).
+pub fn payload_base() -> &'static [u8] {
+    static BASE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    BASE.get_or_init(|| {
+        let model = generate(&GenParams::small(24, 5));
+        let options = EncodeOptions {
+            rates: vec![0, 1],
+            tile_anchors: 8,
+            ..Default::default()
+        };
+        encode_full(&model, &options).map_or_else(|_| Vec::new(), |e| e.stream)
+    })
+}
+
+/// One payload of a valid stream replaced by fuzz bytes (`data[0]` picks the chunk from
+/// [`PAYLOAD_TAGS`], the rest is the payload), CRCs valid: the payload decoders meet hostile
+/// bytes behind a valid signature, `HEAD` and chunk order, which whole-stream mutation
+/// rarely keeps. Checked as [`decode_checked`] checks.
+pub fn payload_input(data: &[u8]) {
+    let Some((&which, payload)) = data.split_first() else {
+        return;
+    };
+    let tag = PAYLOAD_TAGS[usize::from(which) % PAYLOAD_TAGS.len()];
+    if let Some(stream) =
+        crate::container::surgery::edit_payload(payload_base(), tag, |p| *p = payload.to_vec())
+    {
+        decode_checked(&stream, &NoMeter);
+    }
+}
+
+/// The `HEAD` preflight (§1.4) on arbitrary bytes: never panics; an accepted payload states a
+/// decoded size within the limits and writes back to the same bytes (one encoding per
+/// preflight).
+pub fn preflight_input(data: &[u8]) {
+    let limits = fuzz_limits();
+    let Ok(p) = crate::container::preflight::Preflight::parse(data, &limits) else {
+        return;
+    };
+    assert!(p.decoded_bytes <= limits.max_alloc_bytes);
+    assert_eq!(
+        p.to_payload(),
+        data,
+        "an accepted HEAD writes back differently"
+    );
 }
 
 /// Extraction: never panics; what it writes decodes at that rate, and extracting the same

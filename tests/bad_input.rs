@@ -414,3 +414,25 @@ fn display_names_rule_and_section() {
     );
     assert_eq!(e.class(), "ChunkCrcMismatch");
 }
+
+/// §1.4 step 4 checks `coord_bits` before the lattice codes and their fit: a HEAD with both
+/// broken reports `coord_bits` (found by the Python decoder written from the spec alone; the
+/// reference used to check the lattices first).
+#[test]
+fn head_checks_follow_the_spec_order() {
+    use salvq::error::Field;
+    let s = small_stream();
+    for scaling_lattice in [2u8, 9] {
+        let bad = edit_payload(&s, ChunkTag::HEAD, |p| {
+            p[11] = 0; // coord_bits: below its range
+            p[14] = scaling_lattice; // E8 on S = 6 (does not fit), or no such code
+        });
+        match err(&bad) {
+            Error::FieldOutOfRange { field, .. } => assert_eq!(field, Field::CoordBits),
+            other => panic!("expected coord_bits out of range, got {other:?}"),
+        }
+    }
+    // With coord_bits valid, the lattice's fit is reported.
+    let bad = edit_payload(&s, ChunkTag::HEAD, |p| p[14] = 2);
+    assert!(matches!(err(&bad), Error::LatticeDimension { .. }));
+}

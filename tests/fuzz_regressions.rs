@@ -4,13 +4,18 @@
 
 use std::path::Path;
 
-use salvq::fuzzing::{decode_input, extract_input, geometry_input, round_trip, RoundTrip};
+use salvq::fuzzing::{
+    decode_input, extract_input, geometry_input, payload_input, preflight_input, round_trip,
+    RoundTrip,
+};
 
 fn replay(target: &str, data: &[u8]) {
     match target {
         "decode" => decode_input(data),
         "extract" => extract_input(data),
         "geometry" => geometry_input(data),
+        "payload" => payload_input(data),
+        "preflight" => preflight_input(data),
         "roundtrip" => round_trip(RoundTrip::from_bytes(data)),
         other => panic!("unknown fuzz target '{other}'"),
     }
@@ -53,4 +58,42 @@ fn seeds_replay_clean_and_the_stream_seeds_decode() {
         }
     }
     assert!(count >= 8, "only {count} seeds");
+}
+
+/// Writes the seeds of the `payload` and `preflight` targets (each payload of the base
+/// stream, and the `HEAD` payloads of the conformance vectors):
+/// `SALVQ_WRITE_SEEDS=1 cargo test --test fuzz_regressions write_seeds -- --ignored`.
+#[test]
+#[ignore]
+fn write_seeds() {
+    use salvq::container::surgery::chunks;
+    if std::env::var("SALVQ_WRITE_SEEDS").is_err() {
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("fuzz/seeds/payload");
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = chunks(salvq::fuzzing::payload_base()).unwrap();
+    for (i, tag) in salvq::fuzzing::PAYLOAD_TAGS.iter().enumerate() {
+        let payload = &base.iter().find(|(t, _)| t == tag).unwrap().1;
+        let mut seed = vec![i as u8];
+        seed.extend_from_slice(payload);
+        std::fs::write(dir.join(format!("{}.bin", tag.as_str())), seed).unwrap();
+    }
+    let dir = root.join("fuzz/seeds/preflight");
+    std::fs::create_dir_all(&dir).unwrap();
+    for v in files(&root.join("conformance/vectors")) {
+        if v.extension().map_or(true, |e| e != "salvq") {
+            continue;
+        }
+        let name = v.file_stem().unwrap().to_string_lossy().to_string();
+        if name.starts_with("x-") {
+            continue;
+        }
+        let head = chunks(&std::fs::read(&v).unwrap())
+            .unwrap()
+            .swap_remove(0)
+            .1;
+        std::fs::write(dir.join(format!("{name}.bin")), head).unwrap();
+    }
 }

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SalvqError
-from .model import Dims, is_finite_bits, level_entries
-from .tables import STEP_FACTOR, THRESHOLD_Q16
+from .model import Dims, level_entries
+from .tables import THRESHOLD_Q16
 
 W_BITS = 10   # §5.1 weight bits
 
@@ -270,10 +270,6 @@ def run_mlp(mlp: IntMlp, x: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- §5.4, §5.5
 
-def f32_mul(a, b):
-    return np.float32(np.float32(a) * np.float32(b))
-
-
 def decompose(G_bits: int) -> tuple[int, int]:
     """§5.4 step 2: G = m * 2^e."""
     be = (G_bits >> 23) & 0xFF
@@ -323,7 +319,3 @@ def scale_indices(sig: np.ndarray, E_rows: np.ndarray, m: int, e: int, factor: i
 def means_f32(mu: np.ndarray, E_rows: np.ndarray) -> np.ndarray:
     """§5.5 step 1: float32(mu * 2^-E)."""
     return _scaled_f32(mu, np.broadcast_to(E_rows, mu.shape))
-
-
-def is_finite32(v) -> bool:
-    return bool(np.isfinite(v))

@@ -48,9 +48,9 @@ def generator(code: int, d: int) -> np.ndarray | None:
 def general_matrix(U: np.ndarray, s: np.ndarray, V: np.ndarray) -> np.ndarray:
     """§7.2 General: a_{k+1} = a_k ⊕ ((U[i][k] ⊗ s_k) ⊗ V[j][k]), a_0 = +0, in binary32."""
     d = s.shape[0]
-    us = (U * s[None, :]).astype(np.float32)            # U[i][k] ⊗ s_k
     acc = np.zeros((d, d), np.float32)
     with np.errstate(over="ignore", invalid="ignore"):
+        us = (U * s[None, :]).astype(np.float32)        # U[i][k] ⊗ s_k
         for k in range(d):
             acc = acc + np.outer(us[:, k], V[:, k]).astype(np.float32)
     return acc
@@ -162,13 +162,16 @@ def parse_quan(body: bytes, d: Dims) -> tuple[dict, dict]:
                 check_finite(f"{rn}_u" + ("" if r == 0 else f"[{r - 1}]"), ub, (dim, dim))
                 sb = words(dim)
                 check_finite(f"{rn}_s" + ("" if r == 0 else f"[{r - 1}]"), sb, (dim,))
+                vb = words(dim * dim)
+                check_finite(f"{rn}_v" + ("" if r == 0 else f"[{r - 1}]"), vb, (dim, dim))
+                # BasisSingular once the whole basis (u, s, v) has passed the finiteness
+                # checks: what the reference does; §1.6.3 can be read as "right after s"
+                # (README, spec gaps).
                 zero = np.nonzero((sb & 0x7FFFFFFF) == 0)[0]
                 if zero.size:
                     raise SalvqError("BasisSingular",
                                      f"{rn}_s" + ("" if r == 0 else f"[{r - 1}]")
                                      + f"[{int(zero[0])}] = 0: the basis is singular [§1.6.3]")
-                vb = words(dim * dim)
-                check_finite(f"{rn}_v" + ("" if r == 0 else f"[{r - 1}]"), vb, (dim, dim))
                 g.bases.append((ub.view("<f4").reshape(dim, dim).copy(), sb.view("<f4").copy(),
                                 vb.view("<f4").reshape(dim, dim).copy()))
             for r, (U, s, V) in enumerate(g.bases):

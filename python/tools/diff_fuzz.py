@@ -98,7 +98,7 @@ def main():
         if r[:2] != m[:2]:
             disagree += 1
             print(f"DISAGREE {fname} ({what}): ref {r} / mine {m}")
-            with open(f"/tmp/sq/disagree-{it}.salvq", "wb") as fh:
+            with open(os.path.join(tempfile.gettempdir(), f"salvq-disagree-{it}.salvq"), "wb") as fh:
                 fh.write(mutated)
     print(f"{iters} mutations, {disagree} disagreements")
 

@@ -341,6 +341,14 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         encode_full(&max_hidden, &options(&[0]))?,
     ));
 
+    out.push(vector(
+        "extreme-exponents",
+        "tiny context-MLP weights: unit exponents E up to 8 + 30 + 30 on the step-adjustment \
+         outputs, where a 64-bit rounding shift would overflow",
+        &["§5.3", "§5.4"],
+        encode_full(&with_tiny_context_weights(&usq), &options(&[0]))?,
+    ));
+
     let base = encode_full(
         &usq,
         &EncodeOptions {
@@ -380,6 +388,27 @@ fn with_scaling_regions(m: &SceneModel) -> SceneModel {
         }];
         m.dims.scaling_regions = 2;
     }
+    m
+}
+
+/// The context MLP's layer 0 scaled by 2^−26, its step-adjustment rows by 2^−30 and its output
+/// biases zeroed, so the encoder's fixed-point form takes the largest fractional bits §5.3
+/// allows.
+fn with_tiny_context_weights(m: &SceneModel) -> SceneModel {
+    let mut m = m.clone();
+    let g = &mut m.mlp_grid;
+    for w in g.w0.iter_mut().chain(g.b0.iter_mut()) {
+        *w *= (-26f32).exp2();
+    }
+    let hidden = g.b0.len();
+    let cout = g.b1.len();
+    for o in cout.saturating_sub(3)..cout {
+        for w in &mut g.w1[o * hidden..(o + 1) * hidden] {
+            *w *= (-30f32).exp2();
+        }
+    }
+    // Biases are in units of 2^−E_o: with E_o ≥ 38 only tiny ones fit i32.
+    g.b1.fill(0.0);
     m
 }
 

@@ -5,7 +5,7 @@ use crate::container::bytes::{PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::error::{Error, Field, Result};
 use crate::limits::{LimitKind, Limits};
-use crate::model::validate::{check_dims, check_field, check_geometry};
+use crate::model::validate::{check_dim_fields, check_field, check_geometry, check_lattices};
 use crate::model::{decoded_bytes, Dims, LatticeKind};
 
 /// `head_flags`: no bit is defined in this version (all reserved, zero).
@@ -123,14 +123,20 @@ impl Preflight {
             context_hidden,
             scaffold_hidden,
             view_dims,
-            feat_lattice: lattice_kind(Field::FeatLattice, feat_lattice)?,
-            scaling_lattice: lattice_kind(Field::ScalingLattice, scaling_lattice)?,
+            // Set below, once the fields before them are checked.
+            feat_lattice: LatticeKind::Identity,
+            scaling_lattice: LatticeKind::Identity,
             feat_regions,
             scaling_regions,
         };
-        // Step 4: every field in its range (Table 1-4).
-        check_dims(&dims)?;
+        // Step 4: every field in its range (Table 1-4), in the spec's order: dimensions,
+        // coord_bits, the lattice codes, their fit and regions, rate_mask, geometry.
+        check_dim_fields(&dims)?;
         check_field(Field::CoordBits, coord_bits.into())?;
+        let mut dims = dims;
+        dims.feat_lattice = lattice_kind(Field::FeatLattice, feat_lattice)?;
+        dims.scaling_lattice = lattice_kind(Field::ScalingLattice, scaling_lattice)?;
+        check_lattices(&dims)?;
         let all_rates = u64::MAX >> (64 - u32::from(rates.clamp(1, 64)));
         if rate_mask == 0 || rate_mask & !all_rates != 0 {
             return Err(Error::FieldOutOfRange {

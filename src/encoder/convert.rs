@@ -40,7 +40,7 @@ pub fn convert_context_mlp(f: &Mlp, cin: usize, x: &[i16]) -> Result<IntMlp> {
     let cout = f.b1.len();
     let max_abs = |v: &[f32]| v.iter().fold(0f64, |a, &w| a.max(f64::from(w).abs()));
     // Layer 0: weights fit i16, biases fit i32, and no row sum can wrap for |x| <= 256.
-    let a0 = largest(24, |a| {
+    let a0 = largest(30, |a| {
         let w = quantize(&f.w0, a);
         let b = quantize(&f.b0, 8 + a);
         max_abs(&f.w0) * pow2(a) <= f64::from(i16::MAX)

@@ -16,11 +16,15 @@ pub const STEP_FACTOR: [u32; 129] = [
 ];
 
 /// §5.4 step 1: the step-factor index of an adjustment output `y` (units of 2^-frac):
-/// round(16 y / 2^frac), clamped to -64 ..= 64.
+/// round(16 y / 2^frac), clamped to -64 ..= 64. Exact for every `frac` a stream can give
+/// (up to 8 + 30 + 30 = 68): |16 y| < 2^35, so the rounded quotient is 0 from frac = 37 on
+/// (a 64-bit shift by 64 or more would be undefined; Rust panics or wraps).
 pub fn factor_index(y: i32, frac: i32) -> usize {
     let v = i64::from(y) * 16;
     let a = if frac <= 0 {
         v << (-frac).min(32)
+    } else if frac >= 37 {
+        0
     } else {
         (v + (1i64 << (frac - 1))) >> frac
     };
@@ -206,6 +210,17 @@ mod tests {
         assert_eq!(factor_index(1 << 10, 10), 64 + 16); // adj = 1.0
         assert_eq!(factor_index(-(1 << 20), 10), 0);
         assert_eq!(factor_index(i32::MAX, 0), 128);
+        // Exponents up to 68 (§5.3: 8 + a0 + a1 with a0, a1 ≤ 30): the exact rounded value.
+        for frac in 30..=68 {
+            for y in [i32::MIN, -1, 0, 1, i32::MAX] {
+                let exact = ((i128::from(y) * 16 + (1i128 << (frac - 1))) >> frac).clamp(-64, 64);
+                assert_eq!(
+                    factor_index(y, frac),
+                    (exact + 64) as usize,
+                    "y {y}, E {frac}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -102,15 +102,21 @@ pub fn check_lattices(d: &Dims) -> Result<()> {
     Ok(())
 }
 
-/// Checks every dimension against spec Table 1-4.
+/// Checks every dimension against spec Table 1-4, then the lattices (§7.1, §7.6).
 pub fn check_dims(d: &Dims) -> Result<()> {
+    check_dim_fields(d)?;
+    check_lattices(d)
+}
+
+/// §1.4 step 4, up to `view_dims`: the dimension fields in the spec's order (the lattices are
+/// checked after `coord_bits`, which models do not carry).
+pub fn check_dim_fields(d: &Dims) -> Result<()> {
     check_field(Field::AnchorCount, d.anchors.into())?;
     check_field(Field::FeatDim, d.feat_dim.into())?;
     check_field(Field::OffsetCount, d.offsets.into())?;
     check_field(Field::ScalingDim, d.scaling_dim.into())?;
     check_field(Field::RateCount, d.rates.into())?;
     check_field(Field::GridChannels, d.grid_channels.into())?;
-    check_lattices(d)?;
     check_field(Field::Levels3d, d.res_3d.len() as u64)?;
     check_field(Field::Levels2d, d.res_2d.len() as u64)?;
     check_field(Field::Log2Size3d, d.log2_size_3d.into())?;

@@ -1,0 +1,3 @@
+//! The `HEAD` preflight on arbitrary payloads (`salvq::fuzzing::preflight_input`).
+#![no_main]
+libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq::fuzzing::preflight_input(data));

@@ -1,0 +1,146 @@
+"""Conformance of salvq_py against conformance/vectors (spec §11), without the Rust binary.
+
+Run with `python3 -m pytest python/tests` if pytest is installed, or directly:
+`python3 python/tests/test_conformance.py`.
+
+* valid vectors: every listed rate is decoded; the integer-domain hash (§11.2) must equal the
+  manifest's; every tensor in the expected file must match (integer domain byte for byte,
+  float tensors within the §11.3 tolerance); the float hash is reported (bit-exact or not).
+* must-fail vectors: decoding must raise SalvqError with the manifest's error class.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+
+import numpy as np  # noqa: E402
+
+from salvq_py import SalvqError, decode_bytes  # noqa: E402
+from salvq_py.ans import AnsDecoder  # noqa: E402
+from salvq_py.canonical import (FLOAT_TENSORS, canonical_form, float_match, hashes,  # noqa: E402
+                                read_safetensors)
+from salvq_py.container import crc32c  # noqa: E402
+from salvq_py.tables import check_step_factor, scale_tables  # noqa: E402
+
+VECTORS = os.environ.get("SALVQ_VECTORS",
+                         os.path.join(HERE, "..", "..", "conformance", "vectors"))
+
+
+def _manifest():
+    with open(os.path.join(VECTORS, "manifest.json")) as fh:
+        return json.load(fh)["vectors"]
+
+
+def _read(name):
+    with open(os.path.join(VECTORS, name), "rb") as fh:
+        return fh.read()
+
+
+def check_valid(vec) -> list[str]:
+    """Returns a list of notes; raises AssertionError on a failure."""
+    notes = []
+    data = _read(vec["file"])
+    for dec in vec["decodes"]:
+        rate = dec["rate"]
+        form = canonical_form(decode_bytes(data, rate))
+        ih, fh = hashes(form)
+        assert ih == dec["integer_sha256"], f"{vec['name']}@{rate}: integer-domain hash differs"
+        expected = read_safetensors(os.path.join(VECTORS, dec["expected"]))
+        omitted = set(dec.get("omitted") or [])
+        assert set(expected) | omitted == set(form), f"{vec['name']}@{rate}: tensor set differs"
+        tol = dec["tolerance"]
+        for name, exp in expected.items():
+            got = form[name]
+            assert got.dtype.str[1:] == exp.dtype.str[1:] and got.shape == exp.shape, \
+                f"{vec['name']}@{rate}: {name} dtype/shape"
+            if name in FLOAT_TENSORS:
+                ok = float_match(got, exp, tol["relative"], tol["absolute"])
+                if not ok.all():
+                    i = int(np.argmin(ok.ravel()))
+                    raise AssertionError(f"{vec['name']}@{rate}: {name}[{i}] outside tolerance")
+            else:
+                assert got.tobytes() == exp.tobytes(), f"{vec['name']}@{rate}: {name} differs"
+        notes.append(f"@{rate} " + ("bit-exact" if fh == dec["float_sha256"] else "within tolerance"))
+    return notes
+
+
+def check_must_fail(vec) -> str:
+    try:
+        decode_bytes(_read(vec["file"]), vec["rate"])
+    except SalvqError as e:
+        assert e.error_class == vec["error_class"], \
+            f"{vec['name']}: got {e.error_class} ({e.message}), expected {vec['error_class']}"
+        return e.error_class
+    raise AssertionError(f"{vec['name']}: decoded, expected {vec['error_class']}")
+
+
+# ----------------------------------------------------------------- pytest entry points
+
+def test_crc32c_check_value():
+    assert crc32c(b"123456789") == 0xE3069283          # §1.3
+
+
+def test_tables_match_data_files():
+    check_step_factor()                                # Table 5-2 SHA-256 (§5.4)
+    scale_tables(verify=True)                          # §6.3.5 SHA-256
+
+
+def test_ans_golden_vector():                          # §6.2.8
+    words = [0x3220F91D, 0xF52C9853, 0x94600DFE, 0xC9DFB75B, 0x5E000000]
+    d = AnsDecoder(b"".join(w.to_bytes(4, "little") for w in words))
+    got = [d.decode_symbol(24), d.decode_symbol(24), d.decode_symbol(40), d.decode_binary(1 << 14),
+           d.decode_symbol(0), d.decode_symbol(0), d.decode_symbol(10), d.decode_binary(60000),
+           d.decode_symbol(63), d.decode_symbol(63)]
+    assert got == [0, -3, 5, 1, 0, 1, -100, 0, 17, -1000000]
+    d.finish()
+
+
+def test_valid_vectors():
+    for vec in _manifest():
+        if vec["kind"] == "valid":
+            check_valid(vec)
+
+
+def test_must_fail_vectors():
+    for vec in _manifest():
+        if vec["kind"] != "valid":
+            check_must_fail(vec)
+
+
+def main() -> int:
+    failed = 0
+    for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector):
+        try:
+            t()
+            print(f"pass  {t.__name__}")
+        except AssertionError as e:
+            failed += 1
+            print(f"FAIL  {t.__name__}: {e}")
+    slowest = (0.0, "")
+    for vec in _manifest():
+        t0 = time.perf_counter()
+        try:
+            if vec["kind"] == "valid":
+                how = ", ".join(check_valid(vec))
+            else:
+                how = check_must_fail(vec)
+            print(f"pass  {vec['name']:<32} {how}")
+        except AssertionError as e:
+            failed += 1
+            print(f"FAIL  {vec['name']:<32} {e}")
+        except Exception as e:  # noqa: BLE001
+            failed += 1
+            print(f"FAIL  {vec['name']:<32} {type(e).__name__}: {e}")
+        dt = time.perf_counter() - t0
+        slowest = max(slowest, (dt, vec["name"]))
+    print(f"{'all passed' if not failed else f'{failed} failed'}; slowest: {slowest[1]} {slowest[0]:.2f} s")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
