@@ -126,16 +126,14 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
             files.insert(expected, canonical::to_safetensors(&kept));
         }
         entries.push(VectorEntry {
-            name: v.name.to_string(),
-            kind: VectorKind::Valid,
-            file: file.clone(),
-            bytes: v.stream.len() as u64,
-            sha256: sha256_hex(&v.stream),
-            description: v.description.to_string(),
-            sections: v.sections.iter().map(|s| s.to_string()).collect(),
             decodes,
-            rate: None,
-            error_class: None,
+            ..entry(
+                v.name,
+                VectorKind::Valid,
+                &v.stream,
+                v.description,
+                v.sections,
+            )
         });
         files.insert(file, v.stream);
     }
@@ -156,23 +154,21 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
             }
         }
         let file = format!("{}.salvq", v.name);
+        // Every must-fail vector tests its class's spelling and rule (Table 9-1).
+        let mut sections = v.sections.to_vec();
+        if !sections.contains(&"§9.2") {
+            sections.push("§9.2");
+        }
         entries.push(VectorEntry {
-            name: v.name.to_string(),
-            kind: VectorKind::MustFail,
-            file: file.clone(),
-            bytes: v.stream.len() as u64,
-            sha256: sha256_hex(&v.stream),
-            description: v.description.to_string(),
-            // Every must-fail vector tests its class's spelling and rule (Table 9-1).
-            sections: v
-                .sections
-                .iter()
-                .map(|s| s.to_string())
-                .chain((!v.sections.contains(&"§9.2")).then(|| "§9.2".to_string()))
-                .collect(),
-            decodes: Vec::new(),
             rate: Some(v.rate),
             error_class: Some(v.class.to_string()),
+            ..entry(
+                v.name,
+                VectorKind::MustFail,
+                &v.stream,
+                v.description,
+                &sections,
+            )
         });
         files.insert(file, v.stream);
     }
@@ -191,6 +187,28 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         manifest,
         coverage,
     })
+}
+
+/// A manifest entry's common fields (no decodes, rate or class yet).
+fn entry(
+    name: &str,
+    kind: VectorKind,
+    stream: &[u8],
+    description: &str,
+    sections: &[&str],
+) -> VectorEntry {
+    VectorEntry {
+        name: name.to_string(),
+        kind,
+        file: format!("{name}.salvq"),
+        bytes: stream.len() as u64,
+        sha256: sha256_hex(stream),
+        description: description.to_string(),
+        sections: sections.iter().map(|s| s.to_string()).collect(),
+        decodes: Vec::new(),
+        rate: None,
+        error_class: None,
+    }
 }
 
 /// The README's coverage table: each normative section and the vectors that exercise it.
