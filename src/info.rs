@@ -83,15 +83,19 @@ pub struct Totals {
     pub bits_per_anchor: f64,
 }
 
-/// Bytes of one part of the shared model (`salvq info --json`: `model_parts`).
+/// Bytes of one stored tensor (or header) of the shared model (`salvq info --json`:
+/// `model_parts`; issue 10's accounting).
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelPart {
+    /// The tensor (Table 2-1 names where the stream stores one) or header.
     pub part: String,
+    /// The group it belongs to, for the text report's subtotals (`mlp_grid`, `quant.feat`, …).
+    pub group: String,
     pub chunk: String,
     pub bytes: u64,
 }
 
-/// The model bytes per tensor group, from the preflight's dimensions and the chunk sizes
+/// The model bytes per stored tensor, from the preflight's dimensions and the chunk sizes
 /// (spec §1.4, §1.6.1-§1.6.3).
 fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<ModelPart> {
     let d = &p.dims;
@@ -106,41 +110,71 @@ fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<Mode
         d.context_output(),
     );
     let (si, hs) = (d.scaffold_input(), u64::from(d.scaffold_hidden));
-    let mlp = |o: u64| 4 * (hs * si + hs + o * hs + o);
     let m = u64::from(d.rates);
-    let basis = |dim: u64, on: bool| if on { 4 * (2 * dim * dim + dim) } else { 0 };
-    let part = |part: &str, chunk: ChunkTag, bytes: u64| ModelPart {
-        part: part.to_string(),
-        chunk: chunk.to_string(),
-        bytes,
+    let mut out = Vec::new();
+    let mut part = |part: &str, group: &str, chunk: ChunkTag, bytes: u64| {
+        out.push(ModelPart {
+            part: part.to_string(),
+            group: group.to_string(),
+            chunk: chunk.to_string(),
+            bytes,
+        })
     };
-    vec![
-        part("preflight", ChunkTag::HEAD, chunk_bytes(ChunkTag::HEAD)),
-        part(
-            "mlp_grid (integer, §5.3)",
-            ChunkTag::MLPS,
-            2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout,
-        ),
-        part("mlp_opacity", ChunkTag::MLPS, mlp(k)),
-        part("mlp_cov", ChunkTag::MLPS, mlp(7 * k)),
-        part("mlp_color", ChunkTag::MLPS, mlp(3 * k)),
-        part(
-            "quant.feat",
-            ChunkTag::QUAN,
-            4 * (1 + m) + basis(f, d.feat_lattice.has_factors()),
-        ),
-        part(
-            "quant.scaling",
-            ChunkTag::QUAN,
-            4 * (1 + m) + basis(s, d.scaling_lattice.has_factors()),
-        ),
-        part("quant.offsets", ChunkTag::QUAN, 4 * (1 + m)),
-        part(
-            "hyperprior.grid (touched entries)",
-            ChunkTag::GRID,
-            chunk_bytes(ChunkTag::GRID).saturating_sub(1),
-        ),
-    ]
+    part("HEAD", "preflight", ChunkTag::HEAD, chunk_bytes(ChunkTag::HEAD));
+    // §5.3 Table 5-1: the integer context MLP.
+    let g = "mlp_grid (integer, §5.3)";
+    part("coding_method, a0, shift0, a1", g, ChunkTag::MLPS, 3 + cout);
+    part("mlp_grid.0.weight (i16)", g, ChunkTag::MLPS, 2 * h * cin);
+    part("mlp_grid.0.bias (i32)", g, ChunkTag::MLPS, 4 * h);
+    part("mlp_grid.2.weight (i16)", g, ChunkTag::MLPS, 2 * cout * h);
+    part("mlp_grid.2.bias (i32)", g, ChunkTag::MLPS, 4 * cout);
+    for (name, o) in [("mlp_opacity", k), ("mlp_cov", 7 * k), ("mlp_color", 3 * k)] {
+        part(&format!("{name}.0.weight"), name, ChunkTag::MLPS, 4 * hs * si);
+        part(&format!("{name}.0.bias"), name, ChunkTag::MLPS, 4 * hs);
+        part(&format!("{name}.2.weight"), name, ChunkTag::MLPS, 4 * o * hs);
+        part(&format!("{name}.2.bias"), name, ChunkTag::MLPS, 4 * o);
+    }
+    part("coding_method", "quant", ChunkTag::QUAN, 1);
+    for (group, dim, general, regions) in [
+        ("feat", f, d.feat_lattice.has_factors(), u64::from(d.feat_regions)),
+        ("scaling", s, d.scaling_lattice.has_factors(), u64::from(d.scaling_regions)),
+        ("offsets", 3, false, 1),
+    ] {
+        let g = format!("quant.{group}");
+        part(&format!("{g}.step"), &g, ChunkTag::QUAN, 4);
+        part(&format!("{g}.gains"), &g, ChunkTag::QUAN, 4 * m);
+        if general {
+            // One basis per region (§7.6); region 0's is `basis_*`, the others `regions.*`.
+            if regions > 1 {
+                part(&format!("{g}.regions.start"), &g, ChunkTag::QUAN, 4 * (regions - 1));
+            }
+            part(&format!("{g}.basis_u (all regions)"), &g, ChunkTag::QUAN, 4 * regions * dim * dim);
+            part(&format!("{g}.basis_s (all regions)"), &g, ChunkTag::QUAN, 4 * regions * dim);
+            part(&format!("{g}.basis_v (all regions)"), &g, ChunkTag::QUAN, 4 * regions * dim * dim);
+        }
+    }
+    part(
+        "hyperprior.grid (touched entries, method byte)",
+        "hyperprior.grid",
+        ChunkTag::GRID,
+        chunk_bytes(ChunkTag::GRID),
+    );
+    out
+}
+
+/// The symbol bytes of one coded rate (`salvq info --json`: `layers`).
+#[derive(Debug, Clone, Serialize)]
+pub struct LayerInfo {
+    pub rate: u8,
+    /// `AFEA`, `ASCL`, `AOFF` of this layer, chunk overhead included.
+    pub feat_bytes: u64,
+    pub scaling_bytes: u64,
+    pub offsets_bytes: u64,
+    /// This layer's symbol bits per anchor.
+    pub symbol_bits_per_anchor: f64,
+    /// Bits per anchor of the single-rate stream of this rate (`salvq extract`): everything
+    /// but the other layers.
+    pub stream_bits_per_anchor: f64,
 }
 
 /// Everything `salvq info` reports.
@@ -157,6 +191,8 @@ pub struct StreamInfo {
     pub encoder: Vec<EncodeReport>,
     /// The tile table (§10.1), summarised.
     pub tiles: Option<TilesInfo>,
+    /// Symbol bytes per coded rate, rates ascending.
+    pub layers: Vec<LayerInfo>,
 }
 
 /// How a stream is cut into tiles (§10).
@@ -264,6 +300,38 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
         .as_ref()
         .map(|p| model_parts(p, bytes_of))
         .unwrap_or_default();
+    // §7.4: the layer chunks repeat AFEA ASCL AOFF once per coded rate, rates ascending.
+    let rates = head.as_ref().map_or(Vec::new(), |h| h.coded_rates.clone());
+    let layer_chunks: Vec<&ChunkInfo> = chunks
+        .iter()
+        .filter(|c| ["AFEA", "ASCL", "AOFF"].contains(&c.tag.as_str()))
+        .collect();
+    let all_layers: u64 = layer_chunks.iter().map(|c| c.total_bytes).sum();
+    let per_anchor = |bytes: u64| {
+        if anchors == 0 {
+            0.0
+        } else {
+            bytes as f64 * 8.0 / f64::from(anchors)
+        }
+    };
+    let layers = rates
+        .iter()
+        .zip(layer_chunks.chunks(3))
+        .filter_map(|(&rate, c)| match c {
+            [fe, sc, of] => {
+                let own = fe.total_bytes + sc.total_bytes + of.total_bytes;
+                Some(LayerInfo {
+                    rate,
+                    feat_bytes: fe.total_bytes,
+                    scaling_bytes: sc.total_bytes,
+                    offsets_bytes: of.total_bytes,
+                    symbol_bits_per_anchor: per_anchor(own),
+                    stream_bits_per_anchor: per_anchor(file_bytes - all_layers + own),
+                })
+            }
+            _ => None,
+        })
+        .collect();
     Ok(StreamInfo {
         model_parts,
         format_version: format!("{}.{}", sig.major, sig.minor),
@@ -272,6 +340,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
         chunks,
         encoder,
         tiles,
+        layers,
         totals: Totals {
             file_bytes,
             model_bytes: model,
@@ -351,9 +420,35 @@ impl StreamInfo {
             );
         }
         if !self.model_parts.is_empty() {
-            let _ = writeln!(s, "model bytes by part:");
+            // Subtotals per group, in order (`--json` lists every tensor).
+            let _ = writeln!(s, "model bytes by part (salvq info --json: per tensor):");
+            let mut groups: Vec<(&str, &str, u64)> = Vec::new();
             for p in &self.model_parts {
-                let _ = writeln!(s, "  {:<36} {:<5} {:>10}", p.part, p.chunk, p.bytes);
+                match groups.last_mut() {
+                    Some(g) if g.0 == p.group => g.2 += p.bytes,
+                    _ => groups.push((&p.group, &p.chunk, p.bytes)),
+                }
+            }
+            for (group, chunk, bytes) in groups {
+                let _ = writeln!(s, "  {group:<36} {chunk:<5} {bytes:>10}");
+            }
+        }
+        if !self.layers.is_empty() {
+            let _ = writeln!(
+                s,
+                "symbol bytes by rate:  feature  scaling  offsets  symbol bits/anchor  stream bits/anchor (this rate alone)"
+            );
+            for l in &self.layers {
+                let _ = writeln!(
+                    s,
+                    "  rate {:>2} {:>15} {:>8} {:>8} {:>19.2} {:>19.2}",
+                    l.rate,
+                    l.feat_bytes,
+                    l.scaling_bytes,
+                    l.offsets_bytes,
+                    l.symbol_bits_per_anchor,
+                    l.stream_bits_per_anchor
+                );
             }
         }
         for r in &self.encoder {
