@@ -120,7 +120,12 @@ fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<Mode
             bytes,
         })
     };
-    part("HEAD", "preflight", ChunkTag::HEAD, chunk_bytes(ChunkTag::HEAD));
+    part(
+        "HEAD",
+        "preflight",
+        ChunkTag::HEAD,
+        chunk_bytes(ChunkTag::HEAD),
+    );
     // §5.3 Table 5-1: the integer context MLP.
     let g = "mlp_grid (integer, §5.3)";
     part("coding_method, a0, shift0, a1", g, ChunkTag::MLPS, 3 + cout);
@@ -129,15 +134,35 @@ fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<Mode
     part("mlp_grid.2.weight (i16)", g, ChunkTag::MLPS, 2 * cout * h);
     part("mlp_grid.2.bias (i32)", g, ChunkTag::MLPS, 4 * cout);
     for (name, o) in [("mlp_opacity", k), ("mlp_cov", 7 * k), ("mlp_color", 3 * k)] {
-        part(&format!("{name}.0.weight"), name, ChunkTag::MLPS, 4 * hs * si);
+        part(
+            &format!("{name}.0.weight"),
+            name,
+            ChunkTag::MLPS,
+            4 * hs * si,
+        );
         part(&format!("{name}.0.bias"), name, ChunkTag::MLPS, 4 * hs);
-        part(&format!("{name}.2.weight"), name, ChunkTag::MLPS, 4 * o * hs);
+        part(
+            &format!("{name}.2.weight"),
+            name,
+            ChunkTag::MLPS,
+            4 * o * hs,
+        );
         part(&format!("{name}.2.bias"), name, ChunkTag::MLPS, 4 * o);
     }
     part("coding_method", "quant", ChunkTag::QUAN, 1);
     for (group, dim, general, regions) in [
-        ("feat", f, d.feat_lattice.has_factors(), u64::from(d.feat_regions)),
-        ("scaling", s, d.scaling_lattice.has_factors(), u64::from(d.scaling_regions)),
+        (
+            "feat",
+            f,
+            d.feat_lattice.has_factors(),
+            u64::from(d.feat_regions),
+        ),
+        (
+            "scaling",
+            s,
+            d.scaling_lattice.has_factors(),
+            u64::from(d.scaling_regions),
+        ),
         ("offsets", 3, false, 1),
     ] {
         let g = format!("quant.{group}");
@@ -146,11 +171,31 @@ fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<Mode
         if general {
             // One basis per region (§7.6); region 0's is `basis_*`, the others `regions.*`.
             if regions > 1 {
-                part(&format!("{g}.regions.start"), &g, ChunkTag::QUAN, 4 * (regions - 1));
+                part(
+                    &format!("{g}.regions.start"),
+                    &g,
+                    ChunkTag::QUAN,
+                    4 * (regions - 1),
+                );
             }
-            part(&format!("{g}.basis_u (all regions)"), &g, ChunkTag::QUAN, 4 * regions * dim * dim);
-            part(&format!("{g}.basis_s (all regions)"), &g, ChunkTag::QUAN, 4 * regions * dim);
-            part(&format!("{g}.basis_v (all regions)"), &g, ChunkTag::QUAN, 4 * regions * dim * dim);
+            part(
+                &format!("{g}.basis_u (all regions)"),
+                &g,
+                ChunkTag::QUAN,
+                4 * regions * dim * dim,
+            );
+            part(
+                &format!("{g}.basis_s (all regions)"),
+                &g,
+                ChunkTag::QUAN,
+                4 * regions * dim,
+            );
+            part(
+                &format!("{g}.basis_v (all regions)"),
+                &g,
+                ChunkTag::QUAN,
+                4 * regions * dim * dim,
+            );
         }
     }
     part(

@@ -42,8 +42,16 @@ fn per_rate_stream_size_is_the_extracted_stream() {
     let n = f64::from(info.head.as_ref().unwrap().dims.anchors);
     for l in &info.layers {
         let one = salvq::extract_rate(&stream, l.rate, &Limits::default()).unwrap();
-        assert_eq!(l.stream_bits_per_anchor, one.len() as f64 * 8.0 / n, "rate {}", l.rate);
+        assert_eq!(
+            l.stream_bits_per_anchor,
+            one.len() as f64 * 8.0 / n,
+            "rate {}",
+            l.rate
+        );
     }
     // Lower rates spend more symbol bits (larger gains are coarser steps in this model).
-    assert!(info.layers.windows(2).all(|w| w[0].symbol_bits_per_anchor > w[1].symbol_bits_per_anchor));
+    assert!(info
+        .layers
+        .windows(2)
+        .all(|w| w[0].symbol_bits_per_anchor > w[1].symbol_bits_per_anchor));
 }

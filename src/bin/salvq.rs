@@ -86,6 +86,11 @@ enum Command {
         /// Do not write the `ests` chunk (encoder statistics shown by `info`).
         #[arg(long)]
         no_stats: bool,
+        /// Drop hash-grid levels that do not pay for themselves: a level goes when the stream
+        /// without it is smaller and the feature error grows by at most 1 % (each candidate
+        /// is encoded; prints what it chose and why).
+        #[arg(long)]
+        prune_grid: bool,
         /// Print the encoder's report as JSON.
         #[arg(long)]
         json: bool,
@@ -286,10 +291,11 @@ fn run(cli: Cli) -> Result<(), Error> {
             regions,
             tile_anchors,
             no_stats,
+            prune_grid,
             json,
         } => {
             let t = Instant::now();
-            let model = read_model(&input)?;
+            let mut model = read_model(&input)?;
             let feat_lattice = match quantizer.as_str() {
                 "usq" => Some(salvq::LatticeKind::Identity),
                 "dn" => Some(salvq::LatticeKind::Dn),
@@ -308,6 +314,25 @@ fn run(cli: Cli) -> Result<(), Error> {
                 fit_scales,
                 tile_anchors,
             };
+            if prune_grid {
+                let (pruned, trials) =
+                    salvq::encoder::parsimony::prune_grid_levels(&model, &options, 0.01)?;
+                for tr in &trials {
+                    eprintln!(
+                        "dropped {} (resolution {}): {} -> {} bytes, feature MSE {:.4e} -> {:.4e}",
+                        tr.level,
+                        tr.resolution,
+                        tr.bytes_with,
+                        tr.bytes_without,
+                        tr.mse_with,
+                        tr.mse_without
+                    );
+                }
+                if trials.is_empty() {
+                    eprintln!("kept every grid level: no removal made the stream smaller");
+                }
+                model = pruned;
+            }
             let encoded = salvq::encoder::encode_full(&model, &options)?;
             let stream = &encoded.stream;
             salvq::io::write_bytes_atomic(&output, stream)?;

@@ -6,6 +6,7 @@ pub mod attributes;
 pub mod convert;
 pub mod fit;
 pub mod float_prior;
+pub mod parsimony;
 pub mod search;
 
 use serde::{Deserialize, Serialize};
