@@ -97,7 +97,11 @@ pub struct ModelPart {
 
 /// The model bytes per stored tensor, from the preflight's dimensions and the chunk sizes
 /// (spec §1.4, §1.6.1-§1.6.3).
-fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<ModelPart> {
+fn model_parts(
+    p: &Preflight,
+    chunk_bytes: impl Fn(ChunkTag) -> u64,
+    scaffold_value_bytes: u64,
+) -> Vec<ModelPart> {
     let d = &p.dims;
     let (f, s, k) = (
         u64::from(d.feat_dim),
@@ -133,21 +137,23 @@ fn model_parts(p: &Preflight, chunk_bytes: impl Fn(ChunkTag) -> u64) -> Vec<Mode
     part("mlp_grid.0.bias (i32)", g, ChunkTag::MLPS, 4 * h);
     part("mlp_grid.2.weight (i16)", g, ChunkTag::MLPS, 2 * cout * h);
     part("mlp_grid.2.bias (i32)", g, ChunkTag::MLPS, 4 * cout);
+    part("scaffold_precision", "mlp_opacity", ChunkTag::MLPS, 1);
+    let b = scaffold_value_bytes;
     for (name, o) in [("mlp_opacity", k), ("mlp_cov", 7 * k), ("mlp_color", 3 * k)] {
         part(
             &format!("{name}.0.weight"),
             name,
             ChunkTag::MLPS,
-            4 * hs * si,
+            b * hs * si,
         );
-        part(&format!("{name}.0.bias"), name, ChunkTag::MLPS, 4 * hs);
+        part(&format!("{name}.0.bias"), name, ChunkTag::MLPS, b * hs);
         part(
             &format!("{name}.2.weight"),
             name,
             ChunkTag::MLPS,
-            4 * o * hs,
+            b * o * hs,
         );
-        part(&format!("{name}.2.bias"), name, ChunkTag::MLPS, 4 * o);
+        part(&format!("{name}.2.bias"), name, ChunkTag::MLPS, b * o);
     }
     part("coding_method", "quant", ChunkTag::QUAN, 1);
     for (group, dim, general, regions) in [
@@ -297,6 +303,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     let mut preflight = None;
     let mut encoder = Vec::new();
     let mut tiles = None;
+    let mut scaffold_value_bytes = None;
     let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
     while let Some(c) = reader.next_chunk()? {
         if c.tag == ChunkTag::HEAD && head.is_none() {
@@ -306,6 +313,20 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
         }
         if c.tag == ChunkTag::ESTS {
             encoder.extend(serde_json::from_slice::<EncodeReport>(c.payload).ok());
+        }
+        if let (ChunkTag::MLPS, Some(p)) = (c.tag, &preflight) {
+            // §1.6.2: `scaffold_precision` follows the method byte and the context MLP.
+            let d = &p.dims;
+            let (cin, h, cout) = (
+                d.context_input(),
+                u64::from(d.context_hidden),
+                d.context_output(),
+            );
+            let at = 3 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout;
+            scaffold_value_bytes = match c.payload.get(at as usize) {
+                Some(1) => Some(2),
+                _ => Some(4),
+            };
         }
         if let (ChunkTag::TILS, Some(p)) = (c.tag, &preflight) {
             let t = crate::tiles::TileTable::parse(c.payload, p.dims.anchors, p.coord_bits)?;
@@ -343,7 +364,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     };
     let model_parts = preflight
         .as_ref()
-        .map(|p| model_parts(p, bytes_of))
+        .map(|p| model_parts(p, bytes_of, scaffold_value_bytes.unwrap_or(4)))
         .unwrap_or_default();
     // §7.4: the layer chunks repeat AFEA ASCL AOFF once per coded rate, rates ascending.
     let rates = head.as_ref().map_or(Vec::new(), |h| h.coded_rates.clone());

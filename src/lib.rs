@@ -5,7 +5,7 @@
 //! quantization with per-rate gains). The normative text is `spec/` in this repository; every
 //! module cites the section it implements.
 //!
-//! ## Map of a stream (format 0.8)
+//! ## Map of a stream (format 0.9)
 //!
 //! | stream part | spec | module |
 //! |---|---|---|

@@ -133,15 +133,17 @@ fn octree_counts_that_do_not_add_up() {
 
 #[test]
 fn non_finite_values() {
-    // MLPS: method byte, 2 + Cout shift bytes, the integer context MLP, then f32 Scaffold-GS MLPs.
+    // MLPS: method byte, 2 + Cout shift bytes, the integer context MLP, `scaffold_precision`,
+    // then the Scaffold-GS MLPs (binary32 for this model, §1.6.2).
     let d = small_model().dims;
     let (cin, h, cout) = (
         d.context_input(),
         u64::from(d.context_hidden),
         d.context_output(),
     );
-    let scaffold = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize;
+    let scaffold = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize + 1;
     let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| {
+        assert_eq!(p[scaffold - 1], 0, "binary32");
         p[scaffold + 4..scaffold + 8].copy_from_slice(&f32::INFINITY.to_le_bytes());
     });
     assert_eq!(

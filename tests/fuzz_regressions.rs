@@ -60,8 +60,9 @@ fn seeds_replay_clean_and_the_stream_seeds_decode() {
     assert!(count >= 8, "only {count} seeds");
 }
 
-/// Writes the seeds of the `payload` and `preflight` targets (each payload of the base
-/// stream, and the `HEAD` payloads of the conformance vectors):
+/// Writes the seeds of the `decode` and `extract` targets (five small streams), and of the
+/// `payload` and `preflight` targets (each payload of the base stream, and the `HEAD`
+/// payloads of the conformance vectors); run after a format change:
 /// `SALVQ_WRITE_SEEDS=1 cargo test --test fuzz_regressions write_seeds -- --ignored`.
 #[test]
 #[ignore]
@@ -71,6 +72,71 @@ fn write_seeds() {
         return;
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // Stream seeds for `decode`, and the same with a rate byte first for `extract`.
+    use salvq::encoder::{encode_full, EncodeOptions, Search};
+    use salvq::gen::{generate, GenParams};
+    use salvq::LatticeKind;
+    let small = |n, seed, basis| GenParams {
+        feat_basis: basis,
+        ..GenParams::small(n, seed)
+    };
+    let streams: [(&str, GenParams, EncodeOptions, u8); 5] = [
+        ("usq", small(40, 1, false), EncodeOptions::default(), 0),
+        (
+            "salvq_2rates",
+            small(60, 2, true),
+            EncodeOptions {
+                rates: vec![0, 1],
+                ..Default::default()
+            },
+            1,
+        ),
+        (
+            "dn",
+            small(40, 3, false),
+            EncodeOptions {
+                feat_lattice: Some(LatticeKind::Dn),
+                ..Default::default()
+            },
+            0,
+        ),
+        (
+            "e8_tiles",
+            GenParams {
+                feat_dim: 16,
+                ..small(80, 4, false)
+            },
+            EncodeOptions {
+                feat_lattice: Some(LatticeKind::E8Product),
+                tile_anchors: 16,
+                search: Search::Rdo { lambda_milli: 1000 },
+                ..Default::default()
+            },
+            0,
+        ),
+        (
+            "klt_regions",
+            small(90, 5, true),
+            EncodeOptions {
+                fit_basis: true,
+                feat_regions: 3,
+                encoder_note: Some("seed".into()),
+                ..Default::default()
+            },
+            0,
+        ),
+    ];
+    for (name, params, options, rate) in streams {
+        let stream = encode_full(&generate(&params), &options).unwrap().stream;
+        std::fs::write(
+            root.join(format!("fuzz/seeds/decode/{name}.salvq")),
+            &stream,
+        )
+        .unwrap();
+        let mut e = vec![rate];
+        e.extend_from_slice(&stream);
+        std::fs::write(root.join(format!("fuzz/seeds/extract/{name}.bin")), e).unwrap();
+    }
     let dir = root.join("fuzz/seeds/payload");
     std::fs::create_dir_all(&dir).unwrap();
     let base = chunks(salvq::fuzzing::payload_base()).unwrap();

@@ -9,7 +9,7 @@ from .container import Limits, check_signature, read_chunk
 from .entropy import Prior, decode_amsk, decode_layer, payload_method
 from .errors import SalvqError
 from .geometry import decode_apos
-from .hyperprior import (grid_body_length, mlp_grid_tensors, mlps_body_length, parse_grid,
+from .hyperprior import (grid_body_length, mlp_grid_tensors, parse_grid,
                          parse_mlps, touched_entries)
 from .model import Dims, parse_head
 from .quantizers import parse_quan, quan_body_length
@@ -79,8 +79,8 @@ def decode_bytes(data: bytes, rate: int | None = None, limits: Limits | None = N
             tensors["hyperprior.resolutions_2d"] = np.array(dims.res2, np.int32)
             tensors["hyperprior.log2_size"] = np.array([dims.T3, dims.T2], np.int32)
         elif tag == "MLPS":
-            body = _fixed_length(tag, p, 1, mlps_body_length(dims))
-            mlp, scaffold = parse_mlps(body, dims)
+            payload_method(tag, p, 1)
+            mlp, scaffold = parse_mlps(p, dims)
             tensors.update(mlp_grid_tensors(mlp))
             tensors.update(scaffold)
         elif tag == "QUAN":

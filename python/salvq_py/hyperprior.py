@@ -63,16 +63,46 @@ def scaffold_specs(d: Dims) -> list[tuple[str, tuple]]:
     return out
 
 
-def mlps_body_length(d: Dims) -> int:
-    scaffold = sum(int(np.prod(s)) for _, s in scaffold_specs(d))
-    return (2 + d.Cout + 2 * d.H * d.Cin + 4 * d.H + 2 * d.Cout * d.H + 4 * d.Cout
-            + 4 * scaffold)
+def scaffold_value_count(d: Dims) -> int:
+    """The elements of Table 2-1 rows 19-30: 3·Hs·(F + V + 1) + 11·K·Hs + 11·K."""
+    return sum(int(np.prod(s)) for _, s in scaffold_specs(d))
 
 
-def parse_mlps(body: bytes, d: Dims) -> tuple[IntMlp, dict]:
-    """§1.6.2 (after §1.6 steps 1-3): the integer MLP and the Scaffold-GS tensors."""
+def mlps_context_length(d: Dims) -> int:
+    """§1.6.2 `context`: the bytes of the integer context MLP (Table 5-1)."""
+    return 2 + d.Cout + 2 * d.H * d.Cin + 4 * d.H + 2 * d.Cout * d.H + 4 * d.Cout
+
+
+# Table 1-6: scaffold_precision -> (bytes per value, little-endian storage dtype)
+SCAFFOLD_PRECISION = {0: (4, "<f4"), 1: (2, "<f2")}
+
+
+def mlps_body_length(d: Dims, precision: int = 0) -> int:
+    return mlps_context_length(d) + 1 + SCAFFOLD_PRECISION[precision][0] * scaffold_value_count(d)
+
+
+def parse_mlps(payload: bytes, d: Dims) -> tuple[IntMlp, dict]:
+    """§1.6.2 (after §1.6 steps 1-2; the length checks of step 3 are §1.6.2's own, in its
+    order): the integer MLP and the Scaffold-GS tensors (binary32 or binary16, Table 1-6).
+    Reported lengths are whole payload lengths (1 + body), as §1.6 step 3."""
+    body = payload[1:]
     H, Cin, Cout = d.H, d.Cin, d.Cout
-    pos = 0
+    context = mlps_context_length(d)
+    scaffold_n = scaffold_value_count(d)
+    if len(body) < context + 1:
+        raise SalvqError("ChunkSizeMismatch",
+                         f"chunk MLPS: payload length {len(payload)}, expected "
+                         f"{1 + context + 1 + 4 * scaffold_n} [§1.6.2]")
+    precision = body[context]
+    if precision not in SCAFFOLD_PRECISION:
+        raise SalvqError("FieldOutOfRange",
+                         f"MLPS scaffold_precision = {precision}, range 0 … 1 [§1.6.2, Table 1-6]")
+    nbytes, dtype = SCAFFOLD_PRECISION[precision]
+    if len(body) != context + 1 + nbytes * scaffold_n:
+        raise SalvqError("ChunkSizeMismatch",
+                         f"chunk MLPS: payload length {len(payload)}, expected "
+                         f"{1 + context + 1 + nbytes * scaffold_n} (scaffold_precision "
+                         f"{precision}) [§1.6.2]")
     a0 = body[0]
     shift0 = body[1]
     a1 = np.frombuffer(body, np.uint8, Cout, 2).astype(np.int64)
@@ -85,6 +115,7 @@ def parse_mlps(body: bytes, d: Dims) -> tuple[IntMlp, dict]:
     pos += 2 * Cout * H
     b1 = np.frombuffer(body, "<i4", Cout, pos).astype(np.int64)
     pos += 4 * Cout
+    assert pos == context
     if a0 > 30:
         raise SalvqError("FieldOutOfRange", f"MLPS w0_frac_bits = {a0}, range 0 … 30 [§1.6.2]")
     if shift0 > min(31, 8 + a0):
@@ -94,17 +125,19 @@ def parse_mlps(body: bytes, d: Dims) -> tuple[IntMlp, dict]:
         if a1[o] > 30:
             raise SalvqError("FieldOutOfRange",
                              f"MLPS w1_frac_bits[{o}] = {int(a1[o])}, range 0 … 30 [§1.6.2]")
+    pos += 1                                   # scaffold_precision
     tensors = {}
     for name, shape in scaffold_specs(d):
         n = int(np.prod(shape))
-        bits = np.frombuffer(body, "<u4", n, pos)
-        bad = np.nonzero((bits & 0x7F800000) == 0x7F800000)[0]
+        values = np.frombuffer(body, dtype, n, pos)
+        bad = np.nonzero(~np.isfinite(values))[0]
         if bad.size:
             idx = np.unravel_index(int(bad[0]), shape)
             raise SalvqError("NonFiniteValue",
                              f"{name}[{', '.join(str(int(i)) for i in idx)}]: value is not finite [§1.6.2]")
-        tensors[name] = bits.view("<f4").reshape(shape).copy()
-        pos += 4 * n
+        # binary16 -> binary32 is exact (subnormals and -0.0 included); binary32 keeps its bits
+        tensors[name] = values.astype("<f4").reshape(shape).copy()
+        pos += nbytes * n
     assert pos == len(body)
     return IntMlp(int(a0), int(shift0), a1, w0, b0, w1, b1), tensors
 

@@ -100,6 +100,71 @@ def test_ans_golden_vector():                          # §6.2.8
     d.finish()
 
 
+def _mlps_edit(data: bytes, body_fn) -> bytes:
+    """Replace the MLPS payload by body_fn(payload), CRC recomputed (§1.3)."""
+    pos = 12
+    while pos + 8 <= len(data):
+        n = int.from_bytes(data[pos:pos + 4], "little")
+        tag = data[pos + 4:pos + 8]
+        if tag == b"MLPS":
+            p = body_fn(data[pos + 8:pos + 8 + n])
+            crc = crc32c(p, crc32c(tag)).to_bytes(4, "little")
+            return (data[:pos] + len(p).to_bytes(4, "little") + tag + p + crc
+                    + data[pos + 12 + n:])
+        pos += 12 + n
+    raise KeyError("MLPS")
+
+
+def test_mlps_precision_checks():
+    """§1.6.2 (0.9): the checks on scaffold_precision and their order, on edited streams;
+    binary16 values widen exactly to binary32 (Table 1-6)."""
+    from salvq_py.hyperprior import mlps_context_length, scaffold_specs, scaffold_value_count
+    vec = next(v for v in _manifest() if v["kind"] == "valid")
+    data, rate = _read(vec["file"]), vec["decodes"][0]["rate"]
+    base = decode_bytes(data, rate)
+    c = 1 + mlps_context_length(base.dims)             # payload bytes before scaffold_precision
+    n = scaffold_value_count(base.dims)
+
+    def values(p):
+        raw = p[c + 1:]
+        return np.frombuffer(raw, "<f4" if p[c] == 0 else "<f2")
+
+    def cls(fn):
+        try:
+            decode_bytes(_mlps_edit(data, fn), rate)
+            return "ok"
+        except SalvqError as e:
+            return e.error_class
+
+    h = lambda p: np.clip(values(p), -65504, 65504).astype("<f2")  # noqa: E731
+    f = lambda p: values(p).astype("<f4")                          # noqa: E731
+    bad_a0 = lambda p: p[:1] + bytes([31]) + p[2:c]                # noqa: E731
+    cases = [
+        (lambda p: p[:c], "ChunkSizeMismatch"),                                     # short body
+        (lambda p: p[:c] + b"\x02" + h(p).tobytes(), "FieldOutOfRange"),
+        (lambda p: p[:c] + b"\xff", "FieldOutOfRange"),                             # code before length
+        (lambda p: p[:c] + b"\x01" + f(p).tobytes(), "ChunkSizeMismatch"),
+        (lambda p: p[:c] + b"\x00" + h(p).tobytes(), "ChunkSizeMismatch"),
+        (lambda p: bad_a0(p) + b"\x02" + h(p).tobytes(), "FieldOutOfRange"),
+        (lambda p: bad_a0(p) + b"\x01" + h(p).tobytes() + b"\0", "ChunkSizeMismatch"),  # length first
+        (lambda p: p[:c] + b"\x01" + np.r_[h(p)[:-1], np.float16(np.nan)].astype("<f2").tobytes(),
+         "NonFiniteValue"),
+        (lambda p: p[:c] + b"\x01" + np.r_[np.float16(-np.inf), h(p)[1:]].astype("<f2").tobytes(),
+         "NonFiniteValue"),
+    ]
+    for i, (fn, want) in enumerate(cases):
+        got = cls(fn)
+        assert got == want, f"MLPS case {i}: {got}, expected {want}"
+    special = np.array([2.0 ** -24, -0.0, 65504.0, -(2.0 ** -15)], "<f2")
+    edited = _mlps_edit(data, lambda p: p[:c] + b"\x01" + np.r_[special, h(p)[4:]].astype("<f2").tobytes())
+    dec = decode_bytes(edited, rate)
+    name, shape = scaffold_specs(base.dims)[0]
+    got = dec.tensors[name].ravel()[:4]
+    assert got.dtype == np.float32 and got.tobytes() == special.astype("<f4").tobytes()
+    assert all(dec.symbols[k].tobytes() == base.symbols[k].tobytes() for k in base.symbols)
+    assert n == sum(int(np.prod(s)) for _, s in scaffold_specs(base.dims))
+
+
 def test_valid_vectors():
     for vec in _manifest():
         if vec["kind"] == "valid":
@@ -114,7 +179,8 @@ def test_must_fail_vectors():
 
 def main() -> int:
     failed = 0
-    for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector):
+    for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector,
+              test_mlps_precision_checks):
         try:
             t()
             print(f"pass  {t.__name__}")

@@ -91,6 +91,10 @@ enum Command {
         /// is encoded; prints what it chose and why).
         #[arg(long)]
         prune_grid: bool,
+        /// How to store the Scaffold-GS MLPs (spec §1.6.2): `auto` (binary16 when their
+        /// outputs on the scene's anchors move by at most 2^-9, spec Annex A.5.2), `f32`, `f16`.
+        #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "f16"])]
+        scaffold_precision: String,
         /// Print the encoder's report as JSON.
         #[arg(long)]
         json: bool,
@@ -292,6 +296,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             tile_anchors,
             no_stats,
             prune_grid,
+            scaffold_precision,
             json,
         } => {
             let t = Instant::now();
@@ -313,6 +318,11 @@ fn run(cli: Cli) -> Result<(), Error> {
                 feat_regions: regions,
                 fit_scales,
                 tile_anchors,
+                scaffold_precision: match scaffold_precision.as_str() {
+                    "f32" => Some(salvq::container::payload::ScaffoldPrecision::F32),
+                    "f16" => Some(salvq::container::payload::ScaffoldPrecision::F16),
+                    _ => None,
+                },
             };
             if prune_grid {
                 let (pruned, trials) =
@@ -334,6 +344,12 @@ fn run(cli: Cli) -> Result<(), Error> {
                 model = pruned;
             }
             let encoded = salvq::encoder::encode_full(&model, &options)?;
+            let sc = &encoded.scaffold;
+            eprintln!(
+                "Scaffold-GS MLPs stored as {:?}: binary16 changes their outputs by at most {:.2e} \
+                 (tolerance {:.2e}); {} bytes saved",
+                sc.precision, sc.max_output_change, sc.tolerance, sc.bytes_saved
+            );
             let stream = &encoded.stream;
             salvq::io::write_bytes_atomic(&output, stream)?;
             let reports: Vec<_> = encoded.layers.iter().map(|l| &l.report).collect();

@@ -169,8 +169,16 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "x-unsupported-minor-version",
             "UnsupportedMinorVersion",
             &["§1.2", "§1.2.1"],
-            "minor version 9 in the draft series (the decoder implements 0.8)",
-            with(&|s| s[9] = 9),
+            "minor version one above the decoder's in the draft series",
+            with(&|s| s[9] = crate::container::signature::FORMAT_MINOR + 1),
+        ),
+        vector(
+            "x-older-minor-version",
+            "UnsupportedMinorVersion",
+            &["§1.2", "§1.2.1"],
+            "minor version one below the decoder's in the draft series (draft versions are \
+             never read by a later draft's decoder)",
+            with(&|s| s[9] = crate::container::signature::FORMAT_MINOR - 1),
         ),
         vector(
             "x-reserved-file-flags",

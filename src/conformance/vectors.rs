@@ -342,6 +342,19 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
     ));
 
     out.push(vector(
+        "scaffold-f16",
+        "Scaffold-GS MLPs stored in binary16 (scaffold_precision 1)",
+        &["§1.6.2"],
+        encode_full(
+            &usq,
+            &EncodeOptions {
+                scaffold_precision: Some(crate::container::payload::ScaffoldPrecision::F16),
+                ..options(&[0])
+            },
+        )?,
+    ));
+
+    out.push(vector(
         "extreme-exponents",
         "tiny context-MLP weights: unit exponents E up to 8 + 30 + 30 on the step-adjustment \
          outputs, where a 64-bit rounding shift would overflow",

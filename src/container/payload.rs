@@ -102,6 +102,42 @@ pub fn read_grid(payload: &[u8], d: &Dims, touched: &[Vec<bool>; 4]) -> Result<H
 
 // ---- MLPS (§1.6.2): method 1, integer context MLP (§5.3) then raw Scaffold-GS MLPs ----
 
+/// How the Scaffold-GS MLPs are stored (§1.6.2 Table 1-6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub enum ScaffoldPrecision {
+    /// Code 0: binary32.
+    #[default]
+    F32,
+    /// Code 1: IEEE 754 binary16, decoded to binary32 exactly.
+    F16,
+}
+
+impl ScaffoldPrecision {
+    pub fn code(self) -> u8 {
+        match self {
+            ScaffoldPrecision::F32 => 0,
+            ScaffoldPrecision::F16 => 1,
+        }
+    }
+
+    /// Bytes per stored value.
+    pub fn bytes(self) -> u64 {
+        match self {
+            ScaffoldPrecision::F32 => 4,
+            ScaffoldPrecision::F16 => 2,
+        }
+    }
+
+    /// `v` as this precision stores and decodes it (binary16: rounded to nearest even; a value
+    /// beyond its range becomes infinite, which the encoder never writes).
+    pub fn round(self, v: f32) -> f32 {
+        match self {
+            ScaffoldPrecision::F32 => v,
+            ScaffoldPrecision::F16 => half::f16::from_f32(v).to_f32(),
+        }
+    }
+}
+
 /// The Scaffold-GS MLPs in stream order with their tensor names and (in, hidden, out) widths.
 fn scaffold_layout(d: &Dims) -> [([&'static str; 4], u64, u64, u64); 3] {
     let k = u64::from(d.offsets);
@@ -114,7 +150,9 @@ fn scaffold_layout(d: &Dims) -> [([&'static str; 4], u64, u64, u64); 3] {
     ]
 }
 
-pub fn write_mlps(ctx: &IntMlp, m: &SceneModel) -> Vec<u8> {
+/// Writes `MLPS`; the Scaffold-GS values are stored in `precision` (the caller has checked
+/// that they fit it).
+pub fn write_mlps(ctx: &IntMlp, m: &SceneModel, precision: ScaffoldPrecision) -> Vec<u8> {
     let mut w = PayloadWriter::default();
     w.u8(METHOD_CODED);
     w.u8(ctx.w0_frac_bits);
@@ -132,9 +170,18 @@ pub fn write_mlps(ctx: &IntMlp, m: &SceneModel) -> Vec<u8> {
     for v in &ctx.b1 {
         w.buf.extend_from_slice(&v.to_le_bytes());
     }
+    w.u8(precision.code());
     for mlp in [&m.mlp_opacity, &m.mlp_cov, &m.mlp_color] {
         for part in [&mlp.w0, &mlp.b0, &mlp.w1, &mlp.b1] {
-            w.f32s(part);
+            match precision {
+                ScaffoldPrecision::F32 => w.f32s(part),
+                ScaffoldPrecision::F16 => {
+                    for &v in part.iter() {
+                        w.buf
+                            .extend_from_slice(&half::f16::from_f32(v).to_le_bytes());
+                    }
+                }
+            }
         }
     }
     w.buf
@@ -165,7 +212,27 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
         .map(|&(_, i, h, o)| h * i + h + o * h + o)
         .sum();
     let context = 2 + cout + 2 * (h * cin) + 4 * h + 2 * (cout * h) + 4 * cout;
-    expect_len(tag, body, context + 4 * scaffold)?;
+    // §1.6.2: the precision byte first (its position is fixed), then the exact length.
+    let Some(&code) = body.get(context as usize) else {
+        return Err(Error::ChunkSizeMismatch {
+            tag,
+            expected: 1 + context + 1 + 4 * scaffold,
+            found: 1 + body.len() as u64,
+        });
+    };
+    let precision = match code {
+        0 => ScaffoldPrecision::F32,
+        1 => ScaffoldPrecision::F16,
+        _ => {
+            return Err(Error::FieldOutOfRange {
+                field: Field::ScaffoldPrecision,
+                value: code.into(),
+                min: 0,
+                max: 1,
+            })
+        }
+    };
+    expect_len(tag, body, context + 1 + precision.bytes() * scaffold)?;
     let mut r = PayloadReader::new(tag, body);
     let w0_frac_bits = r.u8()?;
     let shift0 = r.u8()?;
@@ -190,6 +257,7 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
     let b0 = i32s(r.take(4 * h as usize)?);
     let w1 = i16s(r.take(2 * (cout * h) as usize)?);
     let b1 = i32s(r.take(4 * cout as usize)?);
+    r.u8()?; // scaffold_precision, read above
     let ctx = IntMlp {
         cin: cin as usize,
         hidden: h as usize,
@@ -208,7 +276,14 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
         let mut parts = Vec::with_capacity(4);
         for (name, shape) in names.iter().zip(shapes) {
             let n: u64 = shape.iter().product();
-            let values = f32s(r.take(4 * n as usize)?);
+            let bytes = r.take((precision.bytes() * n) as usize)?;
+            let values = match precision {
+                ScaffoldPrecision::F32 => f32s(bytes),
+                ScaffoldPrecision::F16 => bytes
+                    .chunks_exact(2)
+                    .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
+                    .collect(),
+            };
             check_finite(name, &values, &shape)?;
             parts.push(values);
         }

@@ -7,6 +7,7 @@ pub mod convert;
 pub mod fit;
 pub mod float_prior;
 pub mod parsimony;
+pub mod precision;
 pub mod search;
 
 use serde::{Deserialize, Serialize};
@@ -52,6 +53,9 @@ pub struct EncodeOptions {
     /// Refit the context MLP's feature-scale rows to the coordinates of the lattice the
     /// features are coded with ([`fit::fit_feature_scales`]).
     pub fit_scales: bool,
+    /// How to store the Scaffold-GS MLPs (§1.6.2); `None`: the least precision that keeps
+    /// their outputs within tolerance ([`precision::choose`], Annex A.5.2).
+    pub scaffold_precision: Option<crate::container::payload::ScaffoldPrecision>,
 }
 
 /// What the encoder measured for one layer (written to `ests` when asked; `salvq info`
@@ -102,6 +106,8 @@ pub struct EncodedLayer {
 pub struct Encoded {
     pub stream: Vec<u8>,
     pub layers: Vec<EncodedLayer>,
+    /// How the Scaffold-GS MLPs were stored, and why (Annex A.5.2).
+    pub scaffold: precision::PrecisionChoice,
 }
 
 impl Encoded {
@@ -191,6 +197,8 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     };
     let d = &m.dims;
     let coord_bits = m.coord_bits();
+    // Annex A.5.2: the Scaffold-GS MLPs' storage.
+    let scaffold = precision::choose(m, options.scaffold_precision);
     let head = Preflight {
         dims: d.clone(),
         coord_bits,
@@ -245,7 +253,11 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     if let Some(note) = &options.encoder_note {
         write_chunk(&mut out, ChunkTag::ENCD, note.as_bytes());
     }
-    write_chunk(&mut out, ChunkTag::MLPS, &payload::write_mlps(&int_mlp, m));
+    write_chunk(
+        &mut out,
+        ChunkTag::MLPS,
+        &payload::write_mlps(&int_mlp, m, scaffold.precision),
+    );
     write_chunk(&mut out, ChunkTag::QUAN, &payload::write_quan(m));
     write_chunk(&mut out, ChunkTag::TILS, &tiles.to_payload());
     write_chunk(
@@ -276,6 +288,9 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
             grid_yz: keep(&m.grid.grid_yz, &touched[3]),
         },
         mlp_grid: int_mlp.to_float(),
+        mlp_opacity: precision::rounded(&m.mlp_opacity, scaffold.precision),
+        mlp_cov: precision::rounded(&m.mlp_cov, scaffold.precision),
+        mlp_color: precision::rounded(&m.mlp_color, scaffold.precision),
         ..m.clone()
     };
     // §7.4: one symbol layer per rate, rates ascending, each with its own `ests`.
@@ -323,5 +338,6 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     Ok(Encoded {
         stream: out,
         layers,
+        scaffold,
     })
 }

@@ -73,6 +73,7 @@ pub enum Field {
     W0FracBits,
     Shift0,
     W1FracBits,
+    ScaffoldPrecision,
 }
 
 impl Field {
@@ -113,6 +114,7 @@ impl Field {
             Field::TileCell => "cell",
             Field::W0FracBits => "w0_frac_bits",
             Field::Shift0 => "shift0",
+            Field::ScaffoldPrecision => "scaffold_precision",
             Field::W1FracBits => "w1_frac_bits",
         }
     }

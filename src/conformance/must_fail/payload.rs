@@ -16,13 +16,15 @@ const TILE_ENTRY: usize = 41;
 
 pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
     let d = super::head_of(base).dims;
-    // MLPS: method byte, the integer context MLP (§1.6.2), then the f32 Scaffold-GS MLPs.
+    // MLPS: method byte, the integer context MLP (§1.6.2), `scaffold_precision`, then the
+    // Scaffold-GS MLPs (binary32 in the base stream).
     let (cin, h, cout) = (
         d.context_input(),
         u64::from(d.context_hidden),
         d.context_output(),
     );
-    let scaffold = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize;
+    let precision_at = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize;
+    let scaffold = precision_at + 1;
     let salvq = encode(&small_scene(13, true), &EncodeOptions::default());
     let rates = usize::from(d.rates);
     let f = usize::from(d.feat_dim);
@@ -43,6 +45,39 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "MLPS mlp_opacity.0.weight[0, 0] = +infinity",
             edit(base, ChunkTag::MLPS, |p| {
                 p[scaffold..scaffold + 4].copy_from_slice(&f32::INFINITY.to_le_bytes())
+            }),
+        ),
+        vector(
+            "x-scaffold-precision",
+            "FieldOutOfRange",
+            &["§1.6.2"],
+            "MLPS scaffold_precision = 2 (Table 1-6 defines 0 and 1)",
+            edit(base, ChunkTag::MLPS, |p| p[precision_at] = 2),
+        ),
+        vector(
+            "x-scaffold-precision-length",
+            "ChunkSizeMismatch",
+            &["§1.6", "§1.6.2"],
+            "MLPS scaffold_precision = 1 (binary16) with binary32 values: the body is too long",
+            edit(base, ChunkTag::MLPS, |p| p[precision_at] = 1),
+        ),
+        vector(
+            "x-scaffold-f16-not-finite",
+            "NonFiniteValue",
+            &["§1.6.2"],
+            "MLPS in binary16 with mlp_opacity.0.weight[0, 0] = binary16 +infinity (0x7C00)",
+            edit(base, ChunkTag::MLPS, |p| {
+                let halves: Vec<u8> = p[scaffold..]
+                    .chunks_exact(4)
+                    .flat_map(|c| {
+                        let v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                        half::f16::from_f32(v).to_le_bytes()
+                    })
+                    .collect();
+                p.truncate(scaffold);
+                p[precision_at] = 1;
+                p.extend_from_slice(&halves);
+                p[scaffold..scaffold + 2].copy_from_slice(&0x7C00u16.to_le_bytes());
             }),
         ),
         vector(
