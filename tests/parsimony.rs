@@ -13,17 +13,23 @@ fn model() -> salvq::SceneModel {
     .to_canonical_order()
 }
 
+/// The model with zero `mlp_grid` weights on 3D level 1's inputs: that level carries nothing.
+fn with_silent_level_1(mut m: salvq::SceneModel) -> salvq::SceneModel {
+    let cin = m.mlp_grid.w0.len() / m.mlp_grid.b0.len();
+    let c = usize::from(m.dims.grid_channels);
+    for row in m.mlp_grid.w0.chunks_mut(cin) {
+        row[c..2 * c].fill(0.0);
+    }
+    m
+}
+
 /// A level whose `mlp_grid` inputs have zero weight carries nothing: without it the prior is
 /// the same (the folded bias adds 0), so every symbol and reconstruction is the same and the
 /// stream is smaller by that level's `GRID` bits.
 #[test]
 fn a_level_with_zero_weights_goes_at_no_cost() {
-    let mut m = model();
-    let cin = m.mlp_grid.w0.len() / m.mlp_grid.b0.len();
+    let m = with_silent_level_1(model());
     let c = usize::from(m.dims.grid_channels);
-    for row in m.mlp_grid.w0.chunks_mut(cin) {
-        row[c..2 * c].fill(0.0); // 3D level 1
-    }
     let full = encode_full(&m, &EncodeOptions::default()).unwrap();
     let pruned = without_level(&m, GridLevel::ThreeD(1)).unwrap();
     validate_model(&pruned).unwrap();
@@ -61,12 +67,7 @@ fn every_level_can_be_removed_but_the_last() {
 /// and finds a level that carries nothing.
 #[test]
 fn pruning_never_grows_the_stream() {
-    let mut m = model();
-    let cin = m.mlp_grid.w0.len() / m.mlp_grid.b0.len();
-    let c = usize::from(m.dims.grid_channels);
-    for row in m.mlp_grid.w0.chunks_mut(cin) {
-        row[c..2 * c].fill(0.0); // 3D level 1 carries nothing
-    }
+    let m = with_silent_level_1(model());
     let before = encode_full(&m, &EncodeOptions::default())
         .unwrap()
         .stream
