@@ -91,3 +91,27 @@ fn pruning_never_grows_the_stream() {
         "{trials:?}"
     );
 }
+
+/// Deciding on a sample of the anchors finds the silent level too, and the pruned structure
+/// applies to every anchor.
+#[test]
+fn pruning_on_a_sample_applies_to_all_anchors() {
+    use salvq::encoder::parsimony::prune_grid_levels_sampled;
+    let m = with_silent_level_1(model());
+    let (pruned, trials) =
+        prune_grid_levels_sampled(&m, &EncodeOptions::default(), 0.01, 100).unwrap();
+    assert!(trials.iter().all(|t| t.sample_anchors == 100));
+    assert!(
+        trials.iter().any(|t| t.level == GridLevel::ThreeD(1)),
+        "{trials:?}"
+    );
+    assert_eq!(pruned.n(), m.n());
+    validate_model(&pruned).unwrap();
+    let e = encode_full(&pruned, &EncodeOptions::default()).unwrap();
+    assert_eq!(salvq::decode(&e.stream).unwrap(), *e.expected());
+    let before = encode_full(&m, &EncodeOptions::default())
+        .unwrap()
+        .stream
+        .len();
+    assert!(e.stream.len() < before);
+}

@@ -328,8 +328,13 @@ fn run(cli: Cli) -> Result<(), Error> {
                 let (pruned, trials) =
                     salvq::encoder::parsimony::prune_grid_levels(&model, &options, 0.01)?;
                 for tr in &trials {
+                    let basis = if tr.sample_anchors < model.n() {
+                        format!(", estimated from {} sampled anchors", tr.sample_anchors)
+                    } else {
+                        String::new()
+                    };
                     eprintln!(
-                        "dropped {} (resolution {}): {} -> {} bytes, feature MSE {:.4e} -> {:.4e}",
+                        "dropped {} (resolution {}): {} -> {} bytes, feature MSE {:.4e} -> {:.4e}{basis}",
                         tr.level,
                         tr.resolution,
                         tr.bytes_with,

@@ -135,6 +135,9 @@ pub struct LevelTrial {
     /// Feature reconstruction MSE (lowest coded rate) with the level and without it.
     pub mse_with: f64,
     pub mse_without: f64,
+    /// Anchors the decision was measured on (all of them up to [`PRUNE_SAMPLE`]); with fewer
+    /// than the model has, the byte counts are estimates.
+    pub sample_anchors: usize,
 }
 
 fn feature_mse(a: &SceneModel, b: &SceneModel) -> f64 {
@@ -146,20 +149,98 @@ fn feature_mse(a: &SceneModel, b: &SceneModel) -> f64 {
         / x.len().max(1) as f64
 }
 
-/// Greedy backward elimination: encode the model without each remaining level, drop the level
+/// Anchors above which [`prune_grid_levels`] decides on a subsample.
+pub const PRUNE_SAMPLE: usize = 40_000;
+
+/// `GRID` payload bytes of `m`'s grid for `voxels` (§1.6.1: method byte, then C bits per
+/// touched entry, zero-padded).
+fn grid_payload_bytes(m: &SceneModel, voxels: &[[u32; 3]]) -> u64 {
+    let d = &m.dims;
+    let layout = crate::hyperprior::GridLayout::new(d, m.coord_bits());
+    let touched: u64 = layout
+        .touched(voxels, d.entries_3d(), d.entries_2d())
+        .iter()
+        .map(|t| t.iter().filter(|&&u| u).count() as u64)
+        .sum();
+    1 + (touched * u64::from(d.grid_channels)).div_ceil(8)
+}
+
+/// Every `k`-th anchor of `m` (canonical order kept), one region per group.
+fn subsample(m: &SceneModel, k: usize) -> SceneModel {
+    let mut s = m.clone();
+    let (f, sd, kk) = (
+        usize::from(m.dims.feat_dim),
+        usize::from(m.dims.scaling_dim),
+        usize::from(m.dims.offsets),
+    );
+    let rows = |v: &[f32], w: usize| -> Vec<f32> {
+        v.chunks_exact(w.max(1))
+            .step_by(k)
+            .flatten()
+            .copied()
+            .collect()
+    };
+    let a = &m.anchors;
+    s.anchors.voxel = a.voxel.iter().step_by(k).copied().collect();
+    s.anchors.mask = a
+        .mask
+        .chunks_exact(kk.max(1))
+        .step_by(k)
+        .flatten()
+        .copied()
+        .collect();
+    s.anchors.feat = rows(&a.feat, f);
+    s.anchors.scaling = rows(&a.scaling, sd);
+    s.anchors.offsets = rows(&a.offsets, 3 * kk);
+    s.dims.anchors = s.anchors.voxel.len() as u32;
+    s.quant_feat.regions.clear();
+    s.quant_scaling.regions.clear();
+    s.dims.feat_regions = 1;
+    s.dims.scaling_regions = 1;
+    s
+}
+
+/// Greedy backward elimination:/// Greedy backward elimination: encode the model without each remaining level, drop the level
 /// whose removal shrinks the stream most while the feature MSE stays within `1 + mse_slack`
-/// times the full model's, and repeat until no removal shrinks it. Returns the pruned model and every
-/// accepted removal, in order. `model` must be in canonical order (the encoder's own input
+/// times the full model's, and repeat until no removal shrinks it. Returns the pruned model and
+/// every accepted removal, in order. Above [`PRUNE_SAMPLE`] anchors, byte counts in the trials
+/// are estimates (the sample's symbol bytes scaled, the exact grid bytes). `model` must be in canonical order (the encoder's own input
 /// order is kept by `encode_full`, which sorts; distortion is compared after sorting).
 pub fn prune_grid_levels(
     model: &SceneModel,
     options: &EncodeOptions,
     mse_slack: f64,
 ) -> Result<(SceneModel, Vec<LevelTrial>)> {
-    let model = model.to_canonical_order();
+    prune_grid_levels_sampled(model, options, mse_slack, PRUNE_SAMPLE)
+}
+
+/// [`prune_grid_levels`] deciding on about `sample` anchors.
+pub fn prune_grid_levels_sampled(
+    model: &SceneModel,
+    options: &EncodeOptions,
+    mse_slack: f64,
+    sample: usize,
+) -> Result<(SceneModel, Vec<LevelTrial>)> {
+    let full = model.to_canonical_order();
+    // Above PRUNE_SAMPLE anchors the decisions are taken on every k-th anchor: its symbol bytes
+    // scaled by N/n, plus the exact GRID bytes of all anchors (touched entries do not scale).
+    let k = full.n().div_ceil(sample.max(1)).max(1);
+    let model = if k > 1 {
+        subsample(&full, k)
+    } else {
+        full.clone()
+    };
+    let scale = full.n() as f64 / model.n().max(1) as f64;
     let measure = |m: &SceneModel| -> Result<(u64, f64)> {
         let e = encode_full(m, options)?;
-        Ok((e.stream.len() as u64, feature_mse(&model, e.expected())))
+        let mse = feature_mse(&model, e.expected());
+        if k == 1 {
+            return Ok((e.stream.len() as u64, mse));
+        }
+        let grid_sample = grid_payload_bytes(m, &m.anchors.voxel);
+        let grid_full = grid_payload_bytes(m, &full.anchors.voxel);
+        let rest = (e.stream.len() as u64).saturating_sub(grid_sample) as f64 * scale;
+        Ok((rest.round() as u64 + grid_full, mse))
     };
     let (mut bytes, mut mse) = measure(&model)?;
     // The slack is against the full model's error, so removals cannot drift it step by step.
@@ -189,6 +270,7 @@ pub fn prune_grid_levels(
                         bytes_without: b,
                         mse_with: mse,
                         mse_without: e,
+                        sample_anchors: model.n(),
                     },
                 ));
             }
@@ -200,5 +282,15 @@ pub fn prune_grid_levels(
         accepted.push(trial);
         current = m;
     }
-    Ok((current, accepted))
+    if k == 1 {
+        return Ok((current, accepted));
+    }
+    // The grid and the context MLP do not depend on the anchors: the sample's pruned
+    // structure applies to every anchor.
+    let mut pruned = full;
+    pruned.dims.res_3d = current.dims.res_3d;
+    pruned.dims.res_2d = current.dims.res_2d;
+    pruned.grid = current.grid;
+    pruned.mlp_grid = current.mlp_grid;
+    Ok((pruned, accepted))
 }
