@@ -226,6 +226,16 @@ enum Bench {
         #[arg(long, default_value_t = 2_000_000)]
         max: u32,
     },
+    /// Model share of the stream and bits per anchor vs scene size, plain, with
+    /// `--prune-grid`, and with binary16 Scaffold-GS MLPs (issue 10; SVG, CSV).
+    Parsimony {
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// Largest scene (anchors).
+        #[arg(long, default_value_t = 1_000_000)]
+        max: u32,
+    },
 }
 
 /// `xmin,ymin,zmin,xmax,ymax,zmax`: six finite numbers, each min ≤ its max.
@@ -477,6 +487,18 @@ fn run(cli: Cli) -> Result<(), Error> {
             print!("{text}");
             println!(
                 "wrote scale.svg, scale.csv, scale.txt to {} in {:.1} s",
+                out.display(),
+                secs(t)
+            );
+        }
+        Command::Bench {
+            which: Bench::Parsimony { out, max },
+        } => {
+            let t = Instant::now();
+            let text = salvq::rdbench::parsimony::run(&out, max)?;
+            print!("{text}");
+            println!(
+                "wrote parsimony.svg, parsimony.csv, parsimony.txt to {} in {:.1} s",
                 out.display(),
                 secs(t)
             );

@@ -11,6 +11,7 @@
 
 mod charts;
 pub mod coder;
+pub mod parsimony;
 pub mod scale;
 
 use std::path::{Path, PathBuf};

@@ -1,0 +1,216 @@
+//! `salvq bench parsimony` (issue 10): the model's share of the stream and the total bits per
+//! anchor against scene size, as the encoder stores the model plainly, with grid-level pruning
+//! (Annex A.5.1), and with pruning and binary16 Scaffold-GS MLPs (§1.6.2). Writes
+//! parsimony.svg, parsimony.csv and parsimony.txt.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::container::payload::ScaffoldPrecision;
+use crate::encoder::parsimony::prune_grid_levels;
+use crate::encoder::{encode_full, EncodeOptions};
+use crate::error::{Error, IoOp, Result};
+use crate::gen::{generate, GenParams};
+use crate::info::{inspect, ByteClass};
+use crate::limits::Limits;
+
+/// Scene sizes, smallest first.
+const SIZES: [u32; 5] = [1_000, 10_000, 100_000, 1_000_000, 2_000_000];
+
+/// One configuration's stream at one size.
+#[derive(Debug, Clone, Copy)]
+struct Point {
+    model_bytes: u64,
+    total_bytes: u64,
+}
+
+impl Point {
+    fn share(&self) -> f64 {
+        100.0 * self.model_bytes as f64 / self.total_bytes.max(1) as f64
+    }
+}
+
+struct Row {
+    anchors: u32,
+    plain: Point,
+    pruned: Point,
+    pruned_f16: Point,
+    levels_dropped: usize,
+    feat_mse: (f64, f64),
+}
+
+fn point(stream: &[u8]) -> Result<Point> {
+    let info = inspect(stream, &Limits::default())?;
+    let model_bytes = info
+        .chunks
+        .iter()
+        .filter(|c| c.class == ByteClass::Model)
+        .map(|c| c.total_bytes)
+        .sum();
+    Ok(Point {
+        model_bytes,
+        total_bytes: stream.len() as u64,
+    })
+}
+
+/// Runs the measurement on generated scenes of up to `max` anchors.
+pub fn run(out: &Path, max: u32) -> Result<String> {
+    std::fs::create_dir_all(out).map_err(|e| Error::Io {
+        op: IoOp::Write,
+        path: out.to_path_buf(),
+        kind: e.kind(),
+    })?;
+    let mut rows = Vec::new();
+    for &n in SIZES.iter().filter(|&&n| n <= max) {
+        let m = generate(&GenParams {
+            feat_basis: false,
+            ..GenParams::new(n, 1)
+        });
+        let f32_options = EncodeOptions {
+            scaffold_precision: Some(ScaffoldPrecision::F32),
+            ..Default::default()
+        };
+        let plain = point(&encode_full(&m, &f32_options)?.stream)?;
+        let (pruned_model, trials) = prune_grid_levels(&m, &f32_options, 0.01)?;
+        let pruned = point(&encode_full(&pruned_model, &f32_options)?.stream)?;
+        let f16_options = EncodeOptions {
+            scaffold_precision: Some(ScaffoldPrecision::F16),
+            ..Default::default()
+        };
+        let pruned_f16 = point(&encode_full(&pruned_model, &f16_options)?.stream)?;
+        rows.push(Row {
+            anchors: n,
+            plain,
+            pruned,
+            pruned_f16,
+            levels_dropped: trials.len(),
+            feat_mse: (
+                trials.first().map_or(0.0, |t| t.mse_with),
+                trials.last().map_or(0.0, |t| t.mse_without),
+            ),
+        });
+    }
+    let mut csv = String::from(
+        "anchors,plain_model_bytes,plain_total_bytes,pruned_model_bytes,pruned_total_bytes,\
+         pruned_f16_model_bytes,pruned_f16_total_bytes,levels_dropped\n",
+    );
+    let mut text = String::from(
+        "Model share of the stream and bits per anchor vs scene size (GenParams::new(N, 1), USQ, rate 0):\n\
+         plain = binary32 Scaffold-GS MLPs, every grid level; pruned = --prune-grid (Annex A.5.1);\n\
+         + f16 = pruned and --scaffold-precision f16 (§1.6.2).\n\n\
+         anchors     model share: plain  pruned  +f16    bits/anchor: plain  pruned    +f16   levels dropped (feature MSE)\n",
+    );
+    for r in &rows {
+        let bpa = |p: &Point| p.total_bytes as f64 * 8.0 / f64::from(r.anchors);
+        csv.push_str(&format!(
+            "{},{},{},{},{},{},{},{}\n",
+            r.anchors,
+            r.plain.model_bytes,
+            r.plain.total_bytes,
+            r.pruned.model_bytes,
+            r.pruned.total_bytes,
+            r.pruned_f16.model_bytes,
+            r.pruned_f16.total_bytes,
+            r.levels_dropped
+        ));
+        text.push_str(&format!(
+            "{:>9}   {:>17.1} % {:>5.1} % {:>5.1} %   {:>12.2} {:>7.2} {:>7.2}   {} ({:.4e} -> {:.4e})\n",
+            r.anchors,
+            r.plain.share(),
+            r.pruned.share(),
+            r.pruned_f16.share(),
+            bpa(&r.plain),
+            bpa(&r.pruned),
+            bpa(&r.pruned_f16),
+            r.levels_dropped,
+            r.feat_mse.0,
+            r.feat_mse.1
+        ));
+    }
+    chart(&out.join("parsimony.svg"), &rows).map_err(|_| Error::Io {
+        op: IoOp::Write,
+        path: out.join("parsimony.svg"),
+        kind: std::io::ErrorKind::Other,
+    })?;
+    crate::io::write_bytes_atomic(&out.join("parsimony.csv"), csv.as_bytes())?;
+    crate::io::write_bytes_atomic(&out.join("parsimony.txt"), text.as_bytes())?;
+    Ok(text)
+}
+
+/// A chart line: label, colour, and the value it plots.
+type Series = (&'static str, RGBColor, fn(&Row) -> f64);
+
+fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::error::Error>> {
+    let root = SVGBackend::new(path, (1200, 520)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (left, right) = root.split_horizontally(600);
+    let (x0, x1) = (
+        rows.first().map_or(1e3, |r| f64::from(r.anchors)) * 0.8,
+        rows.last().map_or(1e6, |r| f64::from(r.anchors)) * 1.25,
+    );
+    let colors = [
+        RGBColor(0, 114, 178),
+        RGBColor(213, 94, 0),
+        RGBColor(0, 158, 115),
+    ];
+    let panels: [(&DrawingArea<SVGBackend, _>, &str, &str, [Series; 3]); 2] = [
+        (
+            &left,
+            "Model bytes / stream bytes vs scene size",
+            "model share (%)",
+            [
+                ("plain", colors[0], |r| r.plain.share()),
+                ("--prune-grid", colors[1], |r| r.pruned.share()),
+                ("--prune-grid + f16 MLPs", colors[2], |r| {
+                    r.pruned_f16.share()
+                }),
+            ],
+        ),
+        (
+            &right,
+            "Total bits per anchor vs scene size",
+            "bits / anchor",
+            [
+                ("plain", colors[0], |r| {
+                    r.plain.total_bytes as f64 * 8.0 / f64::from(r.anchors)
+                }),
+                ("--prune-grid", colors[1], |r| {
+                    r.pruned.total_bytes as f64 * 8.0 / f64::from(r.anchors)
+                }),
+                ("--prune-grid + f16 MLPs", colors[2], |r| {
+                    r.pruned_f16.total_bytes as f64 * 8.0 / f64::from(r.anchors)
+                }),
+            ],
+        ),
+    ];
+    for (area, caption, ydesc, series) in panels {
+        let ys = rows
+            .iter()
+            .flat_map(|r| series.iter().map(move |s| (s.2)(r)));
+        let y0 = ys.clone().fold(f64::INFINITY, f64::min).max(1e-3) * 0.7;
+        let y1 = ys.fold(0.0, f64::max) * 1.4;
+        let mut c = ChartBuilder::on(area)
+            .caption(caption, ("sans-serif", 18))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
+        c.configure_mesh().x_desc("anchors").y_desc(ydesc).draw()?;
+        for (label, color, get) in series {
+            let xy: Vec<(f64, f64)> = rows
+                .iter()
+                .map(|r| (f64::from(r.anchors), get(r)))
+                .collect();
+            super::charts::labelled_line(&mut c, label, color, xy).map_err(|e| e.to_string())?;
+        }
+        // The legend only: the whole figure is presented once, after both panels.
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.9))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}
