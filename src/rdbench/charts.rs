@@ -229,3 +229,22 @@ pub fn correlation(path: &Path, rows: &[(f64, f64)]) -> Result<()> {
     };
     go().map_err(|e| err(path)(e.to_string()))
 }
+
+/// Writes `<stem>.svg` (drawn by `draw`), `<stem>.csv` and `<stem>.txt` into `out`.
+pub(super) fn write_report(
+    out: &Path,
+    stem: &str,
+    draw: impl FnOnce(&Path) -> std::result::Result<(), Box<dyn std::error::Error>>,
+    csv: &str,
+    text: &str,
+) -> crate::error::Result<()> {
+    let svg = out.join(format!("{stem}.svg"));
+    draw(&svg).map_err(|e| err(&svg)(e.to_string()))?;
+    crate::io::write_bytes_atomic(&out.join(format!("{stem}.csv")), csv.as_bytes())?;
+    crate::io::write_bytes_atomic(&out.join(format!("{stem}.txt")), text.as_bytes())
+}
+
+/// The x range of a log-scale chart over scene sizes, with a margin on both sides.
+pub(super) fn anchors_range(first: Option<u32>, last: Option<u32>) -> std::ops::Range<f64> {
+    first.map_or(1e3, f64::from) * 0.8..last.map_or(1e6, f64::from) * 1.25
+}

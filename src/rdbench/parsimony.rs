@@ -128,13 +128,7 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
             r.feat_mse.1
         ));
     }
-    chart(&out.join("parsimony.svg"), &rows).map_err(|_| Error::Io {
-        op: IoOp::Write,
-        path: out.join("parsimony.svg"),
-        kind: std::io::ErrorKind::Other,
-    })?;
-    crate::io::write_bytes_atomic(&out.join("parsimony.csv"), csv.as_bytes())?;
-    crate::io::write_bytes_atomic(&out.join("parsimony.txt"), text.as_bytes())?;
+    super::charts::write_report(out, "parsimony", |p| chart(p, &rows), &csv, &text)?;
     Ok(text)
 }
 
@@ -145,9 +139,9 @@ fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::erro
     let root = SVGBackend::new(path, (1200, 520)).into_drawing_area();
     root.fill(&WHITE)?;
     let (left, right) = root.split_horizontally(600);
-    let (x0, x1) = (
-        rows.first().map_or(1e3, |r| f64::from(r.anchors)) * 0.8,
-        rows.last().map_or(1e6, |r| f64::from(r.anchors)) * 1.25,
+    let xs = super::charts::anchors_range(
+        rows.first().map(|r| r.anchors),
+        rows.last().map(|r| r.anchors),
     );
     let colors = [
         RGBColor(0, 114, 178),
@@ -195,7 +189,7 @@ fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::erro
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(60)
-            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
+            .build_cartesian_2d(xs.clone().log_scale(), (y0..y1).log_scale())?;
         c.configure_mesh().x_desc("anchors").y_desc(ydesc).draw()?;
         for (label, color, get) in series {
             let xy: Vec<(f64, f64)> = rows

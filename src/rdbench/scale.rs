@@ -227,13 +227,7 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
             fit[fit.len() - 1].anchors
         ));
     }
-    chart(&out.join("scale.svg"), &rows).map_err(|_| Error::Io {
-        op: IoOp::Write,
-        path: out.join("scale.svg"),
-        kind: std::io::ErrorKind::Other,
-    })?;
-    crate::io::write_bytes_atomic(&out.join("scale.csv"), csv.as_bytes())?;
-    crate::io::write_bytes_atomic(&out.join("scale.txt"), text.as_bytes())?;
+    super::charts::write_report(out, "scale", |p| chart(p, &rows), &csv, &text)?;
     Ok(text)
 }
 
@@ -243,9 +237,9 @@ type Series = (&'static str, RGBColor, fn(&Row) -> f64);
 fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::error::Error>> {
     let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
     root.fill(&WHITE)?;
-    let (x0, x1) = (
-        rows.first().map_or(1e3, |r| f64::from(r.anchors)) * 0.8,
-        rows.last().map_or(1e6, |r| f64::from(r.anchors)) * 1.25,
+    let xs = super::charts::anchors_range(
+        rows.first().map(|r| r.anchors),
+        rows.last().map(|r| r.anchors),
     );
     let ys = rows
         .iter()
@@ -260,7 +254,7 @@ fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::erro
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
+        .build_cartesian_2d(xs.log_scale(), (y0..y1).log_scale())?;
     c.configure_mesh()
         .x_desc("anchors")
         .y_desc("decode time (s, median of 3)")

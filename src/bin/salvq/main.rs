@@ -4,13 +4,19 @@
 //! status is 1 for a failed operation and 2 for a usage error. Output files are written
 //! atomically: a failed command leaves nothing behind.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+mod demo;
+mod tools;
+
+use demo::demo;
+use tools::{conformance, make_vectors, parse_fault};
+
 use clap::{Parser, Subcommand};
 use salvq::gen::{generate, GenParams};
-use salvq::info::{inspect, ByteClass};
+use salvq::info::inspect;
 use salvq::model::interchange::{model_to_safetensors, read_model, write_model};
 use salvq::{Error, Limits};
 
@@ -505,216 +511,6 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref())?,
     }
-    Ok(())
-}
-
-/// Generates a scene, encodes it, decodes it, checks the result, prints the tables.
-fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Error> {
-    let tmp;
-    let dir = match out {
-        Some(d) => {
-            std::fs::create_dir_all(d).map_err(|e| Error::Io {
-                op: salvq::error::IoOp::Write,
-                path: d.to_path_buf(),
-                kind: e.kind(),
-            })?;
-            d.to_path_buf()
-        }
-        None => {
-            tmp = tempfile::tempdir().map_err(|e| Error::Io {
-                op: salvq::error::IoOp::CreateTemp,
-                path: std::env::temp_dir(),
-                kind: e.kind(),
-            })?;
-            tmp.path().to_path_buf()
-        }
-    };
-    println!(
-        "salvq demo: format {}.{}, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n",
-        salvq::container::FORMAT_MAJOR,
-        salvq::container::FORMAT_MINOR
-    );
-    salvq::model::validate::check_field(salvq::error::Field::AnchorCount, anchors.into())?;
-    let params = GenParams {
-        feat_basis: false,
-        ..GenParams::new(anchors, seed)
-    };
-    let t = Instant::now();
-    let model = generate(&params);
-    let t_gen = secs(t);
-    let model_path = dir.join("scene.safetensors");
-    write_model(&model, &model_path)?;
-    let input_bytes = std::fs::metadata(&model_path).map(|m| m.len()).unwrap_or(0);
-
-    let options = salvq::EncodeOptions {
-        statistics: true,
-        ..Default::default()
-    };
-    let t = Instant::now();
-    let (stream, report) = salvq::encoder::encode_with_report(&model, &options)?;
-    let t_enc = secs(t);
-    salvq::io::write_bytes_atomic(&dir.join("scene.salvq"), &stream)?;
-
-    let t = Instant::now();
-    let decoded = salvq::decode(&stream)?;
-    let t_dec = secs(t);
-    write_model(&decoded, &dir.join("decoded.safetensors"))?;
-
-    let info = inspect(&stream, &Limits::default())?;
-    println!("{:<10} {:>10}", "step", "seconds");
-    println!("{:<10} {:>10.3}", "generate", t_gen);
-    println!("{:<10} {:>10.3}", "encode", t_enc);
-    println!("{:<10} {:>10.3}", "decode", t_dec);
-    println!(
-        "decode throughput: {:.0} anchors/s, {:.0} symbols/s\n",
-        f64::from(anchors) / t_dec,
-        report.groups.iter().map(|g| g.symbols).sum::<u64>() as f64 / t_dec
-    );
-    println!(
-        "{:<6} {:<7} {:>12} {:>8} {:>12}",
-        "chunk", "class", "bytes", "share", "bits/anchor"
-    );
-    let total = info.totals.file_bytes as f64;
-    for c in &info.chunks {
-        let class = match c.class {
-            ByteClass::Model => "model",
-            ByteClass::Anchor => "anchor",
-            ByteClass::Other => "other",
-        };
-        println!(
-            "{:<6} {:<7} {:>12} {:>7.2}% {:>12.2}",
-            c.tag,
-            class,
-            c.total_bytes,
-            100.0 * c.total_bytes as f64 / total,
-            c.total_bytes as f64 * 8.0 / f64::from(anchors)
-        );
-    }
-    let t = &info.totals;
-    println!(
-        "\nmodel bytes {} ({:.2}%), anchor bytes {} ({:.2}%), other {}; total {} bytes = {:.2} bits/anchor",
-        t.model_bytes,
-        100.0 * t.model_bytes as f64 / total,
-        t.anchor_bytes,
-        100.0 * t.anchor_bytes as f64 / total,
-        t.other_bytes,
-        t.file_bytes,
-        t.bits_per_anchor
-    );
-    println!(
-        "input model file {} bytes; stream / input = {:.4}\n",
-        input_bytes,
-        total / input_bytes.max(1) as f64
-    );
-    print!("{}", salvq::info::groups_text(&report));
-    // Verify: geometry and masks exact, attributes within half a step.
-    let exact = decoded.anchors.voxel == model.anchors.voxel
-        && decoded.anchors.mask == model.anchors.mask
-        && decoded.mlp_opacity == model.mlp_opacity
-        && decoded.quant_feat == model.quant_feat;
-    let bounded = report
-        .groups
-        .iter()
-        .all(|g| g.max_error_steps <= 0.5 + 1e-3);
-    println!("\n{:<8} {:>12} {:>14}", "group", "RMSE", "max |err|/step");
-    for g in &report.groups {
-        println!(
-            "{:<8} {:>12.3e} {:>14.4}",
-            g.group,
-            (g.squared_error / g.symbols.max(1) as f64).sqrt(),
-            g.max_error_steps
-        );
-    }
-    println!(
-        "check: voxels, masks, Scaffold-GS MLPs and quantizers {}; every coded value within half a step: {}",
-        if exact { "exact" } else { "DIFFER" },
-        if bounded { "yes" } else { "NO" }
-    );
-    if out.is_some() {
-        println!("files kept in {}", dir.display());
-    }
-    if !(exact && bounded) {
-        return Err(Error::ValueInvalid {
-            tensor: "demo check",
-            index: vec![],
-            value: 0,
-            allowed: "exact geometry and masks, errors within half a step",
-        });
-    }
-    Ok(())
-}
-
-fn parse_fault(s: &str) -> Result<salvq::decoder::Fault, String> {
-    let k = s
-        .strip_prefix("table:")
-        .and_then(|k| k.parse::<u8>().ok())
-        .ok_or_else(|| format!("`{s}`: expected table:K"))?;
-    Ok(salvq::decoder::Fault::FrequencyTable { scale: k })
-}
-
-fn conformance(
-    decoder: Option<String>,
-    vectors: &Path,
-    filter: Option<&str>,
-) -> Result<(), String> {
-    let template = match decoder {
-        Some(d) => d,
-        None => {
-            let exe = std::env::current_exe().map_err(|e| e.to_string())?;
-            format!(
-                "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical",
-                exe.display()
-            )
-        }
-    };
-    let (_, report) = salvq::conformance::runner::run(vectors, &template, filter)?;
-    for o in &report.outcomes {
-        let verdict = if o.passed { "pass" } else { "FAIL" };
-        println!("{verdict}  {:<32} {}", o.label, o.detail);
-    }
-    println!("{}", report.summary());
-    if report.failed() > 0 {
-        return Err(format!(
-            "{} of {} conformance checks failed",
-            report.failed(),
-            report.outcomes.len()
-        ));
-    }
-    Ok(())
-}
-
-fn make_vectors(out: &Path, readme: &Path, spec: &Path, check: bool) -> Result<(), String> {
-    let t = Instant::now();
-    let g = salvq::conformance::generate::build(spec)?;
-    let bytes: usize = g.files.values().map(Vec::len).sum();
-    if check {
-        let diffs = salvq::conformance::generate::check(&g, out, readme);
-        for d in &diffs {
-            println!("stale: {d}");
-        }
-        if !diffs.is_empty() {
-            return Err(format!(
-                "{} conformance files differ from a fresh generation; run `salvq make-vectors` \
-                 (and bump the format version if the format changed)",
-                diffs.len()
-            ));
-        }
-        println!(
-            "{} vectors, {} files, {bytes} bytes: identical to a fresh generation ({:.1} s)",
-            g.manifest.vectors.len(),
-            g.files.len(),
-            secs(t)
-        );
-        return Ok(());
-    }
-    salvq::conformance::generate::write(&g, out, readme)?;
-    println!(
-        "wrote {} vectors ({} files, {bytes} bytes) to {} in {:.1} s",
-        g.manifest.vectors.len(),
-        g.files.len(),
-        out.display(),
-        secs(t)
-    );
     Ok(())
 }
 
