@@ -3,6 +3,7 @@
 //! chunks in the order of spec Table 1-3. Encoding choices never change what a decoder must do.
 
 pub mod attributes;
+pub mod auto;
 pub mod convert;
 pub mod fit;
 pub mod float_prior;

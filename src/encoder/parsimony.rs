@@ -140,7 +140,7 @@ pub struct LevelTrial {
     pub sample_anchors: usize,
 }
 
-fn feature_mse(a: &SceneModel, b: &SceneModel) -> f64 {
+pub(crate) fn feature_mse(a: &SceneModel, b: &SceneModel) -> f64 {
     let (x, y) = (&a.anchors.feat, &b.anchors.feat);
     x.iter()
         .zip(y)
@@ -154,7 +154,7 @@ pub const PRUNE_SAMPLE: usize = 40_000;
 
 /// `GRID` payload bytes of `m`'s grid for `voxels` (§1.6.1: method byte, then C bits per
 /// touched entry, zero-padded).
-fn grid_payload_bytes(m: &SceneModel, voxels: &[[u32; 3]]) -> u64 {
+pub(crate) fn grid_payload_bytes(m: &SceneModel, voxels: &[[u32; 3]]) -> u64 {
     let d = &m.dims;
     let layout = crate::hyperprior::GridLayout::new(d, m.coord_bits());
     let touched: u64 = layout
@@ -166,7 +166,7 @@ fn grid_payload_bytes(m: &SceneModel, voxels: &[[u32; 3]]) -> u64 {
 }
 
 /// Every `k`-th anchor of `m` (canonical order kept), one region per group.
-fn subsample(m: &SceneModel, k: usize) -> SceneModel {
+pub(crate) fn subsample(m: &SceneModel, k: usize) -> SceneModel {
     let mut s = m.clone();
     let (f, sd, kk) = (
         usize::from(m.dims.feat_dim),
@@ -200,7 +200,7 @@ fn subsample(m: &SceneModel, k: usize) -> SceneModel {
     s
 }
 
-/// Greedy backward elimination:/// Greedy backward elimination: encode the model without each remaining level, drop the level
+/// Greedy backward elimination: encode the model without each remaining level, drop the level
 /// whose removal shrinks the stream most while the feature MSE stays within `1 + mse_slack`
 /// times the full model's, and repeat until no removal shrinks it. Returns the pruned model and
 /// every accepted removal, in order. Above [`PRUNE_SAMPLE`] anchors, byte counts in the trials

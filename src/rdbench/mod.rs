@@ -12,6 +12,7 @@
 mod charts;
 pub mod coder;
 pub mod parsimony;
+pub mod precision;
 pub mod scale;
 
 use std::path::{Path, PathBuf};

@@ -1,7 +1,8 @@
 //! `salvq bench parsimony` (issue 10): the model's share of the stream and the total bits per
 //! anchor against scene size, as the encoder stores the model plainly, with grid-level pruning
 //! (Annex A.5.1), and with pruning and binary16 Scaffold-GS MLPs (§1.6.2). Writes
-//! parsimony.svg, parsimony.csv and parsimony.txt.
+//! parsimony.svg, parsimony.csv and parsimony.txt; then [`super::precision`]'s total bytes vs
+//! precision per tensor group (precision.svg, .csv, .txt).
 
 use std::path::Path;
 
@@ -129,6 +130,14 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
         ));
     }
     super::charts::write_report(out, "parsimony", |p| chart(p, &rows), &csv, &text)?;
+    // Part two: total bytes vs precision per tensor group, at 100 k anchors (or `max`).
+    let n = max.clamp(SIZES[0], 100_000);
+    let m = generate(&GenParams {
+        feat_basis: false,
+        ..GenParams::new(n, 1)
+    });
+    text.push('\n');
+    text.push_str(&super::precision::report(out, &m)?);
     Ok(text)
 }
 

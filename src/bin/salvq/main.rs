@@ -9,6 +9,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 mod demo;
+mod encode;
 mod tools;
 
 use demo::demo;
@@ -17,7 +18,7 @@ use tools::{conformance, make_vectors, parse_fault};
 use clap::{Parser, Subcommand};
 use salvq::gen::{generate, GenParams};
 use salvq::info::inspect;
-use salvq::model::interchange::{model_to_safetensors, read_model, write_model};
+use salvq::model::interchange::{model_to_safetensors, write_model};
 use salvq::{Error, Limits};
 
 #[derive(Parser)]
@@ -48,63 +49,16 @@ enum Command {
         /// lattice basis B = U diag(s) V^T).
         #[arg(long, default_value = "usq", value_parser = ["usq", "salvq"])]
         quantizer: String,
+        /// Feature correlation (Annex B.4.3): the residual mixing matrix's singular values
+        /// decay as `d^i`; 1 draws uncorrelated features (a basis has nothing to exploit).
+        #[arg(long, default_value_t = salvq::gen::context::FEAT_DECAY, value_parser = parse_decay)]
+        feat_decay: f64,
         /// Output model file (safetensors, spec Annex A).
         #[arg(short, long)]
         output: PathBuf,
     },
     /// Encode a model file into a SALVQ stream.
-    Encode {
-        /// Input model (safetensors, spec Annex A).
-        input: PathBuf,
-        /// Output stream.
-        #[arg(short, long)]
-        output: PathBuf,
-        /// Text for an `encd` ancillary chunk (encoder identification).
-        #[arg(long)]
-        note: Option<String>,
-        /// The rates (indices into the model's gains) to code, one symbol layer each, e.g.
-        /// `0,1,2,3` (spec §7.4).
-        #[arg(long, value_delimiter = ',', default_value = "0")]
-        rates: Vec<u8>,
-        /// Feature quantizer: `model` (the model's own), `usq` (identity), `dn` (D_n),
-        /// `e8` (E8 product; the feature dimension must be a multiple of 8), `salvq` (the
-        /// model's learned basis) or `klt` (a basis the encoder fits to the features' residuals,
-        /// spec Annex A.5).
-        #[arg(long, default_value = "model", value_parser = ["model", "usq", "dn", "e8", "salvq", "klt"])]
-        quantizer: String,
-        /// Refit the context MLP's feature-scale rows to the coordinates of the chosen
-        /// quantizer (spec Annex A.5), as training for that quantizer would.
-        #[arg(long)]
-        fit_scales: bool,
-        /// With `--quantizer klt`: fit one basis per spatial region, R regions of equal
-        /// anchor count in Morton order (Sp-SALVQ, spec §7.6).
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
-        regions: u16,
-        /// Anchors per tile (spec §10): tiles decode independently, in parallel or alone.
-        #[arg(long, default_value_t = salvq::tiles::DEFAULT_TILE_ANCHORS, value_parser = clap::value_parser!(u32).range(1..))]
-        tile_anchors: u32,
-        /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
-        /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`,
-        /// `closest` (Schnorr-Euchner, bounded) or `rdo` (auto's point refined for rate and
-        /// distortion with the integer entropy model, spec §7.3).
-        #[arg(long, default_value = "auto", value_parser = salvq::Search::NAMES)]
-        search: String,
-        /// Do not write the `ests` chunk (encoder statistics shown by `info`).
-        #[arg(long)]
-        no_stats: bool,
-        /// Drop hash-grid levels that do not pay for themselves: a level goes when the stream
-        /// without it is smaller and the feature error grows by at most 1 % (each candidate
-        /// is encoded; prints what it chose and why).
-        #[arg(long)]
-        prune_grid: bool,
-        /// How to store the Scaffold-GS MLPs (spec §1.6.2): `auto` (binary16 when their
-        /// outputs on the scene's anchors move by at most 2^-9, spec Annex A.5.2), `f32`, `f16`.
-        #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "f16"])]
-        scaffold_precision: String,
-        /// Print the encoder's report as JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    Encode(encode::EncodeArgs),
     /// Decode a SALVQ stream into a model file.
     Decode {
         /// Input stream.
@@ -233,7 +187,8 @@ enum Bench {
         max: u32,
     },
     /// Model share of the stream and bits per anchor vs scene size, plain, with
-    /// `--prune-grid`, and with binary16 Scaffold-GS MLPs (issue 10; SVG, CSV).
+    /// `--prune-grid`, and with binary16 Scaffold-GS MLPs; then total bytes vs precision per
+    /// model tensor group at 100 k anchors (issue 10; SVG, CSV).
     Parsimony {
         /// Output folder.
         #[arg(long, default_value = "charts")]
@@ -259,6 +214,13 @@ fn parse_box(s: &str) -> Result<[f64; 6], String> {
     Ok(b)
 }
 
+fn parse_decay(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(d) if d > 0.0 && d <= 1.0 => Ok(d),
+        _ => Err(format!("expected a number in (0, 1], got {s}")),
+    }
+}
+
 fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::{Digest, Sha256};
     Sha256::digest(bytes)
@@ -278,6 +240,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             seed,
             small,
             quantizer,
+            feat_decay,
             output,
         } => {
             let mut params = if small {
@@ -286,6 +249,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 GenParams::new(anchors, seed)
             };
             params.feat_basis = quantizer == "salvq";
+            params.feat_decay = feat_decay;
             salvq::model::validate::check_field(salvq::error::Field::AnchorCount, anchors.into())?;
             let t = Instant::now();
             let model = generate(&params);
@@ -300,101 +264,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 sha256_hex(&bytes)
             );
         }
-        Command::Encode {
-            input,
-            output,
-            note,
-            rates,
-            quantizer,
-            search,
-            fit_scales,
-            regions,
-            tile_anchors,
-            no_stats,
-            prune_grid,
-            scaffold_precision,
-            json,
-        } => {
-            let t = Instant::now();
-            let mut model = read_model(&input)?;
-            let feat_lattice = match quantizer.as_str() {
-                "usq" => Some(salvq::LatticeKind::Identity),
-                "dn" => Some(salvq::LatticeKind::Dn),
-                "e8" => Some(salvq::LatticeKind::E8Product),
-                "salvq" => Some(salvq::LatticeKind::General),
-                _ => None,
-            };
-            let options = salvq::EncodeOptions {
-                encoder_note: note,
-                rates,
-                statistics: !no_stats,
-                feat_lattice,
-                search: salvq::Search::from_name(&search).unwrap_or_default(),
-                fit_basis: quantizer == "klt",
-                feat_regions: regions,
-                fit_scales,
-                tile_anchors,
-                scaffold_precision: match scaffold_precision.as_str() {
-                    "f32" => Some(salvq::container::payload::ScaffoldPrecision::F32),
-                    "f16" => Some(salvq::container::payload::ScaffoldPrecision::F16),
-                    _ => None,
-                },
-            };
-            if prune_grid {
-                let (pruned, trials) =
-                    salvq::encoder::parsimony::prune_grid_levels(&model, &options, 0.01)?;
-                for tr in &trials {
-                    let basis = if tr.sample_anchors < model.n() {
-                        format!(", estimated from {} sampled anchors", tr.sample_anchors)
-                    } else {
-                        String::new()
-                    };
-                    eprintln!(
-                        "dropped {} (resolution {}): {} -> {} bytes, feature MSE {:.4e} -> {:.4e}{basis}",
-                        tr.level,
-                        tr.resolution,
-                        tr.bytes_with,
-                        tr.bytes_without,
-                        tr.mse_with,
-                        tr.mse_without
-                    );
-                }
-                if trials.is_empty() {
-                    eprintln!("kept every grid level: no removal made the stream smaller");
-                }
-                model = pruned;
-            }
-            let encoded = salvq::encoder::encode_full(&model, &options)?;
-            let sc = &encoded.scaffold;
-            eprintln!(
-                "Scaffold-GS MLPs stored as {:?}: binary16 changes their outputs by at most {:.2e} \
-                 (tolerance {:.2e}); {} bytes saved",
-                sc.precision, sc.max_output_change, sc.tolerance, sc.bytes_saved
-            );
-            let stream = &encoded.stream;
-            salvq::io::write_bytes_atomic(&output, stream)?;
-            let reports: Vec<_> = encoded.layers.iter().map(|l| &l.report).collect();
-            if json {
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(&reports).unwrap_or_default()
-                );
-            } else {
-                let rates: Vec<u8> = reports.iter().map(|r| r.rate).collect();
-                println!(
-                    "encoded {} anchors at rates {rates:?} into {} ({} bytes, {:.2} bits/anchor) in {:.2} s",
-                    model.dims.anchors,
-                    output.display(),
-                    stream.len(),
-                    stream.len() as f64 * 8.0 / f64::from(model.dims.anchors),
-                    secs(t)
-                );
-                for r in reports {
-                    println!("rate {}:", r.rate);
-                    print!("{}", salvq::info::groups_text(r));
-                }
-            }
-        }
+        Command::Encode(args) => encode::run(args)?,
         Command::Extract {
             input,
             rate,
@@ -504,7 +374,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             let text = salvq::rdbench::parsimony::run(&out, max)?;
             print!("{text}");
             println!(
-                "wrote parsimony.svg, parsimony.csv, parsimony.txt to {} in {:.1} s",
+                "wrote parsimony and precision .svg, .csv, .txt to {} in {:.1} s",
                 out.display(),
                 secs(t)
             );
