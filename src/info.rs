@@ -101,6 +101,7 @@ fn model_parts(
     p: &Preflight,
     chunk_bytes: impl Fn(ChunkTag) -> u64,
     scaffold_value_bytes: u64,
+    context_weight_bytes: u64,
 ) -> Vec<ModelPart> {
     let d = &p.dims;
     let (f, s, k) = (
@@ -132,10 +133,33 @@ fn model_parts(
     );
     // §5.3 Table 5-1: the integer context MLP.
     let g = "mlp_grid (integer, §5.3)";
-    part("coding_method, a0, shift0, a1", g, ChunkTag::MLPS, 3 + cout);
-    part("mlp_grid.0.weight (i16)", g, ChunkTag::MLPS, 2 * h * cin);
+    let (wb, wt) = (
+        context_weight_bytes,
+        if context_weight_bytes == 1 {
+            "i8"
+        } else {
+            "i16"
+        },
+    );
+    part(
+        "coding_method, context_precision, a0, shift0, a1",
+        g,
+        ChunkTag::MLPS,
+        4 + cout,
+    );
+    part(
+        &format!("mlp_grid.0.weight ({wt})"),
+        g,
+        ChunkTag::MLPS,
+        wb * h * cin,
+    );
     part("mlp_grid.0.bias (i32)", g, ChunkTag::MLPS, 4 * h);
-    part("mlp_grid.2.weight (i16)", g, ChunkTag::MLPS, 2 * cout * h);
+    part(
+        &format!("mlp_grid.2.weight ({wt})"),
+        g,
+        ChunkTag::MLPS,
+        wb * cout * h,
+    );
     part("mlp_grid.2.bias (i32)", g, ChunkTag::MLPS, 4 * cout);
     part("scaffold_precision", "mlp_opacity", ChunkTag::MLPS, 1);
     let b = scaffold_value_bytes;
@@ -304,6 +328,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     let mut encoder = Vec::new();
     let mut tiles = None;
     let mut scaffold_value_bytes = None;
+    let mut context_weight_bytes = 2;
     let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
     while let Some(c) = reader.next_chunk()? {
         if c.tag == ChunkTag::HEAD && head.is_none() {
@@ -315,14 +340,14 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
             encoder.extend(serde_json::from_slice::<EncodeReport>(c.payload).ok());
         }
         if let (ChunkTag::MLPS, Some(p)) = (c.tag, &preflight) {
-            // §1.6.2: `scaffold_precision` follows the method byte and the context MLP.
-            let d = &p.dims;
-            let (cin, h, cout) = (
-                d.context_input(),
-                u64::from(d.context_hidden),
-                d.context_output(),
-            );
-            let at = 3 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout;
+            // §1.6.2: `context_precision` follows the method byte; `scaffold_precision` the
+            // context MLP.
+            let context = match c.payload.get(1) {
+                Some(1) => crate::container::payload::ContextPrecision::I8,
+                _ => crate::container::payload::ContextPrecision::I16,
+            };
+            context_weight_bytes = context.bytes();
+            let at = 1 + crate::container::payload::context_bytes(&p.dims, context);
             scaffold_value_bytes = match c.payload.get(at as usize) {
                 Some(1) => Some(2),
                 _ => Some(4),
@@ -364,7 +389,14 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     };
     let model_parts = preflight
         .as_ref()
-        .map(|p| model_parts(p, bytes_of, scaffold_value_bytes.unwrap_or(4)))
+        .map(|p| {
+            model_parts(
+                p,
+                bytes_of,
+                scaffold_value_bytes.unwrap_or(4),
+                context_weight_bytes,
+            )
+        })
         .unwrap_or_default();
     // §7.4: the layer chunks repeat AFEA ASCL AOFF once per coded rate, rates ascending.
     let rates = head.as_ref().map_or(Vec::new(), |h| h.coded_rates.clone());

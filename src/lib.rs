@@ -25,7 +25,9 @@
 //! | safetensors interchange | Annex A | [`model::interchange`] |
 //! | quantizers: lattices, reconstruction, rate layers, spatial regions | §7 | [`quantizer`], [`encoder::search`], [`extract`] |
 //! | encoder-side fits: KLT basis, scale rows | Annex A.5 | [`encoder::fit`] |
-//! | measurements: R-D, search, stability, scaling | — | [`rdbench`] |
+//! | encoder choices: grid levels, MLP precisions, `--auto` quantizer | Annex A.5.1-A.5.4 | [`encoder::parsimony`], [`encoder::precision`], [`encoder::context_precision`], [`encoder::auto`] |
+//! | neural Gaussians, camera ring, 3DGS PLY, CPU renderer, PSNR / SSIM | Annex C | [`render`] |
+//! | measurements: R-D (feature SNR and render PSNR), search, stability, scaling, parsimony | — | [`rdbench`] |
 //! | canonical decoded form, hashes, vectors, runner | §11 | [`conformance`] |
 //! | synthetic scene generator | Annex B | [`gen`] |
 //!
@@ -72,6 +74,7 @@ pub mod limits;
 pub mod model;
 pub mod quantizer;
 pub mod rdbench;
+pub mod render;
 pub mod tiles;
 
 pub use decoder::{decode, decode_with_limits, decode_with_options, DecodeOptions};

@@ -5,6 +5,7 @@ mod common;
 
 use common::*;
 use salvq::container::chunk::ChunkTag;
+use salvq::container::payload::{context_bytes, ContextPrecision};
 use salvq::error::Field;
 use salvq::{decode, decode_with_limits, Error, Limits};
 
@@ -133,16 +134,22 @@ fn octree_counts_that_do_not_add_up() {
 
 #[test]
 fn non_finite_values() {
-    // MLPS: method byte, 2 + Cout shift bytes, the integer context MLP, `scaffold_precision`,
+    // MLPS: method byte, `context_precision`, the integer context MLP, `scaffold_precision`,
     // then the Scaffold-GS MLPs (binary32 for this model, §1.6.2).
     let d = small_model().dims;
-    let (cin, h, cout) = (
-        d.context_input(),
-        u64::from(d.context_hidden),
-        d.context_output(),
-    );
-    let scaffold = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize + 1;
-    let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| {
+    let stream = small_stream();
+    let mlps = salvq::container::surgery::chunks(&stream)
+        .unwrap()
+        .into_iter()
+        .find(|(t, _)| *t == ChunkTag::MLPS)
+        .unwrap()
+        .1;
+    let context = match mlps[1] {
+        0 => ContextPrecision::I16,
+        _ => ContextPrecision::I8,
+    };
+    let scaffold = (1 + context_bytes(&d, context)) as usize + 1;
+    let s = edit_payload(&stream, ChunkTag::MLPS, |p| {
         assert_eq!(p[scaffold - 1], 0, "binary32");
         p[scaffold + 4..scaffold + 8].copy_from_slice(&f32::INFINITY.to_le_bytes());
     });
@@ -258,7 +265,8 @@ fn corrupt_entropy_coded_words() {
 
 #[test]
 fn mlp_shift_out_of_range() {
-    let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| p[1] = 31);
+    // MLPS: method byte, context_precision, then w0_frac_bits (§1.6.2).
+    let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| p[2] = 31);
     assert!(matches!(
         err(&s),
         Error::FieldOutOfRange {
@@ -267,6 +275,37 @@ fn mlp_shift_out_of_range() {
             ..
         }
     ));
+}
+
+#[test]
+fn context_precision_out_of_range_and_i8_weights_decode() {
+    // context_precision is the body's first byte (§1.6.2 Table 1-7): 2 is undefined.
+    let s = edit_payload(&small_stream(), ChunkTag::MLPS, |p| p[1] = 2);
+    assert_eq!(
+        err(&s),
+        Error::FieldOutOfRange {
+            field: Field::ContextPrecision,
+            value: 2,
+            min: 0,
+            max: 1
+        }
+    );
+    // Both storages decode to what the encoder predicts; i8 is the smaller.
+    let m = small_model();
+    let mut sizes = Vec::new();
+    for p in [ContextPrecision::I16, ContextPrecision::I8] {
+        let options = salvq::EncodeOptions {
+            context_precision: Some(p),
+            ..Default::default()
+        };
+        let e = salvq::encoder::encode_full(&m, &options).unwrap();
+        assert_eq!(&decode(&e.stream).unwrap(), e.expected());
+        sizes.push(e.stream.len());
+    }
+    let d = &m.dims;
+    let weights = d.context_input() * u64::from(d.context_hidden)
+        + d.context_output() * u64::from(d.context_hidden);
+    assert_eq!((sizes[0] - sizes[1]) as u64, weights);
 }
 
 #[test]

@@ -196,12 +196,70 @@ fn every_error() -> Vec<Error> {
             tensor: "x",
             reason: "y".into(),
         },
+        Error::PlyHeaderInvalid { line: 1, rule: "x" },
+        Error::PlyPropertyMissing { property: "x" },
+        Error::PlyShCoefficients { count: 1 },
+        Error::PlyTruncated {
+            element: "vertex".into(),
+            count: 1,
+            stride: 4,
+            available: 0,
+        },
+        Error::PlyValueNotFinite {
+            vertex: 0,
+            property: "x".into(),
+        },
+        Error::NeuralGaussiansUnsupported {
+            field: Field::ViewDims,
+            value: 5,
+            rule: "x",
+        },
+        Error::RenderSettingInvalid {
+            setting: "x",
+            value: 0.0,
+            rule: "x",
+        },
         Error::Io {
             op: IoOp::Read,
             path: "x".into(),
             kind: std::io::ErrorKind::NotFound,
         },
     ]
+}
+
+/// The variants of `salvq::Error` as `src/error/mod.rs` declares them (the enum is
+/// `#[non_exhaustive]`, so a match here cannot check that [`every_error`] lists them all).
+fn declared_error_variants() -> Vec<String> {
+    let src = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/src/error/mod.rs"))
+        .expect("src/error/mod.rs");
+    let start = src.find("pub enum Error {").expect("the error enum");
+    let body = &src[start..];
+    let body = &body[..body.find("\n}\n").expect("the enum's end")];
+    body.lines()
+        .filter_map(|l| {
+            let name = l.strip_prefix("    ")?;
+            let first = name.chars().next()?;
+            if !first.is_ascii_uppercase() {
+                return None;
+            }
+            let end = name
+                .find(|c: char| !c.is_ascii_alphanumeric())
+                .unwrap_or(name.len());
+            Some(name[..end].to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn every_error_lists_every_declared_variant() {
+    let mut declared = declared_error_variants();
+    let mut listed: Vec<String> = every_error()
+        .iter()
+        .map(|e| e.class().to_string())
+        .collect();
+    declared.sort();
+    listed.sort();
+    assert_eq!(declared, listed);
 }
 
 #[test]

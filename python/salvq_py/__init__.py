@@ -1,4 +1,4 @@
-"""salvq_py: an independent decoder for the SALVQ 0.9 bitstream format (spec/), in pure
+"""salvq_py: an independent decoder for the SALVQ 0.10 bitstream format (spec/), in pure
 Python + NumPy, written from the specification alone.
 
     decode(path, rate=None)            -> dict[str, np.ndarray]   the scene model (Table 2-1)
@@ -15,7 +15,7 @@ from .errors import ERROR_CLASSES, SalvqError
 
 __all__ = ["decode", "decode_canonical", "SalvqError", "Limits", "ERROR_CLASSES",
            "decode_file", "decode_bytes", "hashes", "write_safetensors"]
-__version__ = "0.9.0"
+__version__ = "0.10.0"
 
 
 def decode(path, rate: int | None = None, limits: Limits | None = None) -> dict:

@@ -68,54 +68,78 @@ def scaffold_value_count(d: Dims) -> int:
     return sum(int(np.prod(s)) for _, s in scaffold_specs(d))
 
 
-def mlps_context_length(d: Dims) -> int:
-    """§1.6.2 `context`: the bytes of the integer context MLP (Table 5-1)."""
-    return 2 + d.Cout + 2 * d.H * d.Cin + 4 * d.H + 2 * d.Cout * d.H + 4 * d.Cout
+# Table 1-7: context_precision -> (bytes per w0/w1 value, storage dtype); i8 values are
+# sign-extended to the same §5.3 integers.
+CONTEXT_PRECISION = {0: (2, "<i2"), 1: (1, "i1")}
+
+
+def mlps_context_length(d: Dims, w: int = 2) -> int:
+    """§1.6.2 `context(w)`: the bytes from `context_precision` to `b1` (Table 5-1), with `w`
+    the bytes of each `w0`/`w1` value (Table 1-7)."""
+    return 3 + d.Cout + w * d.H * d.Cin + 4 * d.H + w * d.Cout * d.H + 4 * d.Cout
 
 
 # Table 1-6: scaffold_precision -> (bytes per value, little-endian storage dtype)
 SCAFFOLD_PRECISION = {0: (4, "<f4"), 1: (2, "<f2")}
 
 
-def mlps_body_length(d: Dims, precision: int = 0) -> int:
-    return mlps_context_length(d) + 1 + SCAFFOLD_PRECISION[precision][0] * scaffold_value_count(d)
+def mlps_body_length(d: Dims, scaffold_precision: int = 0, context_precision: int = 0) -> int:
+    w = CONTEXT_PRECISION[context_precision][0]
+    return (mlps_context_length(d, w) + 1
+            + SCAFFOLD_PRECISION[scaffold_precision][0] * scaffold_value_count(d))
 
 
 def parse_mlps(payload: bytes, d: Dims) -> tuple[IntMlp, dict]:
     """§1.6.2 (after §1.6 steps 1-2; the length checks of step 3 are §1.6.2's own, in its
-    order): the integer MLP and the Scaffold-GS tensors (binary32 or binary16, Table 1-6).
-    Reported lengths are whole payload lengths (1 + body), as §1.6 step 3."""
+    order, steps 1-7): the integer MLP (w0/w1 as i16 or i8, Table 1-7) and the Scaffold-GS
+    tensors (binary32 or binary16, Table 1-6). Reported lengths are whole payload lengths
+    (1 + body), as §1.6 step 3."""
     body = payload[1:]
     H, Cin, Cout = d.H, d.Cin, d.Cout
-    context = mlps_context_length(d)
     scaffold_n = scaffold_value_count(d)
+    # step 1: an empty body (the expected length as for i16 weights and binary32 values)
+    if len(body) == 0:
+        raise SalvqError("ChunkSizeMismatch",
+                         f"chunk MLPS: payload length {len(payload)}, expected "
+                         f"{1 + mlps_context_length(d, 2) + 1 + 4 * scaffold_n} [§1.6.2]")
+    # step 2: context_precision
+    cprec = body[0]
+    if cprec not in CONTEXT_PRECISION:
+        raise SalvqError("FieldOutOfRange",
+                         f"MLPS context_precision = {cprec}, range 0 … 1 [§1.6.2, Table 1-7]")
+    w, wdtype = CONTEXT_PRECISION[cprec]
+    context = mlps_context_length(d, w)
+    # step 3: a body shorter than context(w) + 1
     if len(body) < context + 1:
         raise SalvqError("ChunkSizeMismatch",
                          f"chunk MLPS: payload length {len(payload)}, expected "
-                         f"{1 + context + 1 + 4 * scaffold_n} [§1.6.2]")
+                         f"{1 + context + 1 + 4 * scaffold_n} (context_precision {cprec}) [§1.6.2]")
+    # step 4: scaffold_precision, the body's byte at offset context(w)
     precision = body[context]
     if precision not in SCAFFOLD_PRECISION:
         raise SalvqError("FieldOutOfRange",
                          f"MLPS scaffold_precision = {precision}, range 0 … 1 [§1.6.2, Table 1-6]")
     nbytes, dtype = SCAFFOLD_PRECISION[precision]
+    # step 5: the exact body length
     if len(body) != context + 1 + nbytes * scaffold_n:
         raise SalvqError("ChunkSizeMismatch",
                          f"chunk MLPS: payload length {len(payload)}, expected "
-                         f"{1 + context + 1 + nbytes * scaffold_n} (scaffold_precision "
-                         f"{precision}) [§1.6.2]")
-    a0 = body[0]
-    shift0 = body[1]
-    a1 = np.frombuffer(body, np.uint8, Cout, 2).astype(np.int64)
-    pos = 2 + Cout
-    w0 = np.frombuffer(body, "<i2", H * Cin, pos).astype(np.int64).reshape(H, Cin)
-    pos += 2 * H * Cin
+                         f"{1 + context + 1 + nbytes * scaffold_n} (context_precision {cprec}, "
+                         f"scaffold_precision {precision}) [§1.6.2]")
+    a0 = body[1]
+    shift0 = body[2]
+    a1 = np.frombuffer(body, np.uint8, Cout, 3).astype(np.int64)
+    pos = 3 + Cout
+    w0 = np.frombuffer(body, wdtype, H * Cin, pos).astype(np.int64).reshape(H, Cin)
+    pos += w * H * Cin
     b0 = np.frombuffer(body, "<i4", H, pos).astype(np.int64)
     pos += 4 * H
-    w1 = np.frombuffer(body, "<i2", Cout * H, pos).astype(np.int64).reshape(Cout, H)
-    pos += 2 * Cout * H
+    w1 = np.frombuffer(body, wdtype, Cout * H, pos).astype(np.int64).reshape(Cout, H)
+    pos += w * Cout * H
     b1 = np.frombuffer(body, "<i4", Cout, pos).astype(np.int64)
     pos += 4 * Cout
     assert pos == context
+    # step 6: the fixed-point shifts
     if a0 > 30:
         raise SalvqError("FieldOutOfRange", f"MLPS w0_frac_bits = {a0}, range 0 … 30 [§1.6.2]")
     if shift0 > min(31, 8 + a0):
@@ -126,6 +150,7 @@ def parse_mlps(payload: bytes, d: Dims) -> tuple[IntMlp, dict]:
             raise SalvqError("FieldOutOfRange",
                              f"MLPS w1_frac_bits[{o}] = {int(a1[o])}, range 0 … 30 [§1.6.2]")
     pos += 1                                   # scaffold_precision
+    # step 7: every Scaffold-GS value finite
     tensors = {}
     for name, shape in scaffold_specs(d):
         n = int(np.prod(shape))

@@ -43,10 +43,10 @@ def main():
         dec = D.decode_bytes(data, rate)
         cout = dec.dims.Cout
 
-        def mlps(p):
-            p[1], p[2] = 30, 0
+        def mlps(p):   # p[0] coding_method, p[1] context_precision (§1.6.2, 0.10)
+            p[2], p[3] = 30, 0
             for o in range(cout - 3, cout):
-                p[3 + o] = 30
+                p[4 + o] = 30
         show(ref, f"{name}@{rate}: step-adjustment rows with E = 68 (§5.4 step 1)",
              reencode_layer(edit(data, "MLPS", mlps), rate, dec.symbols), rate)
 

@@ -355,6 +355,20 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
     ));
 
     out.push(vector(
+        "context-i16",
+        "the context MLP's weights stored as i16 (context_precision 0; the reference encoder \
+         stores them as i8 when that is smaller, Annex A.5.4)",
+        &["§1.6.2", "§5.3"],
+        encode_full(
+            &usq,
+            &EncodeOptions {
+                context_precision: Some(crate::container::payload::ContextPrecision::I16),
+                ..options(&[0])
+            },
+        )?,
+    ));
+
+    out.push(vector(
         "extreme-exponents",
         "tiny context-MLP weights: unit exponents E up to 8 + 30 + 30 on the step-adjustment \
          outputs, where a 64-bit rounding shift would overflow",

@@ -138,6 +138,55 @@ impl ScaffoldPrecision {
     }
 }
 
+/// How the integer context MLP's weights are stored (§1.6.2 Table 1-7); the values are the
+/// same integers of §5.3 either way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub enum ContextPrecision {
+    /// Code 0: `w0` and `w1` as i16.
+    #[default]
+    I16,
+    /// Code 1: `w0` and `w1` as i8 (each value in −128 … 127).
+    I8,
+}
+
+impl ContextPrecision {
+    pub fn code(self) -> u8 {
+        match self {
+            ContextPrecision::I16 => 0,
+            ContextPrecision::I8 => 1,
+        }
+    }
+
+    /// Bytes per stored weight.
+    pub fn bytes(self) -> u64 {
+        match self {
+            ContextPrecision::I16 => 2,
+            ContextPrecision::I8 => 1,
+        }
+    }
+
+    /// The largest weight magnitude the storage holds (the encoder's bound; −128 is never
+    /// written, so the bound is symmetric).
+    pub fn weight_max(self) -> i16 {
+        match self {
+            ContextPrecision::I16 => i16::MAX,
+            ContextPrecision::I8 => i16::from(i8::MAX),
+        }
+    }
+}
+
+/// Bytes of `MLPS`'s context part (§1.6.2): `context_precision`, `w0_frac_bits`, `shift0`,
+/// `w1_frac_bits[Cout]`, `w0`, `b0`, `w1`, `b1`.
+pub fn context_bytes(d: &Dims, precision: ContextPrecision) -> u64 {
+    let (cin, h, cout) = (
+        d.context_input(),
+        u64::from(d.context_hidden),
+        d.context_output(),
+    );
+    let wb = precision.bytes();
+    3 + cout + wb * (h * cin) + 4 * h + wb * (cout * h) + 4 * cout
+}
+
 /// The Scaffold-GS MLPs in stream order with their tensor names and (in, hidden, out) widths.
 fn scaffold_layout(d: &Dims) -> [([&'static str; 4], u64, u64, u64); 3] {
     let k = u64::from(d.offsets);
@@ -152,21 +201,30 @@ fn scaffold_layout(d: &Dims) -> [([&'static str; 4], u64, u64, u64); 3] {
 
 /// Writes `MLPS`; the Scaffold-GS values are stored in `precision` (the caller has checked
 /// that they fit it).
-pub fn write_mlps(ctx: &IntMlp, m: &SceneModel, precision: ScaffoldPrecision) -> Vec<u8> {
+pub fn write_mlps(
+    ctx: &IntMlp,
+    context: ContextPrecision,
+    m: &SceneModel,
+    precision: ScaffoldPrecision,
+) -> Vec<u8> {
     let mut w = PayloadWriter::default();
     w.u8(METHOD_CODED);
+    w.u8(context.code());
     w.u8(ctx.w0_frac_bits);
     w.u8(ctx.shift0);
     w.buf.extend_from_slice(&ctx.w1_frac_bits);
-    for v in &ctx.w0 {
-        w.buf.extend_from_slice(&v.to_le_bytes());
-    }
+    // The caller converted the MLP for `context` (every weight within its range).
+    let weights = |w: &mut PayloadWriter, v: &[i16]| match context {
+        ContextPrecision::I16 => v
+            .iter()
+            .for_each(|x| w.buf.extend_from_slice(&x.to_le_bytes())),
+        ContextPrecision::I8 => v.iter().for_each(|&x| w.buf.push(x as i8 as u8)),
+    };
+    weights(&mut w, &ctx.w0);
     for v in &ctx.b0 {
         w.buf.extend_from_slice(&v.to_le_bytes());
     }
-    for v in &ctx.w1 {
-        w.buf.extend_from_slice(&v.to_le_bytes());
-    }
+    weights(&mut w, &ctx.w1);
     for v in &ctx.b1 {
         w.buf.extend_from_slice(&v.to_le_bytes());
     }
@@ -211,8 +269,28 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
         .iter()
         .map(|&(_, i, h, o)| h * i + h + o * h + o)
         .sum();
-    let context = 2 + cout + 2 * (h * cin) + 4 * h + 2 * (cout * h) + 4 * cout;
-    // §1.6.2: the precision byte first (its position is fixed), then the exact length.
+    // §1.6.2 checks, in order: `context_precision` (the body's first byte), then
+    // `scaffold_precision` (its position follows from the first), then the exact length.
+    let Some(&context_code) = body.first() else {
+        return Err(Error::ChunkSizeMismatch {
+            tag,
+            expected: 1 + context_bytes(d, ContextPrecision::I16) + 1 + 4 * scaffold,
+            found: 1,
+        });
+    };
+    let context_precision = match context_code {
+        0 => ContextPrecision::I16,
+        1 => ContextPrecision::I8,
+        _ => {
+            return Err(Error::FieldOutOfRange {
+                field: Field::ContextPrecision,
+                value: context_code.into(),
+                min: 0,
+                max: 1,
+            })
+        }
+    };
+    let context = context_bytes(d, context_precision);
     let Some(&code) = body.get(context as usize) else {
         return Err(Error::ChunkSizeMismatch {
             tag,
@@ -234,6 +312,7 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
     };
     expect_len(tag, body, context + 1 + precision.bytes() * scaffold)?;
     let mut r = PayloadReader::new(tag, body);
+    r.u8()?; // context_precision, read above
     let w0_frac_bits = r.u8()?;
     let shift0 = r.u8()?;
     let w1_frac_bits = r.take(cout as usize)?.to_vec();
@@ -253,9 +332,17 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
             .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect()
     };
-    let w0 = i16s(r.take(2 * (h * cin) as usize)?);
+    // i8 weights are the same integers, sign-extended (§5.3 evaluates them as i16).
+    let weights = |b: &[u8]| -> Vec<i16> {
+        match context_precision {
+            ContextPrecision::I16 => i16s(b),
+            ContextPrecision::I8 => b.iter().map(|&x| i16::from(x as i8)).collect(),
+        }
+    };
+    let wb = context_precision.bytes();
+    let w0 = weights(r.take((wb * h * cin) as usize)?);
     let b0 = i32s(r.take(4 * h as usize)?);
-    let w1 = i16s(r.take(2 * (cout * h) as usize)?);
+    let w1 = weights(r.take((wb * cout * h) as usize)?);
     let b1 = i32s(r.take(4 * cout as usize)?);
     r.u8()?; // scaffold_precision, read above
     let ctx = IntMlp {

@@ -30,7 +30,7 @@ const MAX_ROUNDS: usize = 6;
 
 /// Fewest sampled anchors per region for a fitted basis (its F×F covariance needs many more
 /// anchors than dimensions).
-const ANCHORS_PER_DIM_AND_REGION: usize = 50;
+pub const ANCHORS_PER_DIM_AND_REGION: usize = 50;
 
 /// How a candidate codes the feature group.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -133,7 +133,7 @@ impl AutoChoice {
 
 /// The candidates for `model`: the identity, the model's own lattice when it is another, and fitted
 /// bases with 1, 2, 4 and 8 regions while each region keeps
-/// [`ANCHORS_PER_DIM_AND_REGION`]·F sampled anchors.
+/// 50·F sampled anchors.
 pub fn candidates(model: &SceneModel, sample_anchors: usize) -> Vec<FeatureQuantizer> {
     let mut out = vec![FeatureQuantizer::Identity];
     if model.dims.feat_lattice != LatticeKind::Identity {
@@ -168,6 +168,12 @@ pub fn choose(model: &SceneModel, base: &EncodeOptions) -> Result<AutoChoice> {
     let scale = full.n() as f64 / sample.n().max(1) as f64;
     // The grid's touched entries depend on every anchor: measure GRID on the full model once.
     let grid_full = if k > 1 { grid_bytes_of(&full) } else { 0 };
+    // Rate 0 only: the choice depends on the model alone, whatever rates the stream codes
+    // (an extracted rate then equals that rate encoded alone with --auto, §7.5).
+    let base = &EncodeOptions {
+        rates: vec![0],
+        ..base.clone()
+    };
     let measure = |q: FeatureQuantizer, factor: f64| -> Result<Point> {
         let m = with_step_factor(&sample, factor);
         let e = encode_full(&m, &q.options(&sample, base))?;

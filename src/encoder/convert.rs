@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 
+use crate::container::payload::ContextPrecision;
 use crate::error::{Error, Result};
 use crate::hyperprior::mlp::{pow2, HIDDEN_MAX};
 use crate::hyperprior::{GridLayout, IntMlp};
@@ -34,8 +35,25 @@ pub fn grid_inputs(m: &SceneModel, layout: &GridLayout) -> Vec<i16> {
     x
 }
 
-/// Converts `mlp_grid` to fixed point, given the anchors' integer inputs `x` ([N, Cin]).
+/// Converts `mlp_grid` to fixed point with i16 weights, given the anchors' integer inputs `x`
+/// ([N, Cin]).
 pub fn convert_context_mlp(f: &Mlp, cin: usize, x: &[i16]) -> Result<IntMlp> {
+    convert_context_mlp_for(f, cin, x, ContextPrecision::I16)
+}
+
+/// [`convert_context_mlp`] with every weight within what `precision` stores (§1.6.2
+/// Table 1-7): the same scale search, bounded by ±127 for i8.
+pub fn convert_context_mlp_for(
+    f: &Mlp,
+    cin: usize,
+    x: &[i16],
+    precision: ContextPrecision,
+) -> Result<IntMlp> {
+    let weight_max = f64::from(precision.weight_max());
+    let allowed = match precision {
+        ContextPrecision::I16 => "weights whose fixed-point form fits i16 (|w| < 32768)",
+        ContextPrecision::I8 => "weights whose fixed-point form fits i8 (|w| < 128)",
+    };
     let hidden = f.b0.len();
     let cout = f.b1.len();
     let max_abs = |v: &[f32]| v.iter().fold(0f64, |a, &w| a.max(f64::from(w).abs()));
@@ -43,7 +61,7 @@ pub fn convert_context_mlp(f: &Mlp, cin: usize, x: &[i16]) -> Result<IntMlp> {
     let a0 = largest(30, |a| {
         let w = quantize(&f.w0, a);
         let b = quantize(&f.b0, 8 + a);
-        max_abs(&f.w0) * pow2(a) <= f64::from(i16::MAX)
+        max_abs(&f.w0) * pow2(a) <= weight_max
             && w.chunks_exact(cin.max(1)).zip(&b).all(|(row, &b)| {
                 let s: i64 = row.iter().map(|w| w.abs()).sum::<i64>() * 256 + b.abs();
                 (s as f64) < I32_LIMIT
@@ -53,7 +71,7 @@ pub fn convert_context_mlp(f: &Mlp, cin: usize, x: &[i16]) -> Result<IntMlp> {
         tensor: names::MLP_GRID[0],
         index: vec![],
         value: max_abs(&f.w0) as i64,
-        allowed: "weights whose fixed-point form fits i16 (|w| < 32768)",
+        allowed,
     })?;
     let w0: Vec<i16> = quantize(&f.w0, a0).into_iter().map(|v| v as i16).collect();
     let b0: Vec<i32> = quantize(&f.b0, 8 + a0)
@@ -130,14 +148,14 @@ pub fn convert_context_mlp(f: &Mlp, cin: usize, x: &[i16]) -> Result<IntMlp> {
         let row = &f.w1[o * hidden..(o + 1) * hidden];
         let b = f64::from(bias).abs();
         let a1 = largest(30, |a| {
-            max_abs(row) * pow2(a) <= f64::from(i16::MAX)
+            max_abs(row) * pow2(a) <= weight_max
                 && (row_max * pow2(a) + b * pow2(qh + a)) < I32_LIMIT * MARGIN
         })
         .ok_or(Error::ValueInvalid {
             tensor: names::MLP_GRID[2],
             index: vec![o as u64],
             value: max_abs(row) as i64,
-            allowed: "weights whose fixed-point form fits i16 (|w| < 32768)",
+            allowed,
         })?;
         w1_frac_bits.push(a1 as u8);
     }

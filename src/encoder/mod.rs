@@ -4,6 +4,7 @@
 
 pub mod attributes;
 pub mod auto;
+pub mod context_precision;
 pub mod convert;
 pub mod fit;
 pub mod float_prior;
@@ -57,6 +58,10 @@ pub struct EncodeOptions {
     /// How to store the Scaffold-GS MLPs (§1.6.2); `None`: the least precision that keeps
     /// their outputs within tolerance ([`precision::choose`], Annex A.5.2).
     pub scaffold_precision: Option<crate::container::payload::ScaffoldPrecision>,
+    /// How to store the context MLP's weights (§1.6.2 Table 1-7); `None`: i8 when the
+    /// measured symbol cost is below the model bytes saved ([`context_precision::choose`],
+    /// Annex A.5.4).
+    pub context_precision: Option<crate::container::payload::ContextPrecision>,
 }
 
 /// What the encoder measured for one layer (written to `ests` when asked; `salvq info`
@@ -109,6 +114,8 @@ pub struct Encoded {
     pub layers: Vec<EncodedLayer>,
     /// How the Scaffold-GS MLPs were stored, and why (Annex A.5.2).
     pub scaffold: precision::PrecisionChoice,
+    /// How the context MLP's weights were stored, and why (Annex A.5.4).
+    pub context: context_precision::ContextChoice,
 }
 
 impl Encoded {
@@ -196,6 +203,11 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     } else {
         model
     };
+    // Annex A.5.4: the context MLP's weight storage, with the base steps that hold the
+    // distortion when it is i8.
+    let context = context_precision::choose(m, options, options.context_precision)?;
+    let stepped = context.apply(m);
+    let m: &SceneModel = &stepped;
     let d = &m.dims;
     let coord_bits = m.coord_bits();
     // Annex A.5.2: the Scaffold-GS MLPs' storage.
@@ -211,7 +223,8 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     // §5: the integer prior, converted from the model's float context MLP.
     let layout = GridLayout::new(d, coord_bits);
     let x = convert::grid_inputs(m, &layout);
-    let int_mlp = convert::convert_context_mlp(&m.mlp_grid, layout.features(), &x)?;
+    let int_mlp =
+        convert::convert_context_mlp_for(&m.mlp_grid, layout.features(), &x, context.precision)?;
     drop(x);
     let quant = [&m.quant_feat, &m.quant_scaling, &m.quant_offsets];
     let touched = layout.touched(&m.anchors.voxel, d.entries_3d(), d.entries_2d());
@@ -257,7 +270,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     write_chunk(
         &mut out,
         ChunkTag::MLPS,
-        &payload::write_mlps(&int_mlp, m, scaffold.precision),
+        &payload::write_mlps(&int_mlp, context.precision, m, scaffold.precision),
     );
     write_chunk(&mut out, ChunkTag::QUAN, &payload::write_quan(m));
     write_chunk(&mut out, ChunkTag::TILS, &tiles.to_payload());
@@ -340,5 +353,6 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         stream: out,
         layers,
         scaffold,
+        context,
     })
 }

@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use crate::container::payload::ScaffoldPrecision;
 use crate::model::{Mlp, SceneModel};
+use crate::render::neural::{activate, forward, ScaffoldMlp};
 
 /// Largest change of an activated output that binary16 may cause: a quarter of an 8-bit
 /// colour level.
@@ -35,51 +36,6 @@ pub fn rounded(mlp: &Mlp, p: ScaffoldPrecision) -> Mlp {
         b0: r(&mlp.b0),
         w1: r(&mlp.w1),
         b1: r(&mlp.b1),
-    }
-}
-
-/// `Linear → ReLU → Linear` in binary64.
-fn forward(m: &Mlp, x: &[f64], out: &mut Vec<f64>) {
-    let (inp, hidden) = (x.len(), m.b0.len());
-    let h: Vec<f64> = (0..hidden)
-        .map(|j| {
-            let s = f64::from(m.b0[j])
-                + m.w0[j * inp..(j + 1) * inp]
-                    .iter()
-                    .zip(x)
-                    .map(|(&w, &v)| f64::from(w) * v)
-                    .sum::<f64>();
-            s.max(0.0)
-        })
-        .collect();
-    out.clear();
-    out.extend((0..m.b1.len()).map(|o| {
-        f64::from(m.b1[o])
-            + m.w1[o * hidden..(o + 1) * hidden]
-                .iter()
-                .zip(&h)
-                .map(|(&w, &v)| f64::from(w) * v)
-                .sum::<f64>()
-    }));
-}
-
-fn sigmoid(x: f64) -> f64 {
-    1.0 / (1.0 + (-x).exp())
-}
-
-/// Scaffold-GS's activations: opacity `tanh`; covariance: 3 scales through `sigmoid`, 4
-/// rotation values as a normalised quaternion, per offset; colour `sigmoid`.
-fn activate(kind: usize, raw: &mut [f64]) {
-    match kind {
-        0 => raw.iter_mut().for_each(|v| *v = v.tanh()),
-        1 => {
-            for g in raw.chunks_mut(7) {
-                g[..3].iter_mut().for_each(|v| *v = sigmoid(*v));
-                let n = g[3..].iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-12);
-                g[3..].iter_mut().for_each(|v| *v /= n);
-            }
-        }
-        _ => raw.iter_mut().for_each(|v| *v = sigmoid(*v)),
     }
 }
 
@@ -113,11 +69,11 @@ fn max_change(m: &SceneModel, a: [&Mlp; 3], b: [&Mlp; 3]) -> f64 {
                 .map(|&x| f64::from(x))
                 .chain(view.iter().copied())
                 .collect();
-            for kind in 0..3 {
+            for (kind, which) in ScaffoldMlp::ALL.into_iter().enumerate() {
                 forward(a[kind], &x, &mut ya);
                 forward(b[kind], &x, &mut yb);
-                activate(kind, &mut ya);
-                activate(kind, &mut yb);
+                activate(which, &mut ya);
+                activate(which, &mut yb);
                 for (p, q) in ya.iter().zip(&yb) {
                     let d = (p - q).abs();
                     worst = if d.is_nan() {

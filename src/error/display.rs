@@ -257,6 +257,40 @@ impl fmt::Display for Error {
                 "{tensor}: not orthogonal, (M^T M - I)[{}, {}] = {deviation:.3e} exceeds {tolerance:.0e}",
                 index[0], index[1]
             )?,
+            PlyHeaderInvalid { line: 0, rule } => write!(f, "PLY header: {rule}")?,
+            PlyHeaderInvalid { line, rule } => write!(f, "PLY header, line {line}: {rule}")?,
+            PlyPropertyMissing { property } => write!(
+                f,
+                "PLY vertex element: property '{property}' is missing (a 3DGS Gaussian needs it)"
+            )?,
+            PlyShCoefficients { count } => write!(
+                f,
+                "PLY vertex element: {count} f_rest properties; SH needs f_rest_0 … f_rest_(n-1) with n = 0, 9, 24 or 45"
+            )?,
+            PlyTruncated {
+                element,
+                count,
+                stride,
+                available,
+            } => write!(
+                f,
+                "PLY element '{element}': {count} records of {stride} bytes need {} bytes, {available} available",
+                u128::from(*count) * u128::from(*stride)
+            )?,
+            PlyValueNotFinite { vertex, property } => write!(
+                f,
+                "PLY vertex {vertex}: property '{property}' is not finite"
+            )?,
+            NeuralGaussiansUnsupported { field, value, rule } => write!(
+                f,
+                "{} = {value}: no Scaffold-GS neural Gaussians: {rule}",
+                field.spec_name()
+            )?,
+            RenderSettingInvalid {
+                setting,
+                value,
+                rule,
+            } => write!(f, "render setting {setting} = {value}: {rule}")?,
             Io { op, path, kind } => {
                 let verb = match op {
                     IoOp::Read => "cannot read",

@@ -74,6 +74,7 @@ pub enum Field {
     Shift0,
     W1FracBits,
     ScaffoldPrecision,
+    ContextPrecision,
 }
 
 impl Field {
@@ -115,6 +116,7 @@ impl Field {
             Field::W0FracBits => "w0_frac_bits",
             Field::Shift0 => "shift0",
             Field::ScaffoldPrecision => "scaffold_precision",
+            Field::ContextPrecision => "context_precision",
             Field::W1FracBits => "w1_frac_bits",
         }
     }
@@ -346,6 +348,40 @@ pub enum Error {
         tolerance: f64,
     },
 
+    // ---- renderable output (Annex C, informative) ----
+    /// A standard 3DGS PLY file's header breaks a rule of the layout (Annex C.3); `line`
+    /// counts from 1, 0 when the rule concerns the header as a whole.
+    PlyHeaderInvalid { line: u32, rule: &'static str },
+    /// A PLY vertex property that a 3DGS Gaussian needs is absent (Annex C.3).
+    PlyPropertyMissing { property: &'static str },
+    /// The `f_rest_*` properties are not `f_rest_0 … f_rest_{n−1}` with n = 0, 9, 24 or 45
+    /// (SH degree 0 … 3; Annex C.3).
+    PlyShCoefficients { count: u32 },
+    /// The PLY body is shorter than its element counts times their record sizes (Annex C.3).
+    PlyTruncated {
+        element: String,
+        count: u64,
+        stride: u64,
+        available: u64,
+    },
+    /// A PLY vertex value that a Gaussian uses is NaN, or infinite other than the opacity
+    /// logit (Annex C.3).
+    PlyValueNotFinite { vertex: u64, property: String },
+    /// The model's shape has no Scaffold-GS neural Gaussians (Annex C.1): the scaling must
+    /// have 6 dimensions, the view inputs 3 or 4.
+    NeuralGaussiansUnsupported {
+        field: Field,
+        value: u64,
+        rule: &'static str,
+    },
+    /// A render setting (image size, view index, field of view, elevation) is outside its
+    /// range (Annex C.2).
+    RenderSettingInvalid {
+        setting: &'static str,
+        value: f64,
+        rule: &'static str,
+    },
+
     // ---- files ----
     /// A file operation failed.
     Io {
@@ -401,6 +437,13 @@ impl Error {
             | TensorDtype { .. }
             | TensorRank { .. }
             | TensorShape { .. } => "§A.1",
+            NeuralGaussiansUnsupported { .. } => "§C.1",
+            RenderSettingInvalid { .. } => "§C.2",
+            PlyHeaderInvalid { .. }
+            | PlyPropertyMissing { .. }
+            | PlyShCoefficients { .. }
+            | PlyTruncated { .. }
+            | PlyValueNotFinite { .. } => "§C.3",
             Io { .. } => "§9.2",
         }
     }
@@ -449,6 +492,13 @@ impl Error {
             BasisSingular { .. } => "BasisSingular",
             BasisIllConditioned { .. } => "BasisIllConditioned",
             BasisNotOrthogonal { .. } => "BasisNotOrthogonal",
+            PlyHeaderInvalid { .. } => "PlyHeaderInvalid",
+            PlyPropertyMissing { .. } => "PlyPropertyMissing",
+            PlyShCoefficients { .. } => "PlyShCoefficients",
+            PlyTruncated { .. } => "PlyTruncated",
+            PlyValueNotFinite { .. } => "PlyValueNotFinite",
+            NeuralGaussiansUnsupported { .. } => "NeuralGaussiansUnsupported",
+            RenderSettingInvalid { .. } => "RenderSettingInvalid",
             Io { .. } => "Io",
         }
     }

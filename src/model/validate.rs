@@ -35,7 +35,7 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::ViewDims => (0, 8),
         Field::W0FracBits | Field::W1FracBits => (0, 30),
         Field::Shift0 => (0, 31),
-        Field::ScaffoldPrecision => (0, 1),
+        Field::ScaffoldPrecision | Field::ContextPrecision => (0, 1),
         Field::FeatLattice | Field::ScalingLattice => (0, 3),
         Field::FeatRegions | Field::ScalingRegions => (1, u16::MAX as u64),
         Field::RegionStart => (1, u32::MAX as u64 - 1),

@@ -77,30 +77,54 @@ fn draw(
     path: &Path,
     curves: &[(&'static str, Vec<Point>)],
 ) -> std::result::Result<(), Box<dyn std::error::Error>> {
-    let all = curves.iter().flat_map(|c| c.1.iter());
-    let (x0, x1) = range(all.clone().map(|p| p.bits_per_anchor), 0.05);
-    let (y0, y1) = range(all.map(|p| p.snr_db), 0.05);
-    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    let root = SVGBackend::new(path, (1500, 600)).into_drawing_area();
     root.fill(&WHITE)?;
-    let mut c = ChartBuilder::on(&root)
-        .caption(
-            "Rate vs feature distortion, one generated scene (F = 48), scales fitted per quantizer",
-            ("sans-serif", 18),
-        )
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, y0..y1)?;
-    c.configure_mesh()
-        .x_desc("whole stream, bits per anchor")
-        .y_desc("feature SNR (dB)")
-        .draw()?;
-    for (i, (label, pts)) in curves.iter().enumerate() {
-        let color = COLORS[i % COLORS.len()];
-        let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.bits_per_anchor, p.snr_db)).collect();
-        labelled_line(&mut c, label, color, xy).map_err(|e| e.to_string())?;
+    let (left, right) = root.split_horizontally(750);
+    type Get = fn(&Point) -> f64;
+    let panels: [(&DrawingArea<SVGBackend, _>, &str, &str, Get); 2] = [
+        (
+            &left,
+            "Rate vs feature distortion (F = 48, scales fitted per quantizer)",
+            "feature SNR (dB)",
+            |p| p.snr_db,
+        ),
+        (
+            &right,
+            "Rate vs render PSNR of the decoded scene (Annex C.5)",
+            "render PSNR (dB) vs the uncompressed scene",
+            |p| p.render_psnr_db,
+        ),
+    ];
+    for (area, caption, ydesc, get) in panels {
+        let all = curves.iter().flat_map(|c| c.1.iter());
+        let (x0, x1) = range(all.clone().map(|p| p.bits_per_anchor), 0.05);
+        let (y0, y1) = range(all.map(get).filter(|v| v.is_finite()), 0.05);
+        let mut c = ChartBuilder::on(area)
+            .caption(caption, ("sans-serif", 18))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        c.configure_mesh()
+            .x_desc("whole stream, bits per anchor")
+            .y_desc(ydesc)
+            .draw()?;
+        for (i, (label, pts)) in curves.iter().enumerate() {
+            let color = COLORS[i % COLORS.len()];
+            let xy: Vec<(f64, f64)> = pts
+                .iter()
+                .map(|p| (p.bits_per_anchor, get(p)))
+                .filter(|(_, y)| y.is_finite())
+                .collect();
+            labelled_line(&mut c, label, color, xy).map_err(|e| e.to_string())?;
+        }
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.9))
+            .position(SeriesLabelPosition::LowerRight)
+            .draw()?;
     }
-    finish(c, &root, SeriesLabelPosition::LowerRight).map_err(|e| e.to_string())?;
+    root.present()?;
     Ok(())
 }
 

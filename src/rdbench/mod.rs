@@ -13,6 +13,7 @@ mod charts;
 pub mod coder;
 pub mod parsimony;
 pub mod precision;
+pub mod render_psnr;
 pub mod scale;
 
 use std::path::{Path, PathBuf};
@@ -127,6 +128,10 @@ pub struct Point {
     pub snr_db: f64,
     pub escapes: u64,
     pub secs: f64,
+    /// Render PSNR (dB) and SSIM of the decoded scene against the uncompressed one (Annex
+    /// C.5); NaN where not measured.
+    pub render_psnr_db: f64,
+    pub render_ssim: f64,
 }
 
 fn options(q: &Quantizer, search: Search) -> EncodeOptions {
@@ -166,9 +171,23 @@ fn feature_variance(m: &SceneModel) -> f64 {
 
 /// Encodes `m` with `o`, rate 0, and measures the point.
 fn code(m: &SceneModel, o: &EncodeOptions, var: f64) -> Result<Point> {
+    code_rendered(m, o, var, None)
+}
+
+/// [`code`], with render accuracy against `reference` when given.
+fn code_rendered(
+    m: &SceneModel,
+    o: &EncodeOptions,
+    var: f64,
+    reference: Option<&render_psnr::RenderReference>,
+) -> Result<Point> {
     let t = Instant::now();
     let e = encode_full(m, o)?;
     let secs = t.elapsed().as_secs_f64();
+    let (render_psnr_db, render_ssim) = match reference {
+        Some(r) => r.compare(e.expected())?,
+        None => (f64::NAN, f64::NAN),
+    };
     let g = &e.report().groups[0];
     let n = f64::from(m.dims.anchors);
     let mse = g.squared_error / g.symbols.max(1) as f64;
@@ -179,6 +198,8 @@ fn code(m: &SceneModel, o: &EncodeOptions, var: f64) -> Result<Point> {
         snr_db: 10.0 * (var / mse).log10(),
         escapes: g.escapes,
         secs,
+        render_psnr_db,
+        render_ssim,
     })
 }
 
@@ -190,9 +211,19 @@ fn with_step(m: &SceneModel, factor: f32) -> SceneModel {
 
 /// One R-D curve: the quantizer at every step factor.
 fn curve(m: &SceneModel, q: &Quantizer, var: f64) -> Result<Vec<Point>> {
+    rendered_curve(m, q, var, None)
+}
+
+/// [`curve`] with render accuracy against `reference`.
+fn rendered_curve(
+    m: &SceneModel,
+    q: &Quantizer,
+    var: f64,
+    reference: Option<&render_psnr::RenderReference>,
+) -> Result<Vec<Point>> {
     STEP_FACTORS
         .iter()
-        .map(|&k| code(&with_step(m, k), &options(q, Search::Auto), var))
+        .map(|&k| code_rendered(&with_step(m, k), &options(q, Search::Auto), var, reference))
         .collect()
 }
 
@@ -272,12 +303,19 @@ pub fn run(p: &RdOptions) -> Result<String> {
     })?;
     let mut text = String::new();
     let mut csv = String::from(
-        "part,series,x,bits_per_anchor,feature_bits_per_anchor,mse,snr_db,escapes,secs\n",
+        "part,series,x,bits_per_anchor,feature_bits_per_anchor,mse,snr_db,escapes,secs,render_psnr_db,render_ssim\n",
     );
     let push_csv = |csv: &mut String, part: &str, series: &str, x: f64, pt: &Point| {
         csv.push_str(&format!(
-            "{part},{series},{x},{:.4},{:.4},{:.6},{:.4},{},{:.4}\n",
-            pt.bits_per_anchor, pt.feature_bits_per_anchor, pt.mse, pt.snr_db, pt.escapes, pt.secs
+            "{part},{series},{x},{:.4},{:.4},{:.6},{:.4},{},{:.4},{:.4},{:.5}\n",
+            pt.bits_per_anchor,
+            pt.feature_bits_per_anchor,
+            pt.mse,
+            pt.snr_db,
+            pt.escapes,
+            pt.secs,
+            pt.render_psnr_db,
+            pt.render_ssim
         ));
     };
 
@@ -292,19 +330,37 @@ pub fn run(p: &RdOptions) -> Result<String> {
         p.seed,
         crate::gen::context::FEAT_DECAY
     ));
+    // Render accuracy (Annex C.5): every point's decoded scene against the uncompressed one.
+    let reference = render_psnr::RenderReference::new(
+        &m,
+        render_psnr::VIEWS,
+        render_psnr::WIDTH,
+        render_psnr::HEIGHT,
+    )?;
     let mut curves = Vec::new();
     for q in &QUANTIZERS {
-        let c = curve(&m, q, var)?;
+        let c = rendered_curve(&m, q, var, Some(&reference))?;
         for (k, pt) in STEP_FACTORS.iter().zip(&c) {
             push_csv(&mut csv, "rd", q.label, f64::from(*k), pt);
         }
         curves.push((q.label, c));
     }
-    text.push_str("R-D points (step factor: bits/anchor, SNR dB):\n");
+    text.push_str(&format!(
+        "R-D points (bits/anchor / feature SNR dB / render PSNR dB, the decoded scene's renders \
+         against the uncompressed scene's, {} ring views at {}x{}, Annex C.5):\n",
+        render_psnr::VIEWS,
+        render_psnr::WIDTH,
+        render_psnr::HEIGHT
+    ));
     for (label, c) in &curves {
         let pts: Vec<String> = c
             .iter()
-            .map(|x| format!("{:.1}/{:.2}", x.bits_per_anchor, x.snr_db))
+            .map(|x| {
+                format!(
+                    "{:.1}/{:.2}/{:.2}",
+                    x.bits_per_anchor, x.snr_db, x.render_psnr_db
+                )
+            })
             .collect();
         text.push_str(&format!("  {label:>15}: {}\n", pts.join("  ")));
     }

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::container::payload::ScaffoldPrecision;
+use crate::container::payload::{ContextPrecision, ScaffoldPrecision};
 use crate::encoder::parsimony::prune_grid_levels;
 use crate::encoder::{encode_full, EncodeOptions};
 use crate::error::{Error, IoOp, Result};
@@ -68,15 +68,20 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
             feat_basis: false,
             ..GenParams::new(n, 1)
         });
+        // Before: every model tensor at its widest storage.
         let f32_options = EncodeOptions {
             scaffold_precision: Some(ScaffoldPrecision::F32),
+            context_precision: Some(ContextPrecision::I16),
             ..Default::default()
         };
         let plain = point(&encode_full(&m, &f32_options)?.stream)?;
         let (pruned_model, trials) = prune_grid_levels(&m, &f32_options, 0.01)?;
         let pruned = point(&encode_full(&pruned_model, &f32_options)?.stream)?;
+        // After: binary16 Scaffold-GS MLPs and the context MLP as the encoder chooses
+        // (Annex A.5.4: i8 when smaller at equal distortion).
         let f16_options = EncodeOptions {
             scaffold_precision: Some(ScaffoldPrecision::F16),
+            context_precision: None,
             ..Default::default()
         };
         let pruned_f16 = point(&encode_full(&pruned_model, &f16_options)?.stream)?;
@@ -98,9 +103,10 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
     );
     let mut text = String::from(
         "Model share of the stream and bits per anchor vs scene size (GenParams::new(N, 1), USQ, rate 0):\n\
-         plain = binary32 Scaffold-GS MLPs, every grid level; pruned = --prune-grid (Annex A.5.1);\n\
-         + f16 = pruned and --scaffold-precision f16 (§1.6.2).\n\n\
-         anchors     model share: plain  pruned  +f16    bits/anchor: plain  pruned    +f16   levels dropped (feature MSE)\n",
+         plain = binary32 Scaffold-GS MLPs, i16 context MLP, every grid level; pruned = --prune-grid\n\
+         (Annex A.5.1); + f16/i8 = pruned, --scaffold-precision f16 and --context-precision auto\n\
+         (§1.6.2, Annex A.5.4).\n\n\
+         anchors     model share: plain  pruned  +f16/i8 bits/anchor: plain  pruned  +f16/i8 levels dropped (feature MSE)\n",
     );
     for r in &rows {
         let bpa = |p: &Point| p.total_bytes as f64 * 8.0 / f64::from(r.anchors);
@@ -165,7 +171,7 @@ fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::erro
             [
                 ("plain", colors[0], |r| r.plain.share()),
                 ("--prune-grid", colors[1], |r| r.pruned.share()),
-                ("--prune-grid + f16 MLPs", colors[2], |r| {
+                ("--prune-grid + f16 / i8 MLPs", colors[2], |r| {
                     r.pruned_f16.share()
                 }),
             ],
@@ -181,7 +187,7 @@ fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::erro
                 ("--prune-grid", colors[1], |r| {
                     r.pruned.total_bytes as f64 * 8.0 / f64::from(r.anchors)
                 }),
-                ("--prune-grid + f16 MLPs", colors[2], |r| {
+                ("--prune-grid + f16 / i8 MLPs", colors[2], |r| {
                     r.pruned_f16.total_bytes as f64 * 8.0 / f64::from(r.anchors)
                 }),
             ],

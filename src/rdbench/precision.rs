@@ -5,12 +5,12 @@
 //! - **Scaffold-GS MLPs**: binary32 and binary16, the two storages §1.6.2 offers. They never
 //!   steer the entropy decoder, so symbol bytes do not move; the cost is the change of their
 //!   activated outputs (Annex A.5.2), reported beside the bytes.
-//! - **Context MLP** (`mlp_grid`): §5.3 stores its weights as i16. Fewer bits are a
-//!   *what-if*: the float weights are rounded to `b`-bit integers (one scale for layer 0, one
-//!   per output row for layer 1, as §5.3's `a0` and `a1[o]`), the scene is encoded, and the
-//!   model bytes are counted as if the weights took `b` bits each. It steers the entropy
-//!   coder only, so distortion is unchanged and the whole cost is in symbol bytes. This is the
-//!   measurement a narrower storage in a later format version would have to pass.
+//! - **Context MLP** (`mlp_grid`): §1.6.2 stores its weights as i16 or i8 (Table 1-7). Other
+//!   widths are a *what-if*: the float weights are rounded to `b`-bit integers (one scale for
+//!   layer 0, one per output row for layer 1, as §5.3's `a0` and `a1[o]`), the scene is
+//!   encoded, and the model bytes are counted as if the weights took `b` bits each. Its
+//!   outputs are the coder's scales, the means and the step adjustments (§5.4), so both
+//!   symbol bytes and the reconstruction error move; the feature MSE is reported.
 //! - **Hash grid**: one bit per value already (§1.6.1); its only lever is structure, measured
 //!   by `--prune-grid` in the first part.
 
@@ -18,7 +18,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::container::payload::ScaffoldPrecision;
+use crate::container::payload::{ContextPrecision, ScaffoldPrecision};
 use crate::encoder::precision::{choose, PrecisionChoice};
 use crate::encoder::{encode_full, EncodeOptions};
 use crate::error::Result;
@@ -42,6 +42,8 @@ pub struct PrecisionPoint {
     pub total_bytes: u64,
     /// Scaffold-GS MLPs: largest change of an activated output; context MLP: 0.
     pub output_change: f64,
+    /// Feature reconstruction MSE (rate 0).
+    pub feature_mse: f64,
 }
 
 fn split(stream: &[u8]) -> Result<(u64, u64)> {
@@ -87,10 +89,12 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
     for (precision, bits) in [(ScaffoldPrecision::F32, 32), (ScaffoldPrecision::F16, 16)] {
         let options = EncodeOptions {
             scaffold_precision: Some(precision),
+            context_precision: Some(ContextPrecision::I16),
             ..Default::default()
         };
         let e = encode_full(model, &options)?;
         let (model_bytes, anchor_bytes) = split(&e.stream)?;
+        let feature_mse = mse(&model.anchors.feat, &e.expected().anchors.feat);
         let PrecisionChoice {
             max_output_change, ..
         } = choose(model, Some(ScaffoldPrecision::F16));
@@ -102,51 +106,74 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
             anchor_bytes,
             total_bytes: e.stream.len() as u64,
             output_change: if bits == 32 { 0.0 } else { max_output_change },
+            feature_mse,
         });
     }
     let weights = model.mlp_grid.w0.len() + model.mlp_grid.w1.len();
     for bits in CONTEXT_BITS {
+        // 16 and 8 are the format's (Table 1-7); the others are stored as i16 and counted.
+        let in_format = bits == 16 || bits == 8;
         let mut m = model.clone();
-        m.mlp_grid = context_mlp_at(&model.mlp_grid, bits);
+        if !in_format {
+            m.mlp_grid = context_mlp_at(&model.mlp_grid, bits);
+        }
         let options = EncodeOptions {
             scaffold_precision: Some(ScaffoldPrecision::F32),
+            context_precision: Some(if bits == 8 {
+                ContextPrecision::I8
+            } else {
+                ContextPrecision::I16
+            }),
             ..Default::default()
         };
         let e = encode_full(&m, &options)?;
         let (model_bytes, anchor_bytes) = split(&e.stream)?;
-        // Stored as i16 (2 bytes); counted as `bits` bits each.
-        let saved = (weights as u64 * (16 - u64::from(bits))).div_ceil(8);
+        let feature_mse = mse(&model.anchors.feat, &e.expected().anchors.feat);
+        let saved = if in_format {
+            0
+        } else {
+            (weights as u64 * (16 - u64::from(bits))).div_ceil(8)
+        };
         let model_bytes = model_bytes - saved;
         out.push(PrecisionPoint {
             group: "context MLP (mlp_grid weights)",
             bits,
-            in_format: bits == 16,
+            in_format,
             model_bytes,
             anchor_bytes,
             total_bytes: model_bytes + anchor_bytes,
             output_change: 0.0,
+            feature_mse,
         });
     }
     Ok(out)
+}
+
+fn mse(x: &[f32], y: &[f32]) -> f64 {
+    x.iter()
+        .zip(y)
+        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
+        .sum::<f64>()
+        / x.len().max(1) as f64
 }
 
 /// Writes precision.svg / .csv / .txt for `model` and returns the text.
 pub fn report(out: &Path, model: &SceneModel) -> Result<String> {
     let points = measure(model)?;
     let mut csv = String::from(
-        "group,bits,in_format,model_bytes,anchor_bytes,total_bytes,max_output_change\n",
+        "group,bits,in_format,model_bytes,anchor_bytes,total_bytes,max_output_change,feature_mse\n",
     );
     let mut text = format!(
         "Total bytes vs model precision per tensor group ({} anchors, rate 0, USQ):\n\
          what-if rows are storages the format does not have (weights rounded to b-bit \
          integers, counted at b bits).\n\n\
-         group                              bits  storage    model B   anchor B    total B  vs format  output change\n",
+         group                              bits  storage    model B   anchor B    total B  vs widest  feature MSE  output change\n",
         model.n()
     );
     let base = |g: &str| {
         points
             .iter()
-            .find(|p| p.group == g && p.in_format)
+            .find(|p| p.group == g)
             .map_or(1, |p| p.total_bytes)
     };
     for p in &points {
@@ -166,7 +193,7 @@ pub fn report(out: &Path, model: &SceneModel) -> Result<String> {
             base(p.group)
         };
         text.push_str(&format!(
-            "{:<34} {:>4}  {:<8} {:>10} {:>10} {:>10}  {:>+8.2} %  {}\n",
+            "{:<34} {:>4}  {:<8} {:>10} {:>10} {:>10}  {:>+8.2} %  {:>11.4e}  {}\n",
             p.group,
             p.bits,
             if p.in_format { "format" } else { "what-if" },
@@ -174,10 +201,11 @@ pub fn report(out: &Path, model: &SceneModel) -> Result<String> {
             p.anchor_bytes,
             p.total_bytes,
             100.0 * (p.total_bytes as f64 / reference as f64 - 1.0),
+            p.feature_mse,
             if p.group.starts_with("Scaffold") {
                 format!("{:.2e}", p.output_change)
             } else {
-                "none (steers the coder only)".into()
+                "-".into()
             }
         ));
     }
@@ -229,7 +257,7 @@ fn chart(
             .y_label_area_size(80)
             .build_cartesian_2d(4f64..34f64, (y0.max(1.0)..y1).log_scale())?;
         c.configure_mesh()
-            .x_desc("bits per weight (format: 32/16 Scaffold-GS, 16 context; others what-if)")
+            .x_desc("bits per weight (format: 32/16 Scaffold-GS, 16/8 context; others what-if)")
             .y_desc(ydesc)
             .draw()?;
         for (g, color) in groups.iter().zip(colors) {

@@ -70,6 +70,11 @@ pub struct EncodeArgs {
     /// outputs on the scene's anchors move by at most 2^-9, spec Annex A.5.2), `f32`, `f16`.
     #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "f16"])]
     scaffold_precision: String,
+    /// How to store the integer context MLP's weights (spec §1.6.2 Table 1-7): `auto` (i8
+    /// when the symbol bytes that costs, measured on a sample, are fewer than the model bytes
+    /// it saves, spec Annex A.5.4), `i16`, `i8`.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "i16", "i8"])]
+    context_precision: String,
     /// Print the summary as JSON on stdout (choices, per-rate reports); nothing else goes to
     /// stdout.
     #[arg(long)]
@@ -88,6 +93,7 @@ struct Summary<'a> {
     bits_per_anchor: f64,
     seconds: f64,
     scaffold: &'a salvq::encoder::precision::PrecisionChoice,
+    context: &'a salvq::encoder::context_precision::ContextChoice,
     #[serde(skip_serializing_if = "Option::is_none")]
     auto: Option<&'a AutoChoice>,
     pruned_levels: Vec<PrunedLevel>,
@@ -170,6 +176,11 @@ pub fn run(a: EncodeArgs) -> Result<(), Error> {
             "f16" => Some(salvq::container::payload::ScaffoldPrecision::F16),
             _ => None,
         },
+        context_precision: match a.context_precision.as_str() {
+            "i16" => Some(salvq::container::payload::ContextPrecision::I16),
+            "i8" => Some(salvq::container::payload::ContextPrecision::I8),
+            _ => None,
+        },
     };
     let mut pruned_levels = Vec::new();
     if a.prune_grid {
@@ -212,6 +223,26 @@ pub fn run(a: EncodeArgs) -> Result<(), Error> {
          (tolerance {:.2e}); {} bytes saved",
         sc.precision, sc.max_output_change, sc.tolerance, sc.bytes_saved
     ));
+    let cc = &encoded.context;
+    progress.say(&if cc.sample_anchors > 0 {
+        format!(
+            "context MLP weights stored as {:?}: i8 saves {} model bytes and costs {} symbol bytes, \
+             MSE x{:.4} / x{:.4} / x{:.4} with base steps x{:.4} / x{:.4} / x{:.4} (feature / \
+             scaling / offsets; measured on {} anchors)",
+            cc.precision,
+            cc.model_bytes_saved,
+            cc.symbol_bytes_cost,
+            cc.mse_ratio[0],
+            cc.mse_ratio[1],
+            cc.mse_ratio[2],
+            cc.step_factors[0],
+            cc.step_factors[1],
+            cc.step_factors[2],
+            cc.sample_anchors
+        )
+    } else {
+        format!("context MLP weights stored as {:?}", cc.precision)
+    });
     progress.stage(format!("writing {}", a.output.display()));
     let stream = &encoded.stream;
     salvq::io::write_bytes_atomic(&a.output, stream)?;
@@ -227,6 +258,7 @@ pub fn run(a: EncodeArgs) -> Result<(), Error> {
             bits_per_anchor,
             seconds: secs(t),
             scaffold: sc,
+            context: &encoded.context,
             auto: auto_choice.as_ref(),
             pruned_levels,
             layers: reports,

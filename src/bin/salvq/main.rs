@@ -10,6 +10,7 @@ use std::time::Instant;
 
 mod demo;
 mod encode;
+mod render;
 mod tools;
 
 use demo::demo;
@@ -145,6 +146,12 @@ enum Command {
         #[command(subcommand)]
         which: Bench,
     },
+    /// Render a preview image (PNG) of a stream, a model file or a 3DGS PLY file from a
+    /// camera of the ring (spec Annex C).
+    Render(render::RenderArgs),
+    /// Export a stream or a model file as a standard 3DGS PLY file (spec Annex C.3), its
+    /// view-dependent attributes evaluated from a ring camera.
+    ExportPly(render::ExportPlyArgs),
     /// The main job on an embedded default: generate, encode, decode, verify, report.
     Demo {
         /// Number of anchors of the generated scene.
@@ -380,6 +387,8 @@ fn run(cli: Cli) -> Result<(), Error> {
             );
         }
         Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref())?,
+        Command::Render(args) => render::render(args)?,
+        Command::ExportPly(args) => render::export_ply(args)?,
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 
 use super::{edit, encode, payload_of, small_scene, vector, MustFailVector};
 use crate::container::chunk::ChunkTag;
-use crate::container::payload::{read_mlps, read_quan};
+use crate::container::payload::{context_bytes, read_mlps, read_quan, ContextPrecision};
 use crate::decoder::decode;
 use crate::encoder::EncodeOptions;
 use crate::entropy::{reference, GaussianTables};
@@ -16,14 +16,13 @@ const TILE_ENTRY: usize = 41;
 
 pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
     let d = super::head_of(base).dims;
-    // MLPS: method byte, the integer context MLP (§1.6.2), `scaffold_precision`, then the
-    // Scaffold-GS MLPs (binary32 in the base stream).
-    let (cin, h, cout) = (
-        d.context_input(),
-        u64::from(d.context_hidden),
-        d.context_output(),
-    );
-    let precision_at = (1 + 2 + cout + 2 * h * cin + 4 * h + 2 * cout * h + 4 * cout) as usize;
+    // MLPS: method byte, `context_precision`, the integer context MLP (§1.6.2),
+    // `scaffold_precision`, then the Scaffold-GS MLPs (binary32 in the base stream).
+    let context = match payload_of(base, ChunkTag::MLPS).get(1) {
+        Some(0) => ContextPrecision::I16,
+        _ => ContextPrecision::I8,
+    };
+    let precision_at = (1 + context_bytes(&d, context)) as usize;
     let scaffold = precision_at + 1;
     let salvq = encode(&small_scene(13, true), &EncodeOptions::default());
     let rates = usize::from(d.rates);
@@ -46,6 +45,13 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
             edit(base, ChunkTag::MLPS, |p| {
                 p[scaffold..scaffold + 4].copy_from_slice(&f32::INFINITY.to_le_bytes())
             }),
+        ),
+        vector(
+            "x-context-precision",
+            "FieldOutOfRange",
+            &["§1.6.2"],
+            "MLPS context_precision = 2 (Table 1-7 defines 0 and 1)",
+            edit(base, ChunkTag::MLPS, |p| p[1] = 2),
         ),
         vector(
             "x-scaffold-precision",
