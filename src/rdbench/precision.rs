@@ -26,6 +26,8 @@ use crate::info::{inspect, ByteClass};
 use crate::limits::Limits;
 use crate::model::{Mlp, SceneModel};
 
+use super::render_psnr::{RenderReference, HEIGHT, VIEWS, WIDTH};
+
 /// Context MLP weight widths measured (16 is the format's).
 const CONTEXT_BITS: [u32; 5] = [16, 12, 10, 8, 6];
 
@@ -44,6 +46,11 @@ pub struct PrecisionPoint {
     pub output_change: f64,
     /// Feature reconstruction MSE (rate 0).
     pub feature_mse: f64,
+    /// Render PSNR (dB, Annex C.5) of this storage's decoded scene against the group's
+    /// widest storage's decoded scene; `+∞` for the widest itself.
+    pub render_psnr_db: f64,
+    /// Render PSNR (dB) of this storage's decoded scene against the uncompressed model.
+    pub render_psnr_original_db: f64,
 }
 
 fn split(stream: &[u8]) -> Result<(u64, u64)> {
@@ -86,6 +93,18 @@ fn context_mlp_at(mlp: &Mlp, bits: u32) -> Mlp {
 /// Measures every storage on `model` (coded at rate 0 with its own quantizer).
 pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
     let mut out = Vec::new();
+    let original = RenderReference::new(model, VIEWS, WIDTH, HEIGHT)?;
+    // Each group's widest storage, rendered once; every narrower one is compared with it.
+    let mut widest: Option<RenderReference> = None;
+    let mut render_psnr = |e: &crate::encoder::Encoded| -> Result<f64> {
+        match &widest {
+            Some(r) => Ok(r.compare(e.expected())?.0),
+            None => {
+                widest = Some(RenderReference::new(e.expected(), VIEWS, WIDTH, HEIGHT)?);
+                Ok(f64::INFINITY)
+            }
+        }
+    };
     for (precision, bits) in [(ScaffoldPrecision::F32, 32), (ScaffoldPrecision::F16, 16)] {
         let options = EncodeOptions {
             scaffold_precision: Some(precision),
@@ -107,8 +126,21 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
             total_bytes: e.stream.len() as u64,
             output_change: if bits == 32 { 0.0 } else { max_output_change },
             feature_mse,
+            render_psnr_db: render_psnr(&e)?,
+            render_psnr_original_db: original.compare(e.expected())?.0,
         });
     }
+    drop(render_psnr);
+    let mut widest: Option<RenderReference> = None;
+    let mut render_psnr = |e: &crate::encoder::Encoded| -> Result<f64> {
+        match &widest {
+            Some(r) => Ok(r.compare(e.expected())?.0),
+            None => {
+                widest = Some(RenderReference::new(e.expected(), VIEWS, WIDTH, HEIGHT)?);
+                Ok(f64::INFINITY)
+            }
+        }
+    };
     let weights = model.mlp_grid.w0.len() + model.mlp_grid.w1.len();
     for bits in CONTEXT_BITS {
         // 16 and 8 are the format's (Table 1-7); the others are stored as i16 and counted.
@@ -144,6 +176,8 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
             total_bytes: model_bytes + anchor_bytes,
             output_change: 0.0,
             feature_mse,
+            render_psnr_db: render_psnr(&e)?,
+            render_psnr_original_db: original.compare(e.expected())?.0,
         });
     }
     Ok(out)
@@ -161,14 +195,19 @@ fn mse(x: &[f32], y: &[f32]) -> f64 {
 pub fn report(out: &Path, model: &SceneModel) -> Result<String> {
     let points = measure(model)?;
     let mut csv = String::from(
-        "group,bits,in_format,model_bytes,anchor_bytes,total_bytes,max_output_change,feature_mse\n",
+        "group,bits,in_format,model_bytes,anchor_bytes,total_bytes,max_output_change,feature_mse,render_psnr_vs_widest_db,render_psnr_vs_uncompressed_db\n",
     );
     let mut text = format!(
         "Total bytes vs model precision per tensor group ({} anchors, rate 0, USQ):\n\
          what-if rows are storages the format does not have (weights rounded to b-bit \
-         integers, counted at b bits).\n\n\
-         group                              bits  storage    model B   anchor B    total B  vs widest  feature MSE  output change\n",
-        model.n()
+         integers, counted at b bits). Render PSNR (Annex C.5, {} ring views at {}x{}) of each \
+         row's decoded scene against the group's widest storage's decoded scene and against \
+         the uncompressed model.\n\n\
+         group                              bits  storage    model B   anchor B    total B  vs widest  feature MSE  render PSNR: vs widest, vs uncompressed  output change\n",
+        model.n(),
+        VIEWS,
+        WIDTH,
+        HEIGHT
     );
     let base = |g: &str| {
         points
@@ -193,7 +232,7 @@ pub fn report(out: &Path, model: &SceneModel) -> Result<String> {
             base(p.group)
         };
         text.push_str(&format!(
-            "{:<34} {:>4}  {:<8} {:>10} {:>10} {:>10}  {:>+8.2} %  {:>11.4e}  {}\n",
+            "{:<34} {:>4}  {:<8} {:>10} {:>10} {:>10}  {:>+8.2} %  {:>11.4e}  {:>12.2} dB {:>10.2} dB  {}\n",
             p.group,
             p.bits,
             if p.in_format { "format" } else { "what-if" },
@@ -202,6 +241,8 @@ pub fn report(out: &Path, model: &SceneModel) -> Result<String> {
             p.total_bytes,
             100.0 * (p.total_bytes as f64 / reference as f64 - 1.0),
             p.feature_mse,
+            p.render_psnr_db,
+            p.render_psnr_original_db,
             if p.group.starts_with("Scaffold") {
                 format!("{:.2e}", p.output_change)
             } else {
