@@ -90,21 +90,29 @@ fn context_mlp_at(mlp: &Mlp, bits: u32) -> Mlp {
     m
 }
 
+/// The first (widest) storage of a group, rendered; later ones are compared with it.
+#[derive(Default)]
+struct Widest(Option<RenderReference>);
+
+impl Widest {
+    /// Render PSNR of `e`'s decoded scene against the widest; `+∞` for the widest itself.
+    fn psnr(&mut self, e: &crate::encoder::Encoded) -> Result<f64> {
+        match &self.0 {
+            Some(r) => Ok(r.compare(e.expected())?.0),
+            None => {
+                self.0 = Some(RenderReference::new(e.expected(), VIEWS, WIDTH, HEIGHT)?);
+                Ok(f64::INFINITY)
+            }
+        }
+    }
+}
+
 /// Measures every storage on `model` (coded at rate 0 with its own quantizer).
 pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
     let mut out = Vec::new();
     let original = RenderReference::new(model, VIEWS, WIDTH, HEIGHT)?;
     // Each group's widest storage, rendered once; every narrower one is compared with it.
-    let mut widest: Option<RenderReference> = None;
-    let mut render_psnr = |e: &crate::encoder::Encoded| -> Result<f64> {
-        match &widest {
-            Some(r) => Ok(r.compare(e.expected())?.0),
-            None => {
-                widest = Some(RenderReference::new(e.expected(), VIEWS, WIDTH, HEIGHT)?);
-                Ok(f64::INFINITY)
-            }
-        }
-    };
+    let mut widest = Widest::default();
     for (precision, bits) in [(ScaffoldPrecision::F32, 32), (ScaffoldPrecision::F16, 16)] {
         let options = EncodeOptions {
             scaffold_precision: Some(precision),
@@ -126,21 +134,11 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
             total_bytes: e.stream.len() as u64,
             output_change: if bits == 32 { 0.0 } else { max_output_change },
             feature_mse,
-            render_psnr_db: render_psnr(&e)?,
+            render_psnr_db: widest.psnr(&e)?,
             render_psnr_original_db: original.compare(e.expected())?.0,
         });
     }
-    drop(render_psnr);
-    let mut widest: Option<RenderReference> = None;
-    let mut render_psnr = |e: &crate::encoder::Encoded| -> Result<f64> {
-        match &widest {
-            Some(r) => Ok(r.compare(e.expected())?.0),
-            None => {
-                widest = Some(RenderReference::new(e.expected(), VIEWS, WIDTH, HEIGHT)?);
-                Ok(f64::INFINITY)
-            }
-        }
-    };
+    let mut widest = Widest::default();
     let weights = model.mlp_grid.w0.len() + model.mlp_grid.w1.len();
     for bits in CONTEXT_BITS {
         // 16 and 8 are the format's (Table 1-7); the others are stored as i16 and counted.
@@ -176,7 +174,7 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
             total_bytes: model_bytes + anchor_bytes,
             output_change: 0.0,
             feature_mse,
-            render_psnr_db: render_psnr(&e)?,
+            render_psnr_db: widest.psnr(&e)?,
             render_psnr_original_db: original.compare(e.expected())?.0,
         });
     }
