@@ -18,12 +18,7 @@ fn scene(decay: f64) -> SceneModel {
 }
 
 fn feature_mse(a: &SceneModel, b: &SceneModel) -> f64 {
-    let (x, y) = (&a.anchors.feat, &b.anchors.feat);
-    x.iter()
-        .zip(y)
-        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
-        .sum::<f64>()
-        / x.len() as f64
+    salvq::encoder::values_mse(&a.anchors.feat, &b.anchors.feat)
 }
 
 /// Every candidate is measured at the target distortion, the choice is the fewest bytes, and

@@ -3,17 +3,9 @@
 
 use salvq::container::payload::ContextPrecision;
 use salvq::encoder::context_precision::{MAX_REFINED_RATIO, MSE_TOLERANCE};
-use salvq::encoder::{encode_full, EncodeOptions};
+use salvq::encoder::{encode_full, values_mse as mse, EncodeOptions};
 use salvq::gen::{generate, GenParams};
 use salvq::SceneModel;
-
-fn mse(x: &[f32], y: &[f32]) -> f64 {
-    x.iter()
-        .zip(y)
-        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
-        .sum::<f64>()
-        / x.len() as f64
-}
 
 fn group_mse(m: &SceneModel, d: &SceneModel) -> [f64; 3] {
     [

@@ -14,6 +14,7 @@ use crate::error::Result;
 use crate::model::SceneModel;
 
 use super::parsimony::subsample;
+use super::values_mse as mse;
 use super::{encode_full, EncodeOptions};
 
 /// Anchors the two trial encodes use (every k-th canonical anchor above this).
@@ -181,12 +182,4 @@ pub fn choose(
         mse_ratio,
         step_factors: if narrow_wins { step_factors } else { [1.0; 3] },
     })
-}
-
-fn mse(x: &[f32], y: &[f32]) -> f64 {
-    x.iter()
-        .zip(y)
-        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
-        .sum::<f64>()
-        / x.len().max(1) as f64
 }

@@ -78,6 +78,16 @@ pub struct EncodeReport {
     pub grid_entries_total: u64,
 }
 
+/// Mean squared difference of two value lists (binary64; 0 for empty lists): the distortion
+/// the encoder's choices hold (Annex A.5.1–A.5.4).
+pub fn values_mse(x: &[f32], y: &[f32]) -> f64 {
+    x.iter()
+        .zip(y)
+        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
+        .sum::<f64>()
+        / x.len().max(1) as f64
+}
+
 /// Encodes a model with default options.
 pub fn encode(model: &SceneModel) -> Result<Vec<u8>> {
     encode_with_options(model, &EncodeOptions::default())

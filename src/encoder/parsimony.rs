@@ -141,12 +141,7 @@ pub struct LevelTrial {
 }
 
 pub(crate) fn feature_mse(a: &SceneModel, b: &SceneModel) -> f64 {
-    let (x, y) = (&a.anchors.feat, &b.anchors.feat);
-    x.iter()
-        .zip(y)
-        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
-        .sum::<f64>()
-        / x.len().max(1) as f64
+    super::values_mse(&a.anchors.feat, &b.anchors.feat)
 }
 
 /// Anchors above which [`prune_grid_levels`] decides on a subsample.

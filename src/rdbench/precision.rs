@@ -20,7 +20,7 @@ use plotters::prelude::*;
 
 use crate::container::payload::{ContextPrecision, ScaffoldPrecision};
 use crate::encoder::precision::{choose, PrecisionChoice};
-use crate::encoder::{encode_full, EncodeOptions};
+use crate::encoder::{encode_full, values_mse as mse, EncodeOptions};
 use crate::error::Result;
 use crate::info::{inspect, ByteClass};
 use crate::limits::Limits;
@@ -179,14 +179,6 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
         });
     }
     Ok(out)
-}
-
-fn mse(x: &[f32], y: &[f32]) -> f64 {
-    x.iter()
-        .zip(y)
-        .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
-        .sum::<f64>()
-        / x.len().max(1) as f64
 }
 
 /// Writes precision.svg / .csv / .txt for `model` and returns the text.
