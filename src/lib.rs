@@ -13,7 +13,7 @@
 //! | chunk framing: length, tag, payload, CRC-32C | §1.3 | [`container::chunk`] |
 //! | `HEAD` preflight: dimensions, geometry, decoded size | §1.4 | [`container::preflight`] |
 //! | chunk order, critical / ancillary, `SEND` | §1.5 | [`decoder`] |
-//! | model payload chunks `MLPS` `QUAN` `GRID` | §1.6 | [`container::payload`] |
+//! | model payload chunks `MLPS` `QUAN` `GRID` | §1.6 | [`container::mlps`], [`container::payload`] |
 //! | anchor positions `APOS`: an octree per tile, adaptive contexts, voxel counts | §8 | [`geometry`] |
 //! | tiles: `TILS`, per-tile bodies, parallel and region decoding | §10 | [`tiles`], [`decoder`] |
 //! | integer hyperprior: grid features, fixed-point MLP, steps, scale indices | §5 | [`hyperprior`] |

@@ -2,6 +2,7 @@
 
 pub mod bytes;
 pub mod chunk;
+pub mod mlps;
 pub mod payload;
 pub mod preflight;
 pub mod signature;
