@@ -13,8 +13,8 @@ use serde::Serialize;
 
 use crate::container::chunk::ChunkTag;
 use crate::container::surgery;
-use crate::error::Result;
-use crate::model::{LatticeKind, SceneModel};
+use crate::error::{Error, Result};
+use crate::model::{names, LatticeKind, SceneModel};
 
 use super::parsimony::{feature_mse, subsample};
 use super::{encode_full, EncodeOptions};
@@ -209,13 +209,14 @@ pub fn choose(model: &SceneModel, base: &EncodeOptions) -> Result<AutoChoice> {
             out.push(c);
         }
     }
+    // Every candidate failing (the model's own quantizer already encoded once above) leaves
+    // nothing to choose: an error, never an empty choice.
     let chosen = (0..out.len())
         .min_by_key(|&i| out[i].bytes)
-        .unwrap_or_default();
-    if out.is_empty() {
-        // Only reachable when even the model's own quantizer fails; report it.
-        measure(own, 1.0)?;
-    }
+        .ok_or_else(|| Error::FitFailed {
+            tensor: names::QUANT_FEAT[0],
+            reason: "--auto: no candidate feature quantizer could be encoded".into(),
+        })?;
     Ok(AutoChoice {
         target_mse: target,
         tolerance: DISTORTION_TOLERANCE,
