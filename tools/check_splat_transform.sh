@@ -27,6 +27,11 @@ if [ -z "$salvq" ]; then
     (cd "$root" && cargo build --release --quiet)
     salvq="${CARGO_TARGET_DIR:-$root/target}/release/salvq"
 fi
+# The checks run in a scratch folder: make a relative path absolute first.
+case "$salvq" in
+    /*) ;;
+    *) salvq="$PWD/$salvq" ;;
+esac
 
 echo "installing @playcanvas/splat-transform@$version into a temporary folder"
 npm install --prefix "$work/npm" --no-audit --no-fund --loglevel=error \
