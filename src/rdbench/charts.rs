@@ -34,10 +34,9 @@ where
     Ok(())
 }
 
-/// Draws the legend box at `position` and writes the file.
-pub(super) fn finish<'a, DB, CT>(
-    mut c: ChartContext<'a, DB, CT>,
-    root: &DrawingArea<DB, plotters::coord::Shift>,
+/// Draws the legend box of `c`'s labelled series at `position` (every chart's one style).
+pub(super) fn legend<'a, DB, CT>(
+    c: &mut ChartContext<'a, DB, CT>,
     position: SeriesLabelPosition,
 ) -> std::result::Result<(), Box<dyn std::error::Error + 'a>>
 where
@@ -49,6 +48,20 @@ where
         .background_style(WHITE.mix(0.9))
         .position(position)
         .draw()?;
+    Ok(())
+}
+
+/// Draws the legend box at `position` and writes the file.
+pub(super) fn finish<'a, DB, CT>(
+    mut c: ChartContext<'a, DB, CT>,
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    position: SeriesLabelPosition,
+) -> std::result::Result<(), Box<dyn std::error::Error + 'a>>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate,
+{
+    legend(&mut c, position)?;
     root.present()?;
     Ok(())
 }
@@ -118,11 +131,7 @@ fn draw(
                 .collect();
             labelled_line(&mut c, label, color, xy).map_err(|e| e.to_string())?;
         }
-        c.configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE.mix(0.9))
-            .position(SeriesLabelPosition::LowerRight)
-            .draw()?;
+        legend(&mut c, SeriesLabelPosition::LowerRight).map_err(|e| e.to_string())?;
     }
     root.present()?;
     Ok(())
@@ -215,11 +224,7 @@ pub fn stability(
                 .filter(|r| !r.2.is_empty())
                 .map(|r| Cross::new((r.0.log10(), 1.0), 6, RED.stroke_width(2))),
         )?;
-        c.configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE.mix(0.9))
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()?;
+        legend(&mut c, SeriesLabelPosition::UpperLeft).map_err(|e| e.to_string())?;
         root.present()?;
         Ok(())
     };

@@ -214,11 +214,8 @@ fn chart(path: &Path, rows: &[Row]) -> std::result::Result<(), Box<dyn std::erro
             super::charts::labelled_line(&mut c, label, color, xy).map_err(|e| e.to_string())?;
         }
         // The legend only: the whole figure is presented once, after both panels.
-        c.configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE.mix(0.9))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()?;
+        super::charts::legend(&mut c, SeriesLabelPosition::UpperRight)
+            .map_err(|e| e.to_string())?;
     }
     root.present()?;
     Ok(())

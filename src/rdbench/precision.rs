@@ -307,11 +307,8 @@ fn chart(
                 c.draw_series(DashedLineSeries::new(sym, 6, 4, color.stroke_width(2)))?;
             }
         }
-        c.configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE.mix(0.9))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()?;
+        super::charts::legend(&mut c, SeriesLabelPosition::UpperRight)
+            .map_err(|e| e.to_string())?;
     }
     root.present()?;
     Ok(())
