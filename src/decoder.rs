@@ -170,6 +170,13 @@ fn decode_stream(
             }
             continue;
         }
+        // §3: an explicit-profile stream is not an anchors stream.
+        if tag == ChunkTag::GHED && p.head.is_none() {
+            return Err(Error::ChunkOrder {
+                found: tag,
+                expected: ChunkTag::HEAD,
+            });
+        }
         // §1.5 rules 0 and 3.
         if !ChunkTag::CRITICAL_ORDER.contains(&tag) {
             return Err(Error::UnknownCriticalChunk { tag });
@@ -246,6 +253,44 @@ fn decode_stream(
             }
         }
     }
+}
+
+/// A decoded stream of either profile (§3: the first chunk decides).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Decoded {
+    /// An anchors-profile stream (§1 – §2).
+    Anchors(Box<SceneModel>),
+    /// An explicit-Gaussians stream (§3).
+    Gaussians(Box<crate::explicit::DecodedGaussians>),
+}
+
+/// Whether `data` is an explicit-profile stream: a valid signature and a first chunk, framed
+/// and CRC-checked, tagged `GHED` (§3). Anything else is decoded, and its errors reported,
+/// as the anchors profile.
+pub fn is_explicit(data: &[u8]) -> bool {
+    let Ok((_, rest)) = Signature::parse(data) else {
+        return false;
+    };
+    let limits = Limits::default();
+    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, &limits);
+    matches!(reader.next_chunk(), Ok(Some(c)) if c.tag == ChunkTag::GHED)
+}
+
+/// Decodes a stream of either profile (§1.5, §3.7) with `options` (threads and region apply
+/// to both; `fault` to the anchors profile).
+pub fn decode_any(data: &[u8], options: &DecodeOptions) -> Result<Decoded> {
+    if is_explicit(data) {
+        return in_pool(options, || {
+            crate::explicit::decode::decode_gaussians_in(
+                data,
+                &options.limits,
+                options.rate,
+                options.region,
+            )
+        })
+        .map(|d| Decoded::Gaussians(Box::new(d)));
+    }
+    decode_with_options(data, options).map(|m| Decoded::Anchors(Box::new(m)))
 }
 
 /// §6.6.2: decodes the attributes and builds the model once every critical chunk has been

@@ -86,6 +86,10 @@ pub fn stated_decoded_bytes(data: &[u8], limits: &Limits) -> u64 {
             crate::container::preflight::Preflight::parse(c.payload, limits)
                 .map_or(0, |p| p.decoded_bytes)
         }
+        Ok(Some(c)) if c.tag == crate::container::chunk::ChunkTag::GHED => {
+            crate::explicit::GaussianHeader::parse(c.payload, limits)
+                .map_or(0, |h| h.decoded_bytes())
+        }
         _ => 0,
     }
 }
@@ -114,10 +118,15 @@ pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
     };
     let allowed = stated_decoded_bytes(data, &limits).min(limits.max_alloc_bytes);
     meter.cap(Some(allocation_bound(allowed, data.len() as u64)));
-    let decoded = decode_with_options(data, &options);
+    let decoded = crate::decoder::decode_any(data, &options);
     meter.cap(None);
-    let Ok(model) = decoded else {
-        return;
+    let model = match decoded {
+        Ok(crate::decoder::Decoded::Anchors(model)) => model,
+        Ok(crate::decoder::Decoded::Gaussians(d)) => {
+            check_explicit_decode(&d, &limits);
+            return;
+        }
+        Err(_) => return,
     };
     let size = decoded_bytes(&model.dims);
     assert!(
@@ -127,6 +136,47 @@ pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
     if let Ok(e) = encode_full(&model, &EncodeOptions::default()) {
         let again = decode_with_options(&e.stream, &DecodeOptions::default());
         assert!(again.is_ok(), "re-encoded stream fails: {:?}", again.err());
+    }
+}
+
+/// An explicit-profile decode (§3): within the limits, and Gaussians the encoder accepts
+/// re-encode (with a fixed plan) to a stream that decodes to the encoder's prediction.
+fn check_explicit_decode(d: &crate::explicit::DecodedGaussians, limits: &Limits) {
+    let size = d.header.decoded_bytes();
+    assert!(
+        size <= limits.max_alloc_bytes,
+        "decoded {size} bytes past the limit"
+    );
+    assert_eq!(d.gaussians.len(), d.voxels.len());
+    let Ok(p) = crate::encoder::explicit::PreparedGaussians::new(&d.gaussians) else {
+        return;
+    };
+    let plan = explicit_plan(&p);
+    let options = crate::encoder::explicit::ExplicitOptions {
+        rates: crate::encoder::explicit::RateControl::Plans(vec![plan.clone()]),
+        ..Default::default()
+    };
+    if let Ok(e) = crate::encoder::explicit::encode_prepared(&p, &[plan], &options) {
+        let again = crate::explicit::decode_gaussians(&e.stream, &Limits::default(), None);
+        match again {
+            Ok(a) => assert!(
+                a.gaussians == e.layers[0].2,
+                "re-encoded stream decodes differently"
+            ),
+            Err(err) => panic!("re-encoded stream fails: {err}"),
+        }
+    }
+}
+
+/// A fixed plan for re-encoding fuzzed Gaussians: voxels of 1/64 of the box, moderate steps.
+fn explicit_plan(
+    p: &crate::encoder::explicit::PreparedGaussians,
+) -> crate::encoder::explicit::RatePlan {
+    crate::encoder::explicit::RatePlan {
+        voxel: (p.extent / 64.0).max(1e-6),
+        refine: [2, 1, 0, 0],
+        steps: [0.1, 0.25, 0.03, 0.03, 0.04][..p.kinds.len()].to_vec(),
+        shift: vec![[1, 0, 0, -1]; p.kinds.len() - 1],
     }
 }
 
@@ -158,6 +208,39 @@ pub fn payload_base() -> &'static [u8] {
     })
 }
 
+/// The explicit profile's payload chunks [`payload_input`] replaces (§3).
+pub const EXPLICIT_PAYLOAD_TAGS: [ChunkTag; 6] = [
+    ChunkTag::GHED,
+    ChunkTag::GQUA,
+    ChunkTag::GLAY,
+    ChunkTag::TILS,
+    ChunkTag::APOS,
+    ChunkTag::GATT,
+];
+
+/// The explicit-profile stream [`payload_input`] splices into: 40 synthetic Gaussians of SH
+/// degree 1, two rates, KLT bases, tiles of at most 16 (built once).
+pub fn explicit_payload_base() -> &'static [u8] {
+    static BASE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    BASE.get_or_init(|| {
+        use crate::gen::gaussians::{generate_gaussians, GaussianParams};
+        let g = generate_gaussians(&GaussianParams::new(40, 1, 5));
+        let Ok(p) = crate::encoder::explicit::PreparedGaussians::new(&g) else {
+            return Vec::new();
+        };
+        let plan = explicit_plan(&p);
+        let plans = vec![plan.clone(), plan.scaled(2.0)];
+        let options = crate::encoder::explicit::ExplicitOptions {
+            rates: crate::encoder::explicit::RateControl::Plans(plans.clone()),
+            klt: Some(vec![false, false, false, true, true]),
+            tile_gaussians: 16,
+            ..Default::default()
+        };
+        crate::encoder::explicit::encode_prepared(&p, &plans, &options)
+            .map_or_else(|_| Vec::new(), |e| e.stream)
+    })
+}
+
 /// One payload of a valid stream replaced by fuzz bytes (`data[0]` picks the chunk from
 /// [`PAYLOAD_TAGS`], the rest is the payload), CRCs valid: the payload decoders meet hostile
 /// bytes behind a valid signature, `HEAD` and chunk order, which whole-stream mutation
@@ -166,9 +249,16 @@ pub fn payload_input(data: &[u8]) {
     let Some((&which, payload)) = data.split_first() else {
         return;
     };
-    let tag = PAYLOAD_TAGS[usize::from(which) % PAYLOAD_TAGS.len()];
+    let pick = usize::from(which) % (PAYLOAD_TAGS.len() + EXPLICIT_PAYLOAD_TAGS.len());
+    let (base, tag) = match PAYLOAD_TAGS.get(pick) {
+        Some(&tag) => (payload_base(), tag),
+        None => (
+            explicit_payload_base(),
+            EXPLICIT_PAYLOAD_TAGS[pick - PAYLOAD_TAGS.len()],
+        ),
+    };
     if let Some(stream) =
-        crate::container::surgery::edit_payload(payload_base(), tag, |p| *p = payload.to_vec())
+        crate::container::surgery::edit_payload(base, tag, |p| *p = payload.to_vec())
     {
         decode_checked(&stream, &NoMeter);
     }

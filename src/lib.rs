@@ -62,6 +62,7 @@ pub mod decoder;
 pub mod encoder;
 pub mod entropy;
 pub mod error;
+pub mod explicit;
 pub mod extract;
 pub mod fuzzing;
 pub mod gen;

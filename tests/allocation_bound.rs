@@ -24,9 +24,12 @@ fn child(spec: &str) {
         ..Default::default()
     };
     let before = ALLOCATOR.allocated();
-    let model = salvq::decode_with_options(&stream, &options).expect("valid vector");
+    let decoded = salvq::decoder::decode_any(&stream, &options).expect("valid vector");
     let peak = ALLOCATOR.max_allocated() - before;
-    let decoded = salvq::model::decoded_bytes(&model.dims);
+    let decoded = match decoded {
+        salvq::decoder::Decoded::Anchors(model) => salvq::model::decoded_bytes(&model.dims),
+        salvq::decoder::Decoded::Gaussians(d) => d.header.decoded_bytes(),
+    };
     println!("{peak} {decoded} {}", stream.len());
 }
 

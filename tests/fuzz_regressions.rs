@@ -52,7 +52,12 @@ fn seeds_replay_clean_and_the_stream_seeds_decode() {
             replay(target, &data);
             if target == "decode" {
                 // A seed is a valid stream: the fuzzer starts from inputs that decode.
-                assert!(salvq::decode(&data).is_ok(), "{}", path.display());
+                let options = salvq::DecodeOptions::default();
+                assert!(
+                    salvq::decoder::decode_any(&data, &options).is_ok(),
+                    "{}",
+                    path.display()
+                );
             }
             count += 1;
         }
@@ -137,6 +142,12 @@ fn write_seeds() {
         e.extend_from_slice(&stream);
         std::fs::write(root.join(format!("fuzz/seeds/extract/{name}.bin")), e).unwrap();
     }
+    // An explicit-profile stream (spec §3): the payload target's explicit base.
+    let explicit = salvq::fuzzing::explicit_payload_base();
+    std::fs::write(root.join("fuzz/seeds/decode/explicit_sh1.salvq"), explicit).unwrap();
+    let mut e = vec![1];
+    e.extend_from_slice(explicit);
+    std::fs::write(root.join("fuzz/seeds/extract/explicit_sh1.bin"), e).unwrap();
     let dir = root.join("fuzz/seeds/payload");
     std::fs::create_dir_all(&dir).unwrap();
     let base = chunks(salvq::fuzzing::payload_base()).unwrap();
@@ -146,6 +157,13 @@ fn write_seeds() {
         seed.extend_from_slice(payload);
         std::fs::write(dir.join(format!("{}.bin", tag.as_str())), seed).unwrap();
     }
+    let explicit = chunks(salvq::fuzzing::explicit_payload_base()).unwrap();
+    for (i, tag) in salvq::fuzzing::EXPLICIT_PAYLOAD_TAGS.iter().enumerate() {
+        let payload = &explicit.iter().find(|(t, _)| t == tag).unwrap().1;
+        let mut seed = vec![(salvq::fuzzing::PAYLOAD_TAGS.len() + i) as u8];
+        seed.extend_from_slice(payload);
+        std::fs::write(dir.join(format!("explicit-{}.bin", tag.as_str())), seed).unwrap();
+    }
     let dir = root.join("fuzz/seeds/preflight");
     std::fs::create_dir_all(&dir).unwrap();
     for v in files(&root.join("conformance/vectors")) {
@@ -153,7 +171,8 @@ fn write_seeds() {
             continue;
         }
         let name = v.file_stem().unwrap().to_string_lossy().to_string();
-        if name.starts_with("x-") {
+        // Must-fail streams, and explicit-profile streams (their first chunk is GHED).
+        if name.starts_with("x-") || name.starts_with("g-") {
             continue;
         }
         let head = chunks(&std::fs::read(&v).unwrap())

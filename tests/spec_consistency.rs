@@ -219,6 +219,10 @@ fn every_error() -> Vec<Error> {
             value: 0.0,
             rule: "x",
         },
+        Error::UnsupportedInput {
+            found: "x",
+            hint: "y",
+        },
         Error::Io {
             op: IoOp::Read,
             path: "x".into(),

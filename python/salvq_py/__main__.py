@@ -1,7 +1,8 @@
 """Command line, §11.5 contract:  python3 -m salvq_py IN OUT RATE
 
-Writes the canonical form (§11.1) of IN decoded at RATE to OUT as safetensors and exits 0;
-on a stream error prints `salvq_py: error[CLASS]: message` to stderr and exits 1."""
+Writes the canonical form (§11.1; §11.6 for an explicit-profile stream) of IN decoded at RATE
+to OUT as safetensors and exits 0; on a stream error prints `salvq_py: error[CLASS]: message`
+to stderr and exits 1."""
 from __future__ import annotations
 
 import os

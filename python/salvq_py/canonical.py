@@ -1,5 +1,5 @@
-"""The canonical decoded form (§11.1), its hashes (§11.2), float tolerances (§11.3), and a
-minimal safetensors reader/writer (Annex A.1 layout)."""
+"""The canonical decoded form (§11.1; §11.6 for the explicit profile), its hashes (§11.2),
+float tolerances (§11.3), and a minimal safetensors reader/writer (Annex A.1 layout)."""
 from __future__ import annotations
 
 import hashlib
@@ -8,7 +8,10 @@ import struct
 
 import numpy as np
 
-FLOAT_TENSORS = ("anchor.feat", "anchor.scaling", "anchor.offsets")
+ANCHOR_FLOAT_TENSORS = ("anchor.feat", "anchor.scaling", "anchor.offsets")
+EXPLICIT_FLOAT_TENSORS = ("gaussian.position", "gaussian.log_scale", "gaussian.opacity",
+                          "gaussian.rotation", "gaussian.sh_dc", "gaussian.sh_rest")   # Table 3-4
+FLOAT_TENSORS = ANCHOR_FLOAT_TENSORS + EXPLICIT_FLOAT_TENSORS
 
 _DTYPES = {"F32": "<f4", "I32": "<i4", "U8": "u1", "I8": "i1", "I64": "<i8"}
 _NAMES = {np.dtype("<f4"): "F32", np.dtype("<i4"): "I32", np.dtype("u1"): "U8",
@@ -20,7 +23,10 @@ def dtype_name(a: np.ndarray) -> str:
 
 
 def canonical_form(decoded) -> dict:
-    """§11.1: Table 2-1 tensors in order, then the symbol tensors of Table 11-1."""
+    """§11.1: Table 2-1 tensors in order, then the symbol tensors of Table 11-1; for the
+    explicit profile (§11.6): Table 11-2's tensors, then Table 3-4's."""
+    if decoded.profile == "explicit":
+        return {**decoded.integers, **decoded.tensors}
     out = dict(decoded.tensors)
     out["symbols.feat"] = decoded.symbols["feat"].astype("<i8")
     out["symbols.scaling"] = decoded.symbols["scaling"].astype("<i8")
@@ -40,14 +46,16 @@ def record(name: str, a: np.ndarray) -> bytes:
 
 
 def hashes(form: dict) -> tuple[str, str]:
-    """§11.2: (integer-domain hash, float hash)."""
+    """§11.2: (integer-domain hash, float hash); the float tensors in their table's order
+    (§11.2 for anchors, Table 3-4 for the explicit profile, §11.6)."""
     hi = hashlib.sha256()
     for name, a in form.items():
         if name not in FLOAT_TENSORS:
             hi.update(record(name, a))
     hf = hashlib.sha256()
     for name in FLOAT_TENSORS:
-        hf.update(record(name, form[name]))
+        if name in form:
+            hf.update(record(name, form[name]))
     return hi.hexdigest(), hf.hexdigest()
 
 

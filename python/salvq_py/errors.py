@@ -11,7 +11,9 @@ ERROR_CLASSES = (
     "TileOrder", "TileBoxMismatch", "OctreeInvalid", "FitFailed", "NonFiniteValue",
     "ValueNotPositive", "ValueInvalid", "BasisSingular", "BasisIllConditioned",
     "BasisNotOrthogonal", "InterchangeFormat", "TensorMissing", "TensorUnexpected",
-    "TensorDtype", "TensorRank", "TensorShape", "Io",
+    "TensorDtype", "TensorRank", "TensorShape", "PlyHeaderInvalid", "PlyPropertyMissing",
+    "PlyShCoefficients", "PlyTruncated", "PlyValueNotFinite", "NeuralGaussiansUnsupported",
+    "RenderSettingInvalid", "UnsupportedInput", "Io",
 )
 
 

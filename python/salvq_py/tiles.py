@@ -7,7 +7,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SalvqError
-from .model import Dims
 
 
 @dataclass
@@ -20,24 +19,25 @@ class Tile:
     box: tuple           # min x, y, z, max x, y, z
 
 
-def parse_tils(payload: bytes, d: Dims) -> list[Tile]:
-    """§10.1 after §1.6 steps 1-2 (coding_method 0 already checked)."""
+def parse_tils(payload: bytes, N: int, coord_bits: int) -> list[Tile]:
+    """§10.1 after §1.6 steps 1-2 (coding_method 0 already checked), for N anchors (the
+    anchors profile) or N Gaussians and the layer's `coord_bits` (the explicit profile, §3.4)."""
     if len(payload) < 5:
         raise SalvqError("ChunkSizeMismatch", f"chunk TILS: payload length {len(payload)}, expected 5 [§10.1]")
     T = int.from_bytes(payload[1:5], "little")
-    if not 1 <= T <= d.N:
-        raise SalvqError("FieldOutOfRange", f"TILS field tile_count = {T}, range 1 … {d.N} [§10.1]")
+    if not 1 <= T <= N:
+        raise SalvqError("FieldOutOfRange", f"TILS field tile_count = {T}, range 1 … {N} [§10.1]")
     if len(payload) != 5 + 41 * T:
         raise SalvqError("ChunkSizeMismatch",
                          f"chunk TILS: payload length {len(payload)}, expected {5 + 41 * T} [§10.1]")
     tiles = []
     pos = 5
     start = 0
-    B = d.coord_bits
+    B = coord_bits
     for t in range(T):
         cnt = int.from_bytes(payload[pos:pos + 4], "little")
         # at least one anchor for each later tile; the last tile makes it N
-        hi = d.N - start - (T - 1 - t)
+        hi = N - start - (T - 1 - t)
         lo = hi if t == T - 1 else 1
         if not lo <= cnt <= hi:
             raise SalvqError("FieldOutOfRange",

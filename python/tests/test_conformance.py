@@ -232,6 +232,203 @@ def test_mlps_precision_checks():
     assert n == sum(int(np.prod(s)) for _, s in scaffold_specs(base.dims))
 
 
+def _chunk_edit(data: bytes, tag: str, fn, nth: int = 0) -> bytes:
+    """Replace the nth `tag` chunk's payload by fn(bytearray(payload)) when that returns bytes,
+    else by the bytearray fn edited in place; CRC recomputed (§1.3)."""
+    pos, k = 12, 0
+    while pos + 8 <= len(data):
+        n = int.from_bytes(data[pos:pos + 4], "little")
+        t = data[pos + 4:pos + 8]
+        if t == tag.encode():
+            if k == nth:
+                p = bytearray(data[pos + 8:pos + 8 + n])
+                q = fn(p)
+                p = bytes(q if isinstance(q, (bytes, bytearray)) else p)
+                crc = crc32c(p, crc32c(t)).to_bytes(4, "little")
+                return data[:pos] + len(p).to_bytes(4, "little") + t + p + crc + data[pos + 12 + n:]
+            k += 1
+        pos += 12 + n
+    raise KeyError(tag)
+
+
+def _chunk_insert(data: bytes, after: str, tag: str, payload: bytes) -> bytes:
+    pos = 12
+    while True:
+        n = int.from_bytes(data[pos:pos + 4], "little")
+        end = pos + 12 + n
+        if data[pos + 4:pos + 8] == after.encode():
+            crc = crc32c(payload, crc32c(tag.encode())).to_bytes(4, "little")
+            return data[:end] + len(payload).to_bytes(4, "little") + tag.encode() + payload + crc + data[end:]
+        pos = end
+
+
+def explicit_cases() -> list[tuple[str, bytes, int, str]]:
+    """Edited explicit-profile streams (§3) that no vector covers, as (label, stream, rate,
+    expected): a class, "ok", or "ok:<integer-domain hash>:<float hash>". Each expectation is
+    the reference decoder's (that wrote the 0.11 vectors), which salvq_py matched;
+    `tools/probe_reference.py` reruns them on both."""
+    import struct
+    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
+    from reencode import encode_gatt
+    from salvq_py.explicit import parse_glay
+    from salvq_py.tiles import parse_tils
+    s0, s3 = _read("g-sh0.salvq"), _read("g-sh3-rates.salvq")
+    f32 = lambda x: struct.pack("<f", x)                                        # noqa: E731
+
+    def assign(p, at, b):
+        p[at:at + len(b)] = b
+
+    def glay(fn):          # GLAY: method, coord_bits, voxel_size@2, pred_level@6,
+        return _chunk_edit(s0, "GLAY", fn)   # rotation_freq@7, size_threshold@13, refine@25
+
+    def gqua(fn):          # g-sh3-rates (M = 3): group 0 at byte 1: lattice, step, gains[3], mean[3]
+        return _chunk_edit(s3, "GQUA", fn)
+
+    sh_dc = 1 + (1 + 4 + 12 + 12) + (1 + 4 + 12 + 4) + (1 + 4 + 12 + 12)   # group 3 (lattice 4)
+    bu, bs = sh_dc + 1 + 4 + 12 + 12, sh_dc + 1 + 4 + 12 + 12 + 18         # its basis_u, basis_s
+    zero_top = lambda p: assign(p, 1 + 4 * 3, bytes(4))     # tile 0's GATT body   # noqa: E731
+    cases = [
+        ("GLAY voxel_size NaN, pred_level 200 (stream order)",
+         glay(lambda p: (assign(p, 2, f32(float("nan"))), assign(p, 6, b"\xc8"))), 0, "NonFiniteValue"),
+        ("GLAY voxel_size 0, rotation_freq[0] = 0",
+         glay(lambda p: (assign(p, 2, f32(0.0)), assign(p, 7, b"\0\0"))), 0, "ValueNotPositive"),
+        ("GLAY size_threshold[1] < size_threshold[0], refine[0] = 30",
+         glay(lambda p: (assign(p, 13, struct.pack("<i", 100)), assign(p, 25, b"\x1e"))), 0, "ValueInvalid"),
+        ("GQUA lattice 7, payload ends after it (checked as read)",
+         gqua(lambda p: (assign(p, 1, b"\x07"), p[:2])[1]), 0, "ValueInvalid"),
+        ("GQUA gains[0, 0] = 0, payload ends after gains[0, 1]",
+         gqua(lambda p: (assign(p, 6, f32(0.0)), p[:14])[1]), 0, "ValueNotPositive"),
+        ("GQUA mean[0, 0] NaN, payload ends after mean[0, 1]",
+         gqua(lambda p: (assign(p, 18, f32(float("nan"))), p[:26])[1]), 0, "NonFiniteValue"),
+        ("GQUA basis_u[3, 0] NaN, payload ends inside basis_u",
+         gqua(lambda p: (assign(p, bu, b"\x00\x7e"), p[:bu + 4])[1]), 0, "NonFiniteValue"),
+        ("GQUA step ⊗ gain[0, 1] overflows, gains[0, 2] = 0 (every gain before the products)",
+         gqua(lambda p: (assign(p, 2, f32(3e38)), assign(p, 10, f32(2.0)), assign(p, 14, f32(0.0)))),
+         0, "ValueNotPositive"),
+        ("GQUA basis_s[3, 0] = −0, basis_s[3, 2] = inf",
+         gqua(lambda p: (assign(p, bs, b"\x00\x80"), assign(p, bs + 4, b"\x00\x7c"))), 0, "NonFiniteValue"),
+        ("GQUA basis_s[3, 0] = −0", gqua(lambda p: assign(p, bs, b"\x00\x80")), 0, "BasisSingular"),
+        ("GQUA basis_s[3, 0] = 2^−24", gqua(lambda p: assign(p, bs, b"\x01\x00")), 0, "ok"),
+        ("layer 0's GLAY coding_method 5, rate 2 (not parsed)",
+         _chunk_edit(s3, "GLAY", lambda p: assign(p, 0, b"\x05"), 0), 2, "ok"),
+        ("layer 2's GLAY coding_method 5, rate 0",
+         _chunk_edit(s3, "GLAY", lambda p: assign(p, 0, b"\x05"), 2), 0, "ok"),
+        ("layer 1's GATT empty, rate 0", _chunk_edit(s3, "GATT", lambda p: bytearray(), 1), 0, "ok"),
+        ("selected GATT broken, a byte after SEND (decoded as read)",
+         _chunk_edit(s3, "GATT", zero_top, 0) + b"\0", 0, "AnsStreamInvalid"),
+        ("selected GATT broken, the next layer's GLAY broken",
+         _chunk_edit(_chunk_edit(s3, "GATT", zero_top, 0), "GLAY", lambda p: assign(p, 0, b"\x05"), 1),
+         0, "AnsStreamInvalid"),
+        ("selected GATT empty", _chunk_edit(s0, "GATT", lambda p: bytearray()), 0, "ChunkSizeMismatch"),
+        ("selected GLAY coding_method 1", _chunk_edit(s0, "GLAY", lambda p: assign(p, 0, b"\x01")), 0,
+         "UnknownCodingMethod"),
+        ("HEAD after GQUA", _chunk_insert(s0, "GQUA", "HEAD", bytes(61)), 0, "UnknownCriticalChunk"),
+        ("GHED after GQUA", _chunk_insert(s0, "GQUA", "GHED", bytes(35)), 0, "ChunkOrder"),
+        ("GHED after HEAD (anchors profile)",
+         _chunk_insert(_read("usq-one-rate.salvq"), "HEAD", "GHED", bytes(35)), 1, "UnknownCriticalChunk"),
+        ("GQUA first", s0[:12] + s0[12 + 12 + 35:], 0, "UnknownCriticalChunk"),
+    ]
+
+    # §3.5: g-sh0's layer re-encoded with predict[scale] = 1 (the size class comes from the
+    # coordinates u, not the symbols r: the decode must not change), then with |u| = 2^24
+    # (allowed) and 2^24 + 1 (ValueInvalid).
+    base = decode_bytes(s0, 0)
+    h, ints = base.head, base.integers
+    tils = parse_tils(_payload(s0, "TILS"), h.N, parse_glay(_payload(s0, "GLAY"), h).coord_bits)
+
+    def reencode(glay_fn, coords):
+        data = _chunk_edit(s0, "GLAY", glay_fn)
+        lay = parse_glay(_payload(data, "GLAY"), h)
+        gatt = encode_gatt(h, lay, tils, ints["gaussian.voxel"], coords, ints["symbols.rotation_index"],
+                           ints["symbols.size_class"], ints["symbols.refinement"])
+        return _chunk_edit(data, "GATT", lambda p: gatt)
+
+    predict0 = 1 + 28 + 8 * (h.G - 1)                 # GLAY: predict after shift, scale_offset
+    cases.append(("GLAY predict[scale] = 1, layer re-encoded (same decode as g-sh0)",
+                  reencode(lambda p: assign(p, predict0, b"\x01"), ints["symbols.coordinates"]), 0, "ok"))
+    for value, want in ((1 << 24, "ok"), (-(1 << 24), "ok"), ((1 << 24) + 1, "ValueInvalid")):
+        coords = ints["symbols.coordinates"].copy()
+        coords[60, 3] = value                     # the opacity of tile 1's ninth Gaussian
+        cases.append((f"GATT opacity u = {value}, re-encoded", reencode(lambda p: None, coords), 0, want))
+
+    # Valid edge cases of §3.5 and §3.6, with the reference decoder's hashes (§11.2):
+    # "ok:<integer-domain hash>:<float hash>" (g-sh0's D = 10: scale 0-2, opacity 3,
+    # rotation 4-6, sh_dc 7-9; sh_dc is predicted, so the rescale clamp is reached).
+    def coords_with(fn):
+        c = ints["symbols.coordinates"].copy()
+        fn(c)
+        return c
+
+    def rot_index(k):
+        data = _chunk_edit(s0, "GLAY", lambda p: None)
+        lay = parse_glay(_payload(data, "GLAY"), h)
+        gatt = encode_gatt(h, lay, tils, ints["gaussian.voxel"], ints["symbols.coordinates"],
+                           np.full(h.N, k, np.uint8), ints["symbols.size_class"], ints["symbols.refinement"])
+        return _chunk_edit(data, "GATT", lambda p: gatt)
+
+    same_ints = "dbd4a52fe78c627903697f3000665a2ab33472f610cc82d70213b3b65df7deb7"
+    rotation_step = 1 + (1 + 4 + 4 + 12) + (1 + 4 + 4 + 4) + 1      # GQUA: group 2's step
+    huge_voxel = lambda p: assign(p, 2, f32(3e38))                  # noqa: E731
+    cases += [
+        ("sh_dc u = 2^24 everywhere (rescale clamps to ±2^24)",
+         reencode(lambda p: None, coords_with(lambda c: c.__setitem__((slice(None), slice(7, 10)), 1 << 24))), 0,
+         "ok:56dbb814a7897815cd8d066850a77e4f951faef744ef4c75d654a02a03e2b8af"
+         ":8b07042991e1da2bde796581d6b687a2abe8ad86310f353a113121346ab18a9a"),
+        ("sh_dc u = −2^24 + 1 everywhere",
+         reencode(lambda p: None, coords_with(lambda c: c.__setitem__((slice(None), slice(7, 10)), 1 - (1 << 24)))),
+         0, "ok:eda8e57fa21332ea66eff2aaceffcafd0c5e6c9c7b4c488da23f63d27c1e8151"
+            ":efcf133a219f007e92b4f2b163847314c393a384f9030a83cdbf21150251b199"),
+        ("rotation u = 40 everywhere (t < 0: m = +0)",
+         reencode(lambda p: None, coords_with(lambda c: c.__setitem__((slice(None), slice(4, 7)), 40))), 0,
+         "ok:b0e7b1bd3adee00ee7878a85aac05c6924d9742c4e3b9a80403bc0384bd37adb"
+         ":443e63bd37d08dbb52b5e0563089cd16e4a80883d2e0961cca10d6eec4d4f771"),
+        ("rotation step 3e38 (Δ = ∞ where the shift is ≥ 1: NaN values, NaN t)",
+         _chunk_edit(s0, "GQUA", lambda p: assign(p, rotation_step, f32(3e38))), 0,
+         f"ok:{same_ints}:d8411d4d6df2571c2110dfb60a22f0ff8decd20c2a16a26193fdd15d4818d3ef"),
+        ("GLAY voxel_size 1e−44 (subnormal h)", glay(lambda p: assign(p, 2, f32(1e-44))), 0,
+         f"ok:{same_ints}:f7110480641dad048a45a2aa8ba196e4b63d054774fe32f7621e7d5a63272e69"),
+        ("GLAY voxel_size 3e38 (infinite positions)", glay(huge_voxel), 0,
+         f"ok:{same_ints}:9489067fb30bb3eb310e810b2a96c1df6298e1ce51f4b1d80cf19ec9a67556d6"),
+        ("GHED origin[0] −3.4e38, voxel_size 3e38",
+         _chunk_edit(glay(huge_voxel), "GHED", lambda p: assign(p, 15, f32(-3.4e38))), 0,
+         f"ok:{same_ints}:7dab6487272f40b21bce8ab33f4e911f6275b17223d2ef2e4f444d4eec06addb"),
+        ("rotation index 0 everywhere", rot_index(0), 0,
+         "ok:c9433012823025260d19057fb9c1c0248c7740dd1948f4c23107b2dfef1c66a1"
+         ":24df4e13dbac2b3b17a81ce3b19c5afa1c80cdbdf12544051aa90d44c9aacbd0"),
+        ("rotation index 3 everywhere", rot_index(3), 0,
+         "ok:f38bdf56889332649eda29d2afd6a5990114c5072625272c39532110cfbb5c8f"
+         ":3caf9c852a0ec4ed863971762fb4a027d70862bd05922676d75aff2b60e75346"),
+    ]
+    return cases
+
+
+def test_explicit_profile_checks():
+    """§3 on edited explicit-profile streams no vector covers: GLAY's checks in stream order,
+    GQUA's values checked as they are read, other layers not parsed, the selected layer
+    decoded as it is read, chunks of the other profile, the size class from u, |u| ≤ 2^24."""
+    base = hashes(canonical_form(decode_bytes(_read("g-sh0.salvq"), 0)))
+    for label, data, rate, want in explicit_cases():
+        try:
+            dec = decode_bytes(data, rate)
+        except SalvqError as e:
+            got = e.error_class
+        else:
+            h = hashes(canonical_form(dec))
+            if "same decode" in label:
+                assert h == base, label
+            got = f"ok:{h[0]}:{h[1]}" if want.startswith("ok:") else "ok"
+        assert got == want, f"{label}: {got}, expected {want}"
+
+
+def _payload(data: bytes, tag: str) -> bytes:
+    pos = 12
+    while True:
+        n = int.from_bytes(data[pos:pos + 4], "little")
+        if data[pos + 4:pos + 8] == tag.encode():
+            return data[pos + 8:pos + 8 + n]
+        pos += 12 + n
+
+
 def test_valid_vectors():
     for vec in _manifest():
         if vec["kind"] == "valid":
@@ -247,7 +444,7 @@ def test_must_fail_vectors():
 def main() -> int:
     failed = 0
     for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector,
-              test_mlps_precision_checks):
+              test_mlps_precision_checks, test_explicit_profile_checks):
         try:
             t()
             print(f"pass  {t.__name__}")

@@ -1,6 +1,8 @@
 """Differential fuzzing against the reference decoder binary (optional; needs it).
 
-    python3 tools/diff_fuzz.py REF_BINARY VECTORS_DIR [ITERATIONS] [SEED]
+    python3 tools/diff_fuzz.py REF_BINARY VECTORS_DIR [ITERATIONS] [SEED] [FILTER]
+
+FILTER keeps the valid vectors whose name contains it (e.g. `g-` for the explicit profile).
 
 Mutates valid conformance streams (a byte of a chunk payload, with the CRC recomputed so the
 error reaches the payload's decoder; a payload cut or grown, length and CRC fixed; a HEAD
@@ -87,8 +89,9 @@ def main():
     iters = int(sys.argv[3]) if len(sys.argv) > 3 else 200
     rng = random.Random(int(sys.argv[4]) if len(sys.argv) > 4 else 1)
     manifest = json.load(open(os.path.join(vdir, "manifest.json")))
+    only = sys.argv[5] if len(sys.argv) > 5 else ""
     bases = [(v["file"], v["decodes"][0]["rate"]) for v in manifest["vectors"]
-             if v["kind"] == "valid" and v["bytes"] < 20000]
+             if v["kind"] == "valid" and v["bytes"] < 20000 and only in v["name"]]
     disagree = 0
     for it in range(iters):
         fname, rate = rng.choice(bases)

@@ -79,6 +79,13 @@ def main():
     show(ref, "QUAN: basis_s[1] = 0 and basis_v[0, 0] = NaN (BasisSingular before or after v?)",
          edit(data, "QUAN", quan))
 
+    # 4. The explicit profile (§3): the edited streams of tests/test_conformance.py.
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+    os.environ.setdefault("SALVQ_VECTORS", vdir)
+    from test_conformance import explicit_cases
+    for label, data, rate, want in explicit_cases():
+        show(ref, f"explicit: {label} (expected {want})", data, rate)
+
 
 if __name__ == "__main__":
     main()

@@ -100,3 +100,62 @@ def reencode_layer(data: bytes, rate: int, symbols: dict) -> bytes:
                     break
                 k += 1
     return data
+
+
+# ------------------------------------------------------------------ explicit profile (§3.5)
+
+def binary_interval(bit: int, freq_one: int) -> tuple[int, int]:
+    """§6.2.1 item 3."""
+    f1 = min(max(freq_one, 1), (1 << P) - 1)
+    return ((1 << P) - f1, f1) if bit else (0, (1 << P) - f1)
+
+
+def gatt_intervals(h, lay, tile, voxels, coords, rot_index, size_class, refinement):
+    """The intervals of one tile's GATT body for the given decoded values, by §3.5 as salvq_py
+    reads it (the encoder's side of `salvq_py.gatt._tile`)."""
+    from salvq_py.explicit import ROTATION, SCALE
+    from salvq_py.gatt import context_class, rescale
+    from salvq_py.gatt import size_class as size_class_of
+    dims, offs = h.group_dims(), h.group_offsets()
+    pl = lay.pred_level
+    out = []
+    prev_u = prev_r = None
+    prev_c = 0
+    for i in range(tile.count):
+        n = tile.start + i
+        v_now, v_prev = voxels[n], voxels[n - 1]
+        has_ref = i > 0 and all((int(v_prev[a]) >> pl) == (int(v_now[a]) >> pl) for a in range(3))
+        u = [int(x) for x in coords[n]]
+        r = [0] * h.D
+        c = 0
+        for g, d in enumerate(dims):
+            if g == 1:
+                c = size_class_of(u[offs[SCALE]:offs[SCALE] + 3], lay.size_threshold)
+                assert c == size_class[n], "size class changed: pass the new one"
+                e = lay.refine[c]
+                for a in range(3):
+                    w = int(refinement[n, a])
+                    out += [binary_interval((w >> b) & 1, 1 << 15) for b in range(e - 1, -1, -1)]
+            if g == ROTATION:
+                hi, lo = int(rot_index[n]) >> 1, int(rot_index[n]) & 1
+                out += [binary_interval(hi, lay.rotation_freq[0]),
+                        binary_interval(lo, lay.rotation_freq[1 + hi])]
+            s = 0 if g == 0 else lay.shift[g - 1][c]
+            s_ref = 0 if g == 0 else lay.shift[g - 1][prev_c]
+            o = 0 if g == 0 else lay.scale_offset[g - 1][c]
+            for v in range(offs[g], offs[g] + d):
+                x = context_class(prev_r[v], s_ref, s) if has_ref else 0
+                k = min(max(lay.scale_table[v][x] + o, 0), 63)
+                p = rescale(prev_u[v], s_ref, s) if has_ref and lay.predict[g] == 1 else 0
+                r[v] = u[v] - p
+                out += symbol_intervals(r[v], k)
+        prev_u, prev_r, prev_c = u, r, c
+    return out
+
+
+def encode_gatt(h, lay, tiles, voxels, coords, rot_index, size_class, refinement) -> bytes:
+    """A GATT payload (coding_method 1, §10.2 framing) for the given values."""
+    bodies = [encode_body(gatt_intervals(h, lay, t, voxels, coords, rot_index, size_class,
+                                         refinement)) for t in tiles]
+    return (bytes([1]) + b"".join(len(b).to_bytes(4, "little") for b in bodies)
+            + b"".join(bodies))

@@ -8,9 +8,30 @@ use crate::model::interchange::write_tensor;
 use crate::model::{names, tensor_table, Dims, SceneModel};
 use crate::quantizer::LatticeKind;
 
-/// The three reconstructed (floating-point) tensors (§11.2): compared within a tolerance;
-/// every other tensor of the canonical form is compared bit for bit.
-pub const FLOAT_TENSORS: [&str; 3] = [names::FEAT, names::SCALING, names::OFFSETS];
+/// The reconstructed (floating-point) tensors (§11.2, §11.6): the anchors profile's three
+/// and the explicit profile's six, compared within a tolerance; every other tensor of the
+/// canonical form is compared bit for bit.
+pub const FLOAT_TENSORS: [&str; 9] = [
+    names::FEAT,
+    names::SCALING,
+    names::OFFSETS,
+    "gaussian.position",
+    "gaussian.log_scale",
+    "gaussian.opacity",
+    "gaussian.rotation",
+    "gaussian.sh_dc",
+    "gaussian.sh_rest",
+];
+
+/// The explicit profile's integer-domain tensors (§11.6 Table 11-2), in canonical order;
+/// its float tensors follow them.
+pub const EXPLICIT_INTEGER_TENSORS: [&str; 5] = [
+    "gaussian.voxel",
+    "symbols.coordinates",
+    "symbols.rotation_index",
+    "symbols.size_class",
+    "symbols.refinement",
+];
 
 /// The symbol tensors of Table 11-1, after the model's.
 pub const SYMBOL_TENSORS: [&str; 3] = ["symbols.feat", "symbols.scaling", "symbols.offsets"];
@@ -142,7 +163,87 @@ pub fn canonical_order() -> Vec<&'static str> {
         .into_iter()
         .map(|e| e.name)
         .chain(SYMBOL_TENSORS)
+        .chain(EXPLICIT_INTEGER_TENSORS)
+        .chain(FLOAT_TENSORS[3..].iter().copied())
         .collect()
+}
+
+/// The canonical form of an explicit-profile decode (§11.6).
+pub fn explicit_canonical_tensors(d: &crate::explicit::DecodedGaussians) -> Vec<CanonicalTensor> {
+    let g = &d.gaussians;
+    let n = g.len() as u64;
+    let values: u64 = d.groups.iter().map(|g| g.dim as u64).sum();
+    let i32s = |name: &str, shape: Vec<u64>, v: &mut dyn Iterator<Item = i32>| CanonicalTensor {
+        name: name.into(),
+        dtype: CanonicalDtype::I32,
+        shape,
+        data: v.flat_map(i32::to_le_bytes).collect(),
+    };
+    let u8s = |name: &str, v: &[u8]| CanonicalTensor {
+        name: name.into(),
+        dtype: CanonicalDtype::U8,
+        shape: vec![n],
+        data: v.to_vec(),
+    };
+    let f32s = |name: &str, shape: Vec<u64>, v: &mut dyn Iterator<Item = f32>| CanonicalTensor {
+        name: name.into(),
+        dtype: CanonicalDtype::F32,
+        shape,
+        data: v.flat_map(f32::to_le_bytes).collect(),
+    };
+    let mut out = vec![
+        i32s(
+            EXPLICIT_INTEGER_TENSORS[0],
+            vec![n, 3],
+            &mut d.voxels.iter().flatten().map(|&c| c as i32),
+        ),
+        i32s(
+            EXPLICIT_INTEGER_TENSORS[1],
+            vec![n, values],
+            &mut d.symbols.coords.iter().copied(),
+        ),
+        u8s(EXPLICIT_INTEGER_TENSORS[2], &d.symbols.rotation_index),
+        u8s(EXPLICIT_INTEGER_TENSORS[3], &d.symbols.size_class),
+        i32s(
+            EXPLICIT_INTEGER_TENSORS[4],
+            vec![n, 3],
+            &mut d.symbols.refinement.iter().flatten().map(|&c| c as i32),
+        ),
+        f32s(
+            FLOAT_TENSORS[3],
+            vec![n, 3],
+            &mut g.positions.iter().flatten().copied(),
+        ),
+        f32s(
+            FLOAT_TENSORS[4],
+            vec![n, 3],
+            &mut g.log_scales.iter().flatten().copied(),
+        ),
+        f32s(
+            FLOAT_TENSORS[5],
+            vec![n],
+            &mut g.opacity_logit.iter().copied(),
+        ),
+        f32s(
+            FLOAT_TENSORS[6],
+            vec![n, 4],
+            &mut g.rotations.iter().flatten().copied(),
+        ),
+        f32s(
+            FLOAT_TENSORS[7],
+            vec![n, 3],
+            &mut g.f_dc.iter().flatten().copied(),
+        ),
+    ];
+    let rest = g.rest_per_channel() as u64 * 3;
+    if rest > 0 {
+        out.push(f32s(
+            FLOAT_TENSORS[8],
+            vec![n, rest],
+            &mut g.f_rest.iter().copied(),
+        ));
+    }
+    out
 }
 
 /// The canonical form of a model decoded at one rate with that rate's symbols (§11.1).
@@ -305,7 +406,10 @@ mod tests {
         sorted.dedup();
         assert_eq!(sorted.len(), order.len());
         assert!(order.contains(&"quant.scaling.regions.basis_v"));
-        assert_eq!(order.last(), Some(&"symbols.offsets"));
+        let offsets = order.iter().position(|n| *n == "symbols.offsets");
+        // The anchors' symbols end their profile's list; the explicit profile's follow.
+        assert_eq!(offsets, Some(order.len() - 12));
+        assert_eq!(order.last(), Some(&"gaussian.sh_rest"));
     }
 
     #[test]

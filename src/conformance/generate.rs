@@ -19,6 +19,12 @@ use super::must_fail::must_fail_vectors;
 use super::vectors::{valid_vectors, BASE_SECTIONS};
 use crate::container::signature::{FORMAT_MAJOR, FORMAT_MINOR};
 use crate::decoder::{decode_with_symbols, DecodeOptions};
+use crate::explicit::decode_gaussians;
+
+use super::canonical::explicit_canonical_tensors;
+use super::explicit_vectors::{
+    explicit_must_fail_vectors, explicit_valid_vectors, EXPLICIT_SECTIONS,
+};
 
 /// Marks the generated coverage table inside `conformance/README.md`.
 pub const COVERAGE_BEGIN: &str = "<!-- coverage:begin (salvq make-vectors writes this table) -->";
@@ -137,12 +143,53 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         });
         files.insert(file, v.stream);
     }
-    for v in must_fail_vectors() {
+    for v in explicit_valid_vectors().map_err(|e| format!("building the explicit vectors: {e}"))? {
+        let file = format!("{}.salvq", v.name);
+        let mut decodes = Vec::new();
+        for (i, &rate) in v.rates.iter().enumerate() {
+            let d = decode_gaussians(&v.stream, &Default::default(), Some(rate))
+                .map_err(|e| format!("{} rate {rate}: the reference decoder fails: {e}", v.name))?;
+            if v.oracle.get(i) != Some(&d.gaussians) {
+                return Err(format!(
+                    "{} rate {rate}: the reference decoder disagrees with the encoder's prediction",
+                    v.name
+                ));
+            }
+            let tensors = explicit_canonical_tensors(&d);
+            let expected = format!("{}.r{rate}.safetensors", v.name);
+            decodes.push(ExpectedDecode {
+                rate,
+                expected: expected.clone(),
+                integer_sha256: integer_hash(&tensors),
+                float_sha256: float_hash(&tensors),
+                tolerance: Tolerance::STANDARD,
+                omitted: Vec::new(),
+            });
+            files.insert(expected, canonical::to_safetensors(&tensors));
+        }
+        let mut sections = EXPLICIT_SECTIONS.to_vec();
+        sections.extend(v.sections.iter().filter(|s| !EXPLICIT_SECTIONS.contains(s)));
+        entries.push(VectorEntry {
+            decodes,
+            ..entry(
+                v.name,
+                VectorKind::Valid,
+                &v.stream,
+                v.description,
+                &sections,
+            )
+        });
+        files.insert(file, v.stream);
+    }
+    for v in must_fail_vectors()
+        .into_iter()
+        .chain(explicit_must_fail_vectors())
+    {
         let options = DecodeOptions {
             rate: Some(v.rate),
             ..Default::default()
         };
-        match crate::decode_with_options(&v.stream, &options) {
+        match crate::decoder::decode_any(&v.stream, &options) {
             Err(e) if e.class() == v.class => {}
             other => {
                 return Err(format!(

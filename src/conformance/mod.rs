@@ -9,6 +9,7 @@
 //! | decoder contract and runner | §11.5 | [`runner`] |
 
 pub mod canonical;
+pub mod explicit_vectors;
 pub mod generate;
 pub mod manifest;
 pub mod models;

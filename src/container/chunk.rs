@@ -33,6 +33,14 @@ impl ChunkTag {
     pub const AOFF: ChunkTag = ChunkTag(*b"AOFF");
     /// End of stream (§1.5). Critical, last, empty.
     pub const SEND: ChunkTag = ChunkTag(*b"SEND");
+    /// Explicit-Gaussians preflight (§3.2). Critical, first.
+    pub const GHED: ChunkTag = ChunkTag(*b"GHED");
+    /// Explicit-Gaussians attribute groups: lattices, means, steps, gains (§3.3). Critical.
+    pub const GQUA: ChunkTag = ChunkTag(*b"GQUA");
+    /// Explicit-Gaussians layer header: voxel grid and prior tables (§3.4). Critical.
+    pub const GLAY: ChunkTag = ChunkTag(*b"GLAY");
+    /// Explicit-Gaussians attribute symbols, one body per tile (§3.5). Critical.
+    pub const GATT: ChunkTag = ChunkTag(*b"GATT");
     /// Encoder identification, UTF-8 text (§1.7). Ancillary.
     pub const ENCD: ChunkTag = ChunkTag(*b"encd");
     /// Encoder statistics, JSON (§1.7). Ancillary.

@@ -6,6 +6,7 @@ pub mod attributes;
 pub mod auto;
 pub mod context_precision;
 pub mod convert;
+pub mod explicit;
 pub mod fit;
 pub mod float_prior;
 pub mod parsimony;

@@ -281,6 +281,10 @@ impl fmt::Display for Error {
                 f,
                 "PLY vertex {vertex}: property '{property}' is not finite"
             )?,
+            UnsupportedInput { found, hint } => write!(
+                f,
+                "the input is {found}, which the encoder does not read: {hint}"
+            )?,
             NeuralGaussiansUnsupported { field, value, rule } => write!(
                 f,
                 "{} = {value}: no Scaffold-GS neural Gaussians: {rule}",

@@ -75,12 +75,26 @@ pub enum Field {
     W1FracBits,
     ScaffoldPrecision,
     ContextPrecision,
+    GaussianCount,
+    ShDegree,
+    PredLevel,
+    ScaleTable,
+    RotationFreq,
+    PredictFlag,
+    Refine,
 }
 
 impl Field {
     /// The field's name as the spec's syntax tables spell it.
     pub fn spec_name(self) -> &'static str {
         match self {
+            Field::GaussianCount => "gaussian_count",
+            Field::ShDegree => "sh_degree",
+            Field::PredLevel => "pred_level",
+            Field::ScaleTable => "scale_table",
+            Field::RotationFreq => "rotation_freq",
+            Field::PredictFlag => "predict",
+            Field::Refine => "refine",
             Field::FileFlags => "file_flags",
             Field::HeadFlags => "head_flags",
             Field::AnchorCount => "anchor_count",
@@ -382,6 +396,12 @@ pub enum Error {
         rule: &'static str,
     },
 
+    /// An encoder input is a file of a kind the encoder does not read (Annex A.8.1).
+    UnsupportedInput {
+        found: &'static str,
+        hint: &'static str,
+    },
+
     // ---- files ----
     /// A file operation failed.
     Io {
@@ -389,6 +409,23 @@ pub enum Error {
         path: PathBuf,
         kind: std::io::ErrorKind,
     },
+}
+
+/// The section of §3 that defines an explicit-profile chunk.
+fn explicit_section(tag: ChunkTag) -> Option<&'static str> {
+    match &tag.0 {
+        b"GHED" => Some("§3.2"),
+        b"GQUA" => Some("§3.3"),
+        b"GLAY" => Some("§3.4"),
+        b"GATT" => Some("§3.5"),
+        _ => None,
+    }
+}
+
+/// The chunk tag a tensor name like `GQUA.step` starts with.
+fn tensor_tag(tensor: &str) -> ChunkTag {
+    let b = tensor.as_bytes();
+    ChunkTag([b[0], b[1], b[2], b[3]])
 }
 
 impl Error {
@@ -403,6 +440,37 @@ impl Error {
                 ..
             } => "§1.2",
             ReservedBitsSet { .. } => "§1.4",
+            // The explicit profile's chunks and fields (§3).
+            Truncated {
+                structure: Structure::Payload(tag),
+                ..
+            }
+            | ChunkSizeMismatch { tag, .. }
+                if explicit_section(*tag).is_some() =>
+            {
+                explicit_section(*tag).unwrap_or("§3")
+            }
+            FieldOutOfRange {
+                field: Field::GaussianCount | Field::ShDegree,
+                ..
+            } => "§3.2",
+            FieldOutOfRange {
+                field:
+                    Field::PredLevel
+                    | Field::ScaleTable
+                    | Field::RotationFreq
+                    | Field::PredictFlag
+                    | Field::Refine,
+                ..
+            } => "§3.4",
+            NonFiniteValue { tensor, .. }
+            | ValueNotPositive { tensor, .. }
+            | ValueInvalid { tensor, .. }
+            | BasisSingular { tensor, .. }
+                if tensor.len() > 4 && explicit_section(tensor_tag(tensor)).is_some() =>
+            {
+                explicit_section(tensor_tag(tensor)).unwrap_or("§3")
+            }
             Truncated {
                 structure: Structure::Signature,
                 ..
@@ -444,6 +512,7 @@ impl Error {
             | PlyShCoefficients { .. }
             | PlyTruncated { .. }
             | PlyValueNotFinite { .. } => "§C.3",
+            UnsupportedInput { .. } => "Annex A.8.1",
             Io { .. } => "§9.2",
         }
     }
@@ -497,6 +566,7 @@ impl Error {
             PlyShCoefficients { .. } => "PlyShCoefficients",
             PlyTruncated { .. } => "PlyTruncated",
             PlyValueNotFinite { .. } => "PlyValueNotFinite",
+            UnsupportedInput { .. } => "UnsupportedInput",
             NeuralGaussiansUnsupported { .. } => "NeuralGaussiansUnsupported",
             RenderSettingInvalid { .. } => "RenderSettingInvalid",
             Io { .. } => "Io",

@@ -25,6 +25,7 @@ pub mod attributes;
 pub mod context;
 mod context_build;
 pub mod detmath;
+pub mod gaussians;
 pub mod grid;
 pub mod linalg;
 pub mod quant;

@@ -13,6 +13,7 @@ mod charts;
 pub mod coder;
 pub mod parsimony;
 pub mod precision;
+pub mod real;
 pub mod render_psnr;
 pub mod scale;
 

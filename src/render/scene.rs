@@ -36,9 +36,11 @@ impl Scene {
                 rate,
                 ..Default::default()
             };
-            return Ok(Scene::Model(Box::new(crate::decode_with_options(
-                bytes, &options,
-            )?)));
+            return Ok(match crate::decoder::decode_any(bytes, &options)? {
+                crate::decoder::Decoded::Anchors(m) => Scene::Model(m),
+                // An explicit-profile stream decodes to the Gaussians themselves (§3).
+                crate::decoder::Decoded::Gaussians(d) => Scene::Gaussians(d.gaussians),
+            });
         }
         if bytes.starts_with(b"ply") {
             return Ok(Scene::Gaussians(ply::read_ply(bytes)?));

@@ -17,18 +17,23 @@ use super::secs;
 
 #[derive(clap::Args)]
 pub struct EncodeArgs {
-    /// Input model (safetensors, spec Annex A).
-    input: PathBuf,
+    /// Input: a model (safetensors, spec Annex A) or a trained 3DGS scene (standard Inria
+    /// PLY: the explicit-Gaussians profile, spec §3).
+    pub(crate) input: PathBuf,
     /// Output stream.
     #[arg(short, long)]
-    output: PathBuf,
+    pub(crate) output: PathBuf,
     /// Text for an `encd` ancillary chunk (encoder identification).
     #[arg(long)]
-    note: Option<String>,
-    /// The rates (indices into the model's gains) to code, one symbol layer each, e.g.
-    /// `0,1,2,3` (spec §7.4).
-    #[arg(long, value_delimiter = ',', default_value = "0")]
-    rates: Vec<u8>,
+    pub(crate) note: Option<String>,
+    /// The rates to code, one symbol layer each, e.g. `0,1,2,3` (spec §7.4): indices into a
+    /// model's gains (default 0), or into `--psnr`'s targets for a PLY (default: all).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) rates: Option<Vec<u8>>,
+    /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views;
+    /// rate 0 first and finest), e.g. `62,56,50,45,40,35` (the default).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) psnr: Option<Vec<f64>>,
     /// Feature quantizer: `model` (the model's own), `usq` (identity), `dn` (D_n),
     /// `e8` (E8 product; the feature dimension must be a multiple of 8), `salvq` (the
     /// model's learned basis) or `klt` (a basis the encoder fits to the features' residuals,
@@ -51,7 +56,7 @@ pub struct EncodeArgs {
     auto: bool,
     /// Anchors per tile (spec §10): tiles decode independently, in parallel or alone.
     #[arg(long, default_value_t = salvq::tiles::DEFAULT_TILE_ANCHORS, value_parser = clap::value_parser!(u32).range(1..))]
-    tile_anchors: u32,
+    pub(crate) tile_anchors: u32,
     /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
     /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`,
     /// `closest` (Schnorr-Euchner, bounded) or `rdo` (auto's point refined for rate and
@@ -78,10 +83,10 @@ pub struct EncodeArgs {
     /// Print the summary as JSON on stdout (choices, per-rate reports); nothing else goes to
     /// stdout.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
     /// Print nothing but errors (no progress, choices or summary).
     #[arg(long, short, conflicts_with = "json")]
-    quiet: bool,
+    pub(crate) quiet: bool,
 }
 
 /// The `--json` summary.
@@ -112,13 +117,13 @@ struct PrunedLevel {
 
 /// Human messages: to stderr, through the progress bar so they do not tear it; nothing with
 /// `--quiet`.
-struct Progress {
+pub(crate) struct Progress {
     bar: ProgressBar,
     quiet: bool,
 }
 
 impl Progress {
-    fn new(quiet: bool) -> Self {
+    pub(crate) fn new(quiet: bool) -> Self {
         // indicatif draws only on a terminal; in pipes and CI the bar is hidden and only the
         // messages below are printed.
         let bar = if quiet {
@@ -134,17 +139,17 @@ impl Progress {
         Progress { bar, quiet }
     }
 
-    fn stage(&self, msg: impl Into<std::borrow::Cow<'static, str>>) {
+    pub(crate) fn stage(&self, msg: impl Into<std::borrow::Cow<'static, str>>) {
         self.bar.set_message(msg);
     }
 
-    fn say(&self, line: &str) {
+    pub(crate) fn say(&self, line: &str) {
         if !self.quiet {
             self.bar.suspend(|| eprintln!("{line}"));
         }
     }
 
-    fn done(&self) {
+    pub(crate) fn done(&self) {
         self.bar.finish_and_clear();
     }
 }
@@ -153,6 +158,19 @@ pub fn run(a: EncodeArgs) -> Result<(), Error> {
     let t = Instant::now();
     let progress = Progress::new(a.quiet);
     progress.stage(format!("reading {}", a.input.display()));
+    let bytes = salvq::io::read_file(&a.input)?;
+    if salvq::encoder::explicit::input::input_kind(&bytes)?
+        == salvq::encoder::explicit::input::InputKind::Ply
+    {
+        return super::encode_ply::run(a, &bytes, t, &progress);
+    }
+    if a.psnr.is_some() {
+        return Err(Error::UnsupportedInput {
+            found: "a model file with --psnr",
+            hint: "--psnr sets the rates of a PLY input (spec Annex A.8); a model's rates are its gains (--rates)",
+        });
+    }
+    drop(bytes);
     let mut model = read_model(&a.input)?;
     let feat_lattice = match a.quantizer.as_str() {
         "usq" => Some(salvq::LatticeKind::Identity),
@@ -163,7 +181,7 @@ pub fn run(a: EncodeArgs) -> Result<(), Error> {
     };
     let mut options = salvq::EncodeOptions {
         encoder_note: a.note,
-        rates: a.rates,
+        rates: a.rates.unwrap_or_else(|| vec![0]),
         statistics: !a.no_stats,
         feat_lattice,
         search: salvq::Search::from_name(&a.search).unwrap_or_default(),

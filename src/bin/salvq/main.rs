@@ -10,6 +10,7 @@ use std::time::Instant;
 
 mod demo;
 mod encode;
+mod encode_ply;
 mod render;
 mod tools;
 
@@ -193,6 +194,42 @@ enum Bench {
         #[arg(long, default_value_t = 2_000_000)]
         max: u32,
     },
+    /// The explicit profile on real 3DGS scenes (issue 19): salvq's rates from one file
+    /// against splat-transform's SPZ, SOG and compressed PLY, render PSNR / SSIM from the
+    /// same ring cameras, encode and decode times, ablations and bits per attribute group
+    /// (SVG, CSV, text in OUT).
+    Real {
+        /// Folder holding the scenes as `<name>.ply`.
+        #[arg(long, default_value = "../shared/data")]
+        data: PathBuf,
+        /// Scenes (file stems in `--data`).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "donut,fruit_drops,alti,guitar,playbot"
+        )]
+        scenes: Vec<String>,
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// salvq's render-PSNR targets (rate 0 first).
+        #[arg(long, value_delimiter = ',', default_value = "62,56,50,45,40,35")]
+        psnr: Vec<f64>,
+        /// The splat-transform command for the peers (e.g. `node_modules/.bin/splat-transform`);
+        /// without it the peers are skipped.
+        #[arg(long)]
+        splat_transform: Option<String>,
+        /// Skip the ablations (each a full encode per scene).
+        #[arg(long)]
+        no_ablations: bool,
+        /// Ring views, image width and height of the renders compared.
+        #[arg(long, default_value_t = 8)]
+        views: u32,
+        #[arg(long, default_value_t = 512)]
+        width: u32,
+        #[arg(long, default_value_t = 384)]
+        height: u32,
+    },
     /// Model share of the stream and bits per anchor vs scene size, plain, with
     /// `--prune-grid`, and with binary16 Scaffold-GS MLPs; then total bytes vs precision per
     /// model tensor group at 100 k anchors (issue 10; SVG, CSV).
@@ -306,6 +343,9 @@ fn run(cli: Cli) -> Result<(), Error> {
                 region,
                 fault: inject_fault,
             };
+            if salvq::decoder::is_explicit(&stream) {
+                return decode_explicit(&stream, &options, &output, canonical, measure, t);
+            }
             if canonical {
                 let (model, symbols) = salvq::decoder::decode_with_symbols(&stream, &options)?;
                 let tensors = salvq::conformance::canonical::canonical_tensors(&model, &symbols);
@@ -340,6 +380,18 @@ fn run(cli: Cli) -> Result<(), Error> {
         Command::Conformance { .. } | Command::MakeVectors { .. } => {}
         Command::Info { input, json } => {
             let stream = salvq::io::read_file(&input)?;
+            if salvq::decoder::is_explicit(&stream) {
+                let info = salvq::info::explicit::inspect_explicit(&stream, &Limits::default())?;
+                if json {
+                    println!(
+                        "{}",
+                        serde_json::to_string_pretty(&info).unwrap_or_default()
+                    );
+                } else {
+                    print!("{}", info.to_text());
+                }
+                return Ok(());
+            }
             let info = inspect(&stream, &Limits::default())?;
             if json {
                 println!(
@@ -370,6 +422,40 @@ fn run(cli: Cli) -> Result<(), Error> {
             print!("{text}");
             println!(
                 "wrote scale.svg, scale.csv, scale.txt to {} in {:.1} s",
+                out.display(),
+                secs(t)
+            );
+        }
+        Command::Bench {
+            which:
+                Bench::Real {
+                    data,
+                    scenes,
+                    out,
+                    psnr,
+                    splat_transform,
+                    no_ablations,
+                    views,
+                    width,
+                    height,
+                },
+        } => {
+            let t = Instant::now();
+            let options = salvq::rdbench::real::RealOptions {
+                data,
+                scenes,
+                out: out.clone(),
+                targets: psnr,
+                splat_transform,
+                ablations: !no_ablations,
+                views,
+                width,
+                height,
+            };
+            let text = salvq::rdbench::real::run(&options, &|m| eprintln!("{m}"))?;
+            print!("{text}");
+            println!(
+                "wrote real.svg, real.csv, real.txt to {} in {:.1} s",
                 out.display(),
                 secs(t)
             );
@@ -426,4 +512,48 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `salvq decode` of an explicit-profile stream (spec §3): the Gaussians as a standard 3DGS
+/// PLY file, or the canonical form (§11.6).
+fn decode_explicit(
+    stream: &[u8],
+    options: &salvq::DecodeOptions,
+    output: &std::path::Path,
+    canonical: bool,
+    measure: bool,
+    t: Instant,
+) -> Result<(), Error> {
+    let decoded = match salvq::decoder::decode_any(stream, options)? {
+        salvq::decoder::Decoded::Gaussians(d) => d,
+        salvq::decoder::Decoded::Anchors(_) => unreachable!("is_explicit chose the profile"),
+    };
+    if canonical {
+        let tensors = salvq::conformance::canonical::explicit_canonical_tensors(&decoded);
+        let bytes = salvq::conformance::canonical::to_safetensors(&tensors);
+        return salvq::io::write_bytes_atomic(output, &bytes);
+    }
+    let n = decoded.gaussians.len();
+    if measure {
+        println!(
+            "measure decode_secs={} peak_rss_bytes={} gaussians={n} decoded_bytes={}",
+            secs(t),
+            salvq::rdbench::scale::peak_rss_bytes().unwrap_or(0),
+            decoded.header.decoded_bytes()
+        );
+        return Ok(());
+    }
+    if n == 0 {
+        eprintln!("salvq: the region intersects no tile; nothing written");
+        return Ok(());
+    }
+    salvq::render::ply::write_ply_file(&decoded.gaussians, output)?;
+    println!(
+        "decoded {n} Gaussians (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
+        decoded.rate,
+        decoded.header.rate_count,
+        output.display(),
+        secs(t)
+    );
+    Ok(())
 }

@@ -171,6 +171,18 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
     let scene = load(&a.input, a.rate)?;
     let model = match &scene {
         Scene::Model(m) => m,
+        // An explicit-profile stream (spec §3): its Gaussians are the export.
+        Scene::Gaussians(g) if salvq::decoder::is_explicit(&salvq::io::read_file(&a.input)?) => {
+            ply::write_ply_file(g, &a.output)?;
+            println!(
+                "exported {} Gaussians (SH degree {}) into {} in {:.2} s",
+                g.len(),
+                g.sh_degree,
+                a.output.display(),
+                secs(t)
+            );
+            return Ok(());
+        }
         Scene::Gaussians(_) => {
             return Err(Error::RenderSettingInvalid {
                 setting: "input",

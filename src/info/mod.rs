@@ -1,6 +1,8 @@
 //! `salvq info`: what a stream holds, chunk by chunk, without decoding the payloads, and
 //! the split into model bytes and anchor bytes (spec §1.3, §1.4).
 
+pub mod explicit;
+
 use serde::Serialize;
 
 use crate::container::chunk::{ChunkReader, ChunkTag, CHUNK_OVERHEAD};

@@ -1,0 +1,281 @@
+"""The explicit-Gaussians profile's fixed chunks (§3): the preflight `GHED` (§3.2), the
+attribute groups `GQUA` (§3.3, Table 3-3) and a layer's `GLAY` (§3.4)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .container import Limits, Reader
+from .entropy import payload_method
+from .errors import SalvqError
+from .model import f32_of_bits, is_finite_bits
+from .quantizers import f32_from_bits
+
+GHED_LENGTH = 35
+IDENTITY, KLT = 0, 4               # §3.3 lattice codes of this profile
+GROUP_NAMES = ("scale", "opacity", "rotation", "sh_dc", "sh_rest")      # Table 3-3, g order
+SCALE, OPACITY, ROTATION, SH_DC, SH_REST = range(5)
+SIZE_CLASSES = 4                   # §3.5: 0 … 3 (three thresholds)
+CONTEXT_CLASSES = 8                # §3.5: 0 … 7
+
+
+@dataclass
+class GHead:
+    """`GHED` fields (Table 3-1) and what follows from them (Table 3-3)."""
+    N: int
+    sh_degree: int
+    M: int
+    head_flags: int
+    rate_mask: int
+    origin_bits: list
+    decoded_bytes: int
+
+    @property
+    def B(self) -> int:
+        """Higher SH coefficients per colour channel."""
+        return (self.sh_degree + 1) ** 2 - 1
+
+    @property
+    def G(self) -> int:
+        """Number of attribute groups: no `sh_rest` when B = 0."""
+        return 5 if self.B > 0 else 4
+
+    def group_dims(self) -> list[int]:
+        """d of each group g < G (Table 3-3)."""
+        return [3, 1, 3, 3, 3 * self.B][:self.G]
+
+    def group_offsets(self) -> list[int]:
+        """Index of group g's first coded value v (groups in order)."""
+        offs, o = [], 0
+        for d in self.group_dims():
+            offs.append(o)
+            o += d
+        return offs
+
+    @property
+    def D(self) -> int:
+        """Coded values per Gaussian."""
+        return sum(self.group_dims())
+
+    def decoded_size(self) -> int:
+        """§3.2 step 5: 4 · N · (14 + 3B), the bytes of Table 3-4's float tensors."""
+        return 4 * self.N * (14 + 3 * self.B)
+
+    def coded_rates(self) -> list[int]:
+        return [r for r in range(64) if (self.rate_mask >> r) & 1]
+
+    def origin(self) -> np.ndarray:
+        return np.array(self.origin_bits, np.uint32).view(np.float32)
+
+
+def parse_ghed(payload: bytes, limits: Limits) -> GHead:
+    """§3.2 steps 1-6 (step 7, the selected rate, is the caller's)."""
+    def short():
+        raise SalvqError("Truncated", f"GHED payload too short ({len(payload)} bytes) "
+                                      "(structure: GHED payload) [§3.2]")
+
+    r = Reader(payload, 0, short)
+    h = GHead(N=r.u32(), sh_degree=r.u8(), M=r.u8(), head_flags=r.u8(), rate_mask=r.u64(),
+              origin_bits=[r.u32(), r.u32(), r.u32()], decoded_bytes=r.u64())      # step 1
+    if r.remaining() != 0:                                                         # step 2
+        raise SalvqError("ChunkSizeMismatch",
+                         f"chunk GHED: payload length {len(payload)}, expected {GHED_LENGTH} [§3.2]")
+    if h.head_flags != 0:                                                          # step 3
+        raise SalvqError("ReservedBitsSet", f"GHED head_flags = 0x{h.head_flags:02x}: reserved bits set [§3.2]")
+
+    def rng(name, v, lo, hi):                                                      # step 4
+        if not lo <= v <= hi:
+            raise SalvqError("FieldOutOfRange", f"GHED field {name} = {v}, range {lo} … {hi} [§3.2]")
+
+    rng("gaussian_count", h.N, 1, (1 << 32) - 1)
+    rng("sh_degree", h.sh_degree, 0, 3)
+    rng("rate_count", h.M, 1, 64)
+    if h.rate_mask == 0 or h.rate_mask >> h.M:
+        raise SalvqError("FieldOutOfRange",
+                         f"GHED field rate_mask = 0x{h.rate_mask:x}: must be non-zero with no bit ≥ {h.M} [§3.2]")
+    for i in range(3):
+        if not is_finite_bits(h.origin_bits[i]):
+            raise SalvqError("NonFiniteValue", f"GHED.origin[{i}]: value is not finite [§3.2]")
+    size = h.decoded_size()                                                        # step 5
+    if h.decoded_bytes != size:
+        raise SalvqError("DecodedSizeMismatch",
+                         f"GHED decoded_bytes = {h.decoded_bytes}, the fields imply {size} [§3.2]")
+    if h.N > limits.anchors:                                                       # step 6
+        raise SalvqError("LimitExceeded", f"anchors (Gaussians): requested {h.N}, allowed {limits.anchors} [§9.1]")
+    if size > limits.allocation_bytes:
+        raise SalvqError("LimitExceeded",
+                         f"allocation bytes: requested {size}, allowed {limits.allocation_bytes} [§9.1]")
+    return h
+
+
+@dataclass
+class GGroup:
+    """One attribute group of `GQUA` (§3.3)."""
+    g: int
+    d: int
+    lattice: int
+    step: np.float32
+    gains: np.ndarray                 # [M] f32
+    mean: np.ndarray                  # [d] f32
+    matrix: np.ndarray | None = None  # B = U·diag(s) (lattice 4), None for the identity
+
+    @property
+    def name(self) -> str:
+        return GROUP_NAMES[self.g]
+
+    def base_step(self, rate: int) -> np.float32:
+        """G_{g,r} = step ⊗ gain_r, one binary32 multiplication."""
+        with np.errstate(over="ignore", under="ignore"):
+            return np.float32(self.step * self.gains[rate])
+
+
+def parse_gqua(payload: bytes, h: GHead) -> list[GGroup]:
+    """§3.3: §1.6 steps 1-2, then each group's fields, each checked as it is read."""
+    payload_method("GQUA", payload, 0)
+
+    def short():
+        raise SalvqError("Truncated", f"GQUA payload too short ({len(payload)} bytes) "
+                                      "(structure: GQUA payload) [§3.3]")
+
+    r = Reader(payload, 1, short)
+
+    def f32(name: str, idx: str) -> np.float32:
+        bits = r.u32()
+        if not is_finite_bits(bits):
+            raise SalvqError("NonFiniteValue", f"{name}[{idx}]: value is not finite [§3.3]")
+        return f32_from_bits(bits)
+
+    def positive(name: str, idx: str, v: np.float32) -> None:
+        if not v > 0:             # −0.0 included
+            raise SalvqError("ValueNotPositive", f"{name}[{idx}]: value is not > 0 [§3.3]")
+
+    def f16s(name: str, g: int, n: int) -> np.ndarray:
+        # value by value: the values present are checked before a short payload is reported
+        present = min(n, r.remaining() // 2)
+        raw = np.frombuffer(payload, "<u2", present, r.pos)
+        bad = np.nonzero((raw & 0x7C00) == 0x7C00)[0]      # binary16 ±inf and NaN
+        if bad.size:
+            raise SalvqError("NonFiniteValue", f"{name}[{g}, {int(bad[0])}]: value is not finite [§3.3]")
+        raw = np.frombuffer(r.take(2 * n), "<u2")
+        return raw.view("<f2").astype(np.float32)          # exact widening (§0.2)
+
+    groups = []
+    for g, d in enumerate(h.group_dims()):
+        lattice = r.u8()
+        if lattice not in (IDENTITY, KLT):
+            raise SalvqError("ValueInvalid", f"GQUA.lattice[{g}] = {lattice}: must be 0 or 4 [§3.3]")
+        step = f32("GQUA.step", f"{g}")
+        positive("GQUA.step", f"{g}", step)
+        gains = np.empty(h.M, np.float32)
+        for i in range(h.M):
+            gains[i] = f32("GQUA.gains", f"{g}, {i}")
+            positive("GQUA.gains", f"{g}, {i}", gains[i])
+        grp = GGroup(g, d, lattice, step, gains, np.empty(d, np.float32))
+        for i in range(h.M):
+            G = grp.base_step(i)
+            if not np.isfinite(G):
+                raise SalvqError("NonFiniteValue", f"GQUA.gains[{g}, {i}]: step ⊗ gain overflows binary32 [§3.3]")
+            if G == 0:
+                raise SalvqError("ValueNotPositive", f"GQUA.gains[{g}, {i}]: step ⊗ gain underflows to 0 [§3.3]")
+        for j in range(d):
+            grp.mean[j] = f32("GQUA.mean", f"{g}, {j}")
+        if lattice == KLT:
+            U = f16s("GQUA.basis_u", g, d * d).reshape(d, d)   # U[i][j] = basis_u[i·d + j]
+            s = f16s("GQUA.basis_s", g, d)
+            zero = np.nonzero(s == 0)[0]                      # +0 or −0
+            if zero.size:
+                raise SalvqError("BasisSingular",
+                                 f"GQUA.basis_s[{g}, {int(zero[0])}] = 0: the basis is singular [§3.3]")
+            grp.matrix = (U * s[None, :]).astype(np.float32)   # B[i][j] = U[i][j] ⊗ s_j (exact)
+        groups.append(grp)
+    if r.remaining() != 0:
+        raise SalvqError("ChunkSizeMismatch",
+                         f"chunk GQUA: payload length {len(payload)}, the groups end at {r.pos} [§3.3]")
+    return groups
+
+
+@dataclass
+class GLayer:
+    """`GLAY` fields (§3.4)."""
+    coord_bits: int
+    voxel_size: np.float32
+    pred_level: int
+    rotation_freq: list
+    size_threshold: list
+    refine: list
+    shift: list = field(default_factory=list)         # shift[g - 1][c]
+    scale_offset: list = field(default_factory=list)  # scale_offset[g - 1][c]
+    predict: list = field(default_factory=list)       # predict[g]
+    scale_table: list = field(default_factory=list)   # scale_table[v][x]
+
+
+def glay_length(h: GHead) -> int:
+    """Payload length: coding_method, 28 bytes of fixed fields, shift, scale_offset, predict,
+    scale_table. (§3.4 writes `1 + 25 + …`; the fixed fields take 1 + 4 + 1 + 6 + 12 + 4 = 28
+    bytes, as the vectors' `GLAY` lengths confirm.)"""
+    return 1 + 28 + 2 * SIZE_CLASSES * (h.G - 1) + h.G + CONTEXT_CLASSES * h.D
+
+
+def parse_glay(payload: bytes, h: GHead) -> GLayer:
+    """§3.4: §1.6 steps 1-2, the length, then the fields in stream order."""
+    payload_method("GLAY", payload, 0)
+    expected = glay_length(h)
+    if len(payload) != expected:
+        raise SalvqError("ChunkSizeMismatch",
+                         f"chunk GLAY: payload length {len(payload)}, expected {expected} [§3.4]")
+    r = Reader(payload, 1)
+
+    def rng(name, v, lo, hi):
+        if not lo <= v <= hi:
+            raise SalvqError("FieldOutOfRange", f"GLAY field {name} = {v}, range {lo} … {hi} [§3.4]")
+
+    coord_bits = r.u8()
+    rng("coord_bits", coord_bits, 1, 21)
+    vbits = r.u32()
+    if not is_finite_bits(vbits):
+        raise SalvqError("NonFiniteValue", "GLAY.voxel_size[0]: value is not finite [§3.4]")
+    if not f32_of_bits(vbits) > 0:
+        raise SalvqError("ValueNotPositive", "GLAY.voxel_size[0]: value is not > 0 [§3.4]")
+    pred_level = r.u8()
+    rng("pred_level", pred_level, 0, coord_bits)
+    rotation_freq = [r.u16() for _ in range(3)]
+    for i, f in enumerate(rotation_freq):
+        rng(f"rotation_freq[{i}]", f, 1, 65535)
+    size_threshold = []
+    for c in range(3):
+        t = int.from_bytes(r.take(4), "little", signed=True)
+        if size_threshold and t < size_threshold[-1]:
+            raise SalvqError("ValueInvalid",
+                             f"GLAY.size_threshold[{c}] = {t} is below size_threshold[{c - 1}] = "
+                             f"{size_threshold[-1]} [§3.4]")
+        size_threshold.append(t)
+    refine = [r.u8() for _ in range(SIZE_CLASSES)]
+    for c, e in enumerate(refine):
+        rng(f"refine[{c}]", e, 0, 24 - coord_bits)
+
+    def per_class(name: str, bound: int) -> list:
+        """An i8 table [g − 1][c] for the groups g ≥ 1, each entry within ±bound."""
+        rows = []
+        for g in range(1, h.G):
+            row = []
+            for c in range(SIZE_CLASSES):
+                v = int.from_bytes(r.take(1), "little", signed=True)
+                if not -bound <= v <= bound:
+                    raise SalvqError("ValueInvalid",
+                                     f"GLAY.{name}[{g - 1}, {c}] = {v}, range −{bound} … {bound} [§3.4]")
+                row.append(v)
+            rows.append(row)
+        return rows
+
+    shift = per_class("shift", 16)
+    scale_offset = per_class("scale_offset", 63)
+    predict = [r.u8() for _ in range(h.G)]
+    for g, p in enumerate(predict):
+        rng(f"predict[{g}]", p, 0, 1)
+    table = r.take(CONTEXT_CLASSES * h.D)
+    for i, k in enumerate(table):
+        rng(f"scale_table[{i // CONTEXT_CLASSES}][{i % CONTEXT_CLASSES}]", k, 0, 63)
+    scale_table = [list(table[v * CONTEXT_CLASSES:(v + 1) * CONTEXT_CLASSES]) for v in range(h.D)]
+    return GLayer(coord_bits, f32_from_bits(vbits), pred_level, rotation_freq, size_threshold,
+                  refine, shift, scale_offset, predict, scale_table)

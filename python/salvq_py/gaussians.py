@@ -1,0 +1,84 @@
+"""The explicit profile's binary32 reconstruction (§3.6): positions, the groups' values
+(§7.3 with each Gaussian's step shift) and the rotation's largest component; Table 3-4."""
+from __future__ import annotations
+
+import numpy as np
+
+from .explicit import OPACITY, ROTATION, SCALE, SH_DC, SH_REST, GGroup, GHead, GLayer
+from .gatt import GattSymbols
+from .quantizers import QNAN_BITS, reconstruct
+
+
+def _quiet(x: np.ndarray) -> np.ndarray:
+    """A NaN result is the quiet NaN 0x7FC00000 (§7.3)."""
+    nan = np.isnan(x)
+    if nan.any():
+        x.view(np.uint32)[nan] = QNAN_BITS
+    return x
+
+
+def _pow2(e: np.ndarray) -> np.ndarray:
+    """2^e in binary32, exact for −24 ≤ e ≤ 24 (integer exponents)."""
+    return np.ldexp(np.float32(1), e.astype(np.int32)).astype(np.float32)
+
+
+def positions(h: GHead, lay: GLayer, voxels: np.ndarray, sym: GattSymbols) -> np.ndarray:
+    """Step 1: q_a = v_a·2^e + w_a, h = voxel_size ⊗ 2^−e, x_a = origin_a ⊕ ((q_a ⊕ 0.5) ⊗ h)."""
+    e = np.array(lay.refine, np.int64)[sym.size_class.astype(np.int64)]
+    q = (voxels.astype(np.int64) << e[:, None]) + sym.refinement.astype(np.int64)
+    with np.errstate(over="ignore", under="ignore"):
+        hstep = (lay.voxel_size * _pow2(-e)).astype(np.float32)                       # [N]
+        half = (q.astype(np.float32) + np.float32(0.5)).astype(np.float32)            # exact int → f32
+        x = (h.origin()[None, :] + (half * hstep[:, None]).astype(np.float32)).astype(np.float32)
+    return _quiet(x)
+
+
+def group_values(grp: GGroup, rate: int, lay: GLayer, sym: GattSymbols, offset: int) -> np.ndarray:
+    """Step 2 for group g: Δ = (step ⊗ gain_r) ⊗ 2^s, z = B·float32(u), mean ⊕ (Δ ⊗ z)."""
+    u = sym.coordinates[:, offset:offset + grp.d].astype(np.int64)
+    n = u.shape[0]
+    if grp.g == 0:
+        s = np.zeros(n, np.int64)
+    else:
+        s = np.array(lay.shift[grp.g - 1], np.int64)[sym.size_class.astype(np.int64)]
+    with np.errstate(over="ignore", under="ignore"):
+        delta = (grp.base_step(rate) * _pow2(s)).astype(np.float32)
+    means = np.broadcast_to(grp.mean[None, :], (n, grp.d))
+    return reconstruct(u, grp.matrix, delta, means)
+
+
+def rotations(abc: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Step 3: t = 1 ⊖ (((a⊗a) ⊕ (b⊗b)) ⊕ (c⊗c)), m = sqrt(t) if t > 0 else +0; the
+    quaternion (w, x, y, z) has m at the rotation index and a, b, c elsewhere, in order."""
+    a, b, c = abc[:, 0], abc[:, 1], abc[:, 2]
+    one = np.float32(1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ss = ((a * a).astype(np.float32) + (b * b).astype(np.float32)).astype(np.float32)
+        ss = (ss + (c * c).astype(np.float32)).astype(np.float32)
+        t = (one - ss).astype(np.float32)
+        pos = t > 0                                   # False for a NaN t
+        m = np.zeros(t.shape, np.float32)             # +0
+        m[pos] = np.sqrt(t[pos])                      # IEEE square root, correctly rounded
+    q = np.empty((abc.shape[0], 4), np.float32)
+    for k in range(4):
+        sel = index == k
+        q[sel, k] = m[sel]
+        q[np.ix_(sel, [j for j in range(4) if j != k])] = abc[sel]
+    return _quiet(q)
+
+
+def reconstruct_gaussians(h: GHead, groups: list[GGroup], rate: int, lay: GLayer,
+                          voxels: np.ndarray, sym: GattSymbols) -> dict:
+    """Table 3-4, in its order (`gaussian.sh_rest` only when B > 0)."""
+    offs = h.group_offsets()
+    vals = {g.g: group_values(g, rate, lay, sym, offs[g.g]) for g in groups}
+    out = {
+        "gaussian.position": positions(h, lay, voxels, sym),
+        "gaussian.log_scale": vals[SCALE],
+        "gaussian.opacity": vals[OPACITY][:, 0].copy(),
+        "gaussian.rotation": rotations(vals[ROTATION], sym.rotation_index),
+        "gaussian.sh_dc": vals[SH_DC],
+    }
+    if h.B > 0:
+        out["gaussian.sh_rest"] = vals[SH_REST]
+    return out

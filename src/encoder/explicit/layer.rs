@@ -1,0 +1,751 @@
+//! One layer of an explicit-profile stream (spec §3.4, §3.5, Annex A.8.3): the coarse voxel
+//! grid, the size classes with their position refinement and step shifts, the canonical
+//! order, the tiles, the lattice coordinates, and the causal prior's tables fitted to them
+//! by their exact coded cost.
+
+use nalgebra::DMatrix;
+use rustc_hash::FxHashMap;
+
+use super::prepare::PreparedGaussians;
+use crate::container::chunk::{write_chunk, ChunkTag};
+use crate::container::payload::METHOD_CODED;
+use crate::entropy::{GaussianTables, SymbolWriter, SCALE_COUNT};
+use crate::error::Result;
+use crate::explicit::attributes::{
+    context_class, has_reference, offset_scale, rescale, walk, BitEvent, Events, TileSymbols,
+    MAX_COORDINATE,
+};
+use crate::explicit::groups::{Group, GroupKind};
+use crate::explicit::layer::{
+    Layer, CONTEXT_CLASSES, MAX_COORD_BITS, MAX_SCALE_OFFSET, SIZE_CLASSES,
+};
+use crate::explicit::reconstruct::reconstruct_tile;
+use crate::model::morton3;
+use crate::render::Gaussians;
+use crate::tiles::{join_bodies, TileTable};
+
+/// What one rate's layer quantizes with (Annex A.8.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RatePlan {
+    /// Edge of the coarse voxel grid (the octree's).
+    pub voxel: f64,
+    /// Position refinement bits per size class.
+    pub refine: [u8; SIZE_CLASSES],
+    /// Per group (Table 3-3 order), the base step.
+    pub steps: Vec<f64>,
+    /// Per group after the first, the step shift of each size class.
+    pub shift: Vec<[i8; SIZE_CLASSES]>,
+}
+
+impl RatePlan {
+    /// Every step and the voxel edge times `f` (refinement and shifts kept).
+    pub fn scaled(&self, f: f64) -> RatePlan {
+        RatePlan {
+            voxel: self.voxel * f,
+            steps: self.steps.iter().map(|s| s * f).collect(),
+            ..self.clone()
+        }
+    }
+}
+
+/// The size classes of a scene (Annex A.8.2): thresholds on a Gaussian's largest log-scale,
+/// the same for every rate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SizeClasses {
+    pub thresholds: [f64; SIZE_CLASSES - 1],
+}
+
+impl SizeClasses {
+    /// One class for every Gaussian (thresholds above any scale).
+    pub fn single() -> SizeClasses {
+        SizeClasses {
+            thresholds: [f64::INFINITY; SIZE_CLASSES - 1],
+        }
+    }
+
+    /// The reference encoder's classes: quartiles of the largest log-scale, or one class
+    /// for [`Variant::single_class`].
+    pub fn for_variant(p: &PreparedGaussians, variant: Variant) -> SizeClasses {
+        if variant.single_class {
+            SizeClasses::single()
+        } else {
+            SizeClasses::quartiles(p)
+        }
+    }
+
+    /// Quartiles of the largest log-scale.
+    pub fn quartiles(p: &PreparedGaussians) -> SizeClasses {
+        let mut largest: Vec<f64> = p.values[0]
+            .chunks_exact(3)
+            .map(|s| s.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+            .collect();
+        largest.sort_by(f64::total_cmp);
+        let q = |f: f64| largest[((largest.len() - 1) as f64 * f) as usize];
+        SizeClasses {
+            thresholds: [q(0.25), q(0.5), q(0.75)],
+        }
+    }
+
+    /// The class of each Gaussian (input order), by its unquantized scales.
+    pub fn classes(&self, p: &PreparedGaussians) -> Vec<u8> {
+        p.values[0]
+            .chunks_exact(3)
+            .map(|s| {
+                let l = s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                self.thresholds.iter().filter(|&&t| t <= l).count() as u8
+            })
+            .collect()
+    }
+}
+
+/// What one layer cost and holds.
+#[derive(Debug, Clone)]
+pub struct LayerReport {
+    pub rate: u8,
+    pub coord_bits: u8,
+    pub voxel_size: f32,
+    pub pred_level: u8,
+    pub refine: [u8; SIZE_CLASSES],
+    /// Payload bytes of GLAY, TILS, APOS, GATT (framing excluded).
+    pub glay_bytes: usize,
+    pub tils_bytes: usize,
+    pub apos_bytes: usize,
+    pub gatt_bytes: usize,
+    /// Ideal bits per group under the fitted tables (the rotation index in its group).
+    pub group_bits: Vec<f64>,
+    /// Bits of the position refinement.
+    pub refine_bits: f64,
+    /// Whether each group is predicted from its reference.
+    pub predict: Vec<bool>,
+    pub tiles: usize,
+}
+
+/// A coded layer: its chunks, what the decoder will output, and its report.
+pub struct CodedLayer {
+    pub chunks: Vec<u8>,
+    pub expected: Gaussians,
+    pub report: LayerReport,
+}
+
+/// The layer's grid: the voxel of each Gaussian and the canonical order.
+pub struct Grid {
+    pub coord_bits: u8,
+    pub voxel_size: f32,
+    pub origin: [f32; 3],
+    /// Canonical order: `order[k]` is the input index of the k-th Gaussian.
+    pub order: Vec<usize>,
+    /// Voxels in canonical order.
+    pub voxels: Vec<[u32; 3]>,
+}
+
+/// The grid whose voxel edge is about `step` (Annex A.8.3): the fewest bits whose voxels of
+/// edge `step` cover the box, at most 21 (then the edge grows to cover it).
+pub fn grid(p: &PreparedGaussians, origin: [f32; 3], step: f64) -> Grid {
+    let extent = p.extent.max(f64::MIN_POSITIVE);
+    let mut bits = ((extent / step).log2().ceil() as i64 + 1).clamp(1, MAX_COORD_BITS.into()) as u8;
+    let mut size = step as f32;
+    let cells = |size: f32| extent / f64::from(size) + 1.0;
+    while cells(size) >= (1u64 << bits) as f64 {
+        if bits < MAX_COORD_BITS {
+            bits += 1;
+        } else {
+            size *= 1.0 + 1.0 / 1024.0;
+        }
+    }
+    let max = (1u32 << bits) - 1;
+    let vox: Vec<[u32; 3]> = p
+        .positions
+        .iter()
+        .map(|q| {
+            std::array::from_fn(|a| {
+                let t = (q[a] - f64::from(origin[a])) / f64::from(size);
+                (t.floor().max(0.0) as u64).min(u64::from(max)) as u32
+            })
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..p.len()).collect();
+    order.sort_by_key(|&i| (morton3(vox[i]), i));
+    let voxels = order.iter().map(|&i| vox[i]).collect();
+    Grid {
+        coord_bits: bits,
+        voxel_size: size,
+        origin,
+        order,
+        voxels,
+    }
+}
+
+/// One group's lattice coordinates (`dim` per Gaussian, canonical `order`) with step
+/// `delta · 2^shift[k]` for the k-th Gaussian: `round(B⁻¹ (x − mean) / Δ)`, the nearest
+/// lattice point for the identity and for `B = U·diag(s)` with orthogonal columns.
+pub fn group_coordinates(
+    values: &[f64],
+    g: &Group,
+    delta: f32,
+    shift: &dyn Fn(usize) -> i8,
+    order: &[usize],
+) -> Vec<i32> {
+    let d = g.dim;
+    let inverse = g.basis.as_ref().map(|_| {
+        let b = DMatrix::from_row_slice(d, d, &g.matrix().to_f64());
+        b.try_inverse().unwrap_or_else(|| DMatrix::identity(d, d))
+    });
+    let limit = MAX_COORDINATE as f64;
+    let mut out = Vec::with_capacity(order.len() * d);
+    let mut t = vec![0.0f64; d];
+    for (k, &i) in order.iter().enumerate() {
+        let step = f64::from(delta * crate::explicit::reconstruct::pow2(shift(k).into()));
+        let x = &values[i * d..(i + 1) * d];
+        for j in 0..d {
+            t[j] = (x[j] - f64::from(g.mean[j])) / step;
+        }
+        for j in 0..d {
+            let w = match &inverse {
+                None => t[j],
+                Some(inv) => (0..d).map(|c| inv[(j, c)] * t[c]).sum(),
+            };
+            out.push(w.round().clamp(-limit, limit) as i32);
+        }
+    }
+    out
+}
+
+/// `pred_level` candidates the encoder tries, as offsets below `coord_bits`.
+const PRED_LEVEL_CANDIDATES: [u8; 5] = [0, 2, 4, 6, 8];
+
+/// Ideal bits of |r| = m under scale k, cached for small m.
+pub struct BitCost {
+    small: Vec<[f64; SCALE_COUNT]>,
+}
+
+const SMALL: usize = 4096;
+
+impl BitCost {
+    pub fn new(tables: &GaussianTables) -> Self {
+        BitCost {
+            small: (0..SMALL)
+                .map(|m| std::array::from_fn(|k| tables.ideal_bits(k as u8, m as i64)))
+                .collect(),
+        }
+    }
+    fn bits(&self, k: u8, m: u64) -> f64 {
+        match self.small.get(m as usize) {
+            Some(r) => r[usize::from(k)],
+            None => GaussianTables::standard().ideal_bits(k, m as i64),
+        }
+    }
+}
+
+/// Per (value, context class), how often each (|residual|, size class) occurs.
+type Histograms = Vec<Vec<FxHashMap<(u64, u8), u64>>>;
+
+/// The residual histograms of one group (values `[at, at + dim)` of `coords`, `values` per
+/// Gaussian, each Gaussian with its size class and the group's step shift) under §3.5's
+/// reference, prediction, rescaling and context rules.
+#[allow(clippy::too_many_arguments)]
+fn group_histograms(
+    coords: &[i32],
+    values: usize,
+    at: usize,
+    dim: usize,
+    classes: &[u8],
+    shifts: &[i8],
+    voxels: &[[u32; 3]],
+    tiles: &TileTable,
+    pred_level: u8,
+    predict: bool,
+) -> Histograms {
+    let mut h: Histograms = vec![vec![FxHashMap::default(); CONTEXT_CLASSES]; dim];
+    for t in 0..tiles.len() {
+        let range = tiles.range(t);
+        let vox = &voxels[range.clone()];
+        let mut prev_r = vec![0i64; dim];
+        for (li, i) in range.enumerate() {
+            let reference = has_reference(vox, li, pred_level);
+            let s = shifts[i];
+            let s_prev = if i > 0 { shifts[i - 1] } else { 0 };
+            for j in 0..dim {
+                let u = i64::from(coords[i * values + at + j]);
+                let pred = if reference && predict {
+                    rescale(i64::from(coords[(i - 1) * values + at + j]), s_prev, s)
+                } else {
+                    0
+                };
+                let r = u - pred;
+                let c = context_class(reference, rescale(prev_r[j], s_prev, s));
+                *h[j][c].entry((r.unsigned_abs(), classes[i])).or_default() += 1;
+                prev_r[j] = r;
+            }
+        }
+    }
+    h
+}
+
+/// Bits of one histogram under table entry `k` with the size classes' `offsets`.
+fn histogram_bits(
+    hist: &FxHashMap<(u64, u8), u64>,
+    k: u8,
+    offsets: &[i8; SIZE_CLASSES],
+    cost: &BitCost,
+) -> f64 {
+    hist.iter()
+        .map(|(&(m, c), &count)| {
+            count as f64 * cost.bits(offset_scale(k, offsets[usize::from(c)]), m)
+        })
+        .sum()
+}
+
+/// The best table entry of each (value, context class) under `offsets`, and the total ideal
+/// bits; with `factorized`, one entry per value for every context (a position-free prior).
+fn fit_tables(
+    h: &Histograms,
+    cost: &BitCost,
+    factorized: bool,
+    offsets: &[i8; SIZE_CLASSES],
+) -> (Vec<[u8; CONTEXT_CLASSES]>, f64) {
+    let mut total = 0.0;
+    let merged: Histograms;
+    let h = if factorized {
+        merged = h
+            .iter()
+            .map(|classes| {
+                let mut all: FxHashMap<(u64, u8), u64> = FxHashMap::default();
+                for hist in classes {
+                    for (&key, &count) in hist {
+                        *all.entry(key).or_default() += count;
+                    }
+                }
+                vec![all]
+            })
+            .collect();
+        &merged
+    } else {
+        h
+    };
+    let rows = h
+        .iter()
+        .map(|contexts| {
+            let mut row = [24u8; CONTEXT_CLASSES];
+            for (c, hist) in contexts.iter().enumerate() {
+                if hist.is_empty() {
+                    continue;
+                }
+                let (k, b) = (0..SCALE_COUNT as u8)
+                    .map(|k| (k, histogram_bits(hist, k, offsets, cost)))
+                    .fold((0, f64::INFINITY), |a, x| if x.1 < a.1 { x } else { a });
+                row[c] = k;
+                total += b;
+            }
+            if factorized {
+                row = [row[0]; CONTEXT_CLASSES];
+            }
+            row
+        })
+        .collect();
+    (rows, total)
+}
+
+/// The best offset of each size class given the table `rows`.
+fn fit_offsets(
+    h: &Histograms,
+    rows: &[[u8; CONTEXT_CLASSES]],
+    cost: &BitCost,
+    start: [i8; SIZE_CLASSES],
+) -> [i8; SIZE_CLASSES] {
+    let mut out = start;
+    for c in 0..SIZE_CLASSES as u8 {
+        let bits = |o: i8| -> f64 {
+            h.iter()
+                .zip(rows)
+                .flat_map(|(contexts, row)| {
+                    contexts.iter().zip(row).map(move |(hist, &k)| (hist, k))
+                })
+                .map(|(hist, k)| {
+                    hist.iter()
+                        .filter(|((_, cc), _)| *cc == c)
+                        .map(|(&(m, _), &count)| count as f64 * cost.bits(offset_scale(k, o), m))
+                        .sum::<f64>()
+                })
+                .sum()
+        };
+        let (best, _) = (-MAX_SCALE_OFFSET..=MAX_SCALE_OFFSET)
+            .map(|o| (o, bits(o)))
+            .fold((out[usize::from(c)], f64::INFINITY), |a, x| {
+                if x.1 < a.1 {
+                    x
+                } else {
+                    a
+                }
+            });
+        out[usize::from(c)] = best;
+    }
+    out
+}
+
+/// Tables and offsets fitted by alternation (each step can only lower the cost), from
+/// offsets of `−8·shift` (the step ratio in scale indices, §6.3.1); without
+/// `with_offsets`, the tables alone under those offsets (a cheaper estimate).
+fn fit_prior(
+    h: &Histograms,
+    cost: &BitCost,
+    factorized: bool,
+    shifts: [i8; SIZE_CLASSES],
+    with_offsets: bool,
+) -> (Vec<[u8; CONTEXT_CLASSES]>, [i8; SIZE_CLASSES], f64) {
+    let mut offsets = shifts.map(|s| (-8 * i32::from(s)).clamp(-63, 63) as i8);
+    let (mut rows, mut bits) = fit_tables(h, cost, factorized, &offsets);
+    if with_offsets {
+        for _ in 0..2 {
+            offsets = fit_offsets(h, &rows, cost, offsets);
+            (rows, bits) = fit_tables(h, cost, factorized, &offsets);
+        }
+    }
+    (rows, offsets, bits)
+}
+
+/// Encoder variants the ablations compare (Annex A.8.4); the default is the reference
+/// encoder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Variant {
+    /// A position-free prior: no prediction, one scale index per value for every context.
+    pub factorized_prior: bool,
+    /// One size class: no per-class refinement or step shifts.
+    pub single_class: bool,
+    /// Predict every group from its reference, whatever it costs (conformance vectors and
+    /// tests that need `predict = 1` everywhere).
+    pub predict_all: bool,
+}
+
+/// Ideal bits per Gaussian of one group's coordinates (`coords`, `dim` per Gaussian, all at
+/// one step) on `voxels` cut by `tiles`, with the prediction and `pred_level` that cost
+/// least: what [`encode_layer`] pays for the group, its tables aside.
+pub fn group_bits(
+    coords: &[i32],
+    dim: usize,
+    voxels: &[[u32; 3]],
+    coord_bits: u8,
+    tiles: &TileTable,
+    cost: &BitCost,
+    variant: Variant,
+) -> f64 {
+    let shifts = vec![0i8; voxels.len()];
+    let classes = vec![0u8; voxels.len()];
+    let mut best = f64::INFINITY;
+    for offset in PRED_LEVEL_CANDIDATES {
+        let Some(level) = coord_bits.checked_sub(offset) else {
+            continue;
+        };
+        for predict in [false, true] {
+            if predict && variant.factorized_prior {
+                continue;
+            }
+            let h = group_histograms(
+                coords, dim, 0, dim, &classes, &shifts, voxels, tiles, level, predict,
+            );
+            best = best.min(fit_tables(&h, cost, variant.factorized_prior, &[0; SIZE_CLASSES]).1);
+        }
+    }
+    best / voxels.len().max(1) as f64
+}
+
+/// Q16 probability of a 1 from counts, clamped to 1 … 65535.
+fn freq(ones: u64, total: u64) -> u16 {
+    if total == 0 {
+        return 32768;
+    }
+    ((ones as f64 / total as f64 * 65536.0).round() as u64).clamp(1, 65535) as u16
+}
+
+fn bit_cost(ones: u64, total: u64, f: u16) -> f64 {
+    let p1 = f64::from(f) / 65536.0;
+    -(ones as f64) * p1.log2() - (total - ones) as f64 * (1.0 - p1).log2()
+}
+
+struct Writer<'a, 't> {
+    out: SymbolWriter<'t>,
+    coords: &'a [i32],
+    rotation: &'a [u8],
+    refinement: &'a [[u32; 3]],
+    values: usize,
+}
+
+impl Events for Writer<'_, '_> {
+    fn bit(&mut self, freq_one: u32, i: usize, what: BitEvent) -> Result<bool> {
+        let bit = match what {
+            BitEvent::RotationHigh => self.rotation[i] >> 1 == 1,
+            BitEvent::RotationLow => self.rotation[i] & 1 == 1,
+            BitEvent::Refine { axis, bit } => self.refinement[i][axis] >> bit & 1 == 1,
+        };
+        self.out.bit(bit, freq_one);
+        Ok(bit)
+    }
+    fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> Result<i64> {
+        let r = i64::from(self.coords[i * self.values + v]) - pred;
+        self.out.symbol(r, k)?;
+        Ok(r)
+    }
+}
+
+/// Codes layer `rate` of `p` with the quantizers `groups` (rate steps), `classes` and the
+/// rate's `plan` (Annex A.8.3).
+#[allow(clippy::too_many_arguments)]
+pub fn encode_layer(
+    p: &PreparedGaussians,
+    groups: &[Group],
+    classes: &SizeClasses,
+    plan: &RatePlan,
+    origin: [f32; 3],
+    rate: u8,
+    tile_gaussians: u32,
+    variant: Variant,
+    tables: &GaussianTables,
+) -> Result<CodedLayer> {
+    let grid = grid(p, origin, plan.voxel);
+    let tiles = TileTable::cut(&grid.voxels, tile_gaussians);
+    let values: usize = groups.iter().map(|g| g.dim).sum();
+    let n = grid.order.len();
+
+    // The scale group first: its coordinates give each Gaussian's size class (§3.5).
+    let scale = &groups[0];
+    let scale_delta = scale.rate_step(rate);
+    let scale_coords = group_coordinates(&p.values[0], scale, scale_delta, &|_| 0, &grid.order);
+    let threshold_u = classes.thresholds.map(|t| {
+        let u = ((t - f64::from(scale.mean[0])) / f64::from(scale_delta)).round();
+        u.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    });
+    let size_class: Vec<u8> = scale_coords
+        .chunks_exact(scale.dim)
+        .map(|c| {
+            let largest = c.iter().copied().max().unwrap_or(0);
+            threshold_u.iter().filter(|&&t| t <= largest).count() as u8
+        })
+        .collect();
+
+    // Position refinement: the fine cell within the coarse voxel.
+    let refinement: Vec<[u32; 3]> = (0..n)
+        .map(|k| {
+            let e = plan.refine[usize::from(size_class[k])];
+            let h = f64::from(grid.voxel_size) / f64::from(1u32 << e);
+            let q = p.positions[grid.order[k]];
+            std::array::from_fn(|a| {
+                let fine = ((q[a] - f64::from(origin[a])) / h).floor().max(0.0) as u64;
+                let lo = u64::from(grid.voxels[k][a]) << e;
+                (fine.clamp(lo, lo + (1u64 << e) - 1) - lo) as u32
+            })
+        })
+        .collect();
+
+    // Every group's coordinates, side by side.
+    let mut coords = vec![0i32; n * values];
+    let mut shifts_of: Vec<Vec<i8>> = Vec::with_capacity(groups.len());
+    let mut at = 0;
+    for (gi, g) in groups.iter().enumerate() {
+        let shifts: Vec<i8> = (0..n)
+            .map(|k| {
+                if gi == 0 {
+                    0
+                } else {
+                    plan.shift[gi - 1][usize::from(size_class[k])]
+                }
+            })
+            .collect();
+        let c = if gi == 0 {
+            scale_coords.clone()
+        } else {
+            group_coordinates(
+                &p.values[gi],
+                g,
+                g.rate_step(rate),
+                &|k| shifts[k],
+                &grid.order,
+            )
+        };
+        for (k, row) in c.chunks_exact(g.dim).enumerate() {
+            coords[k * values + at..k * values + at + g.dim].copy_from_slice(row);
+        }
+        shifts_of.push(shifts);
+        at += g.dim;
+    }
+    let rotation: Vec<u8> = grid.order.iter().map(|&i| p.rotation_index[i]).collect();
+    let cost = BitCost::new(tables);
+
+    // The prior: for each candidate pred_level, each group with and without prediction,
+    // tables fitted by exact cost under the shifts' offsets; the cheapest wins, and its
+    // tables and per-class offsets are then fitted together.
+    let class_shifts = |gi: usize| {
+        if gi == 0 {
+            [0i8; SIZE_CLASSES]
+        } else {
+            plan.shift[gi - 1]
+        }
+    };
+    let histograms = |gi: usize, at: usize, level: u8, pr: bool| {
+        group_histograms(
+            &coords,
+            values,
+            at,
+            groups[gi].dim,
+            &size_class,
+            &shifts_of[gi],
+            &grid.voxels,
+            &tiles,
+            level,
+            pr,
+        )
+    };
+    let mut best: Option<(f64, u8, Vec<bool>)> = None;
+    for offset in PRED_LEVEL_CANDIDATES {
+        let Some(level) = grid.coord_bits.checked_sub(offset) else {
+            continue;
+        };
+        let mut total = 0.0;
+        let mut predict = Vec::new();
+        let mut at = 0;
+        for (gi, g) in groups.iter().enumerate() {
+            let bits = |pr: bool| {
+                fit_prior(
+                    &histograms(gi, at, level, pr),
+                    &cost,
+                    variant.factorized_prior,
+                    class_shifts(gi),
+                    false,
+                )
+                .2
+            };
+            let off = bits(false);
+            let on = if variant.factorized_prior {
+                f64::INFINITY
+            } else {
+                bits(true)
+            };
+            let pr = variant.predict_all || on < off;
+            predict.push(pr);
+            total += if pr { on } else { off };
+            at += g.dim;
+        }
+        if best.as_ref().map_or(true, |b| total < b.0) {
+            best = Some((total, level, predict));
+        }
+    }
+    let (_, pred_level, predict) = best.expect("at least one pred_level candidate fits");
+    let (mut scale_table, mut scale_offset) = (Vec::new(), Vec::new());
+    let mut group_bits = Vec::new();
+    let mut at = 0;
+    for (gi, g) in groups.iter().enumerate() {
+        let h = histograms(gi, at, pred_level, predict[gi]);
+        let (rows, offsets, bits) = fit_prior(
+            &h,
+            &cost,
+            variant.factorized_prior,
+            class_shifts(gi),
+            gi > 0,
+        );
+        scale_table.extend(rows);
+        if gi > 0 {
+            scale_offset.push(offsets);
+        }
+        group_bits.push(bits);
+        at += g.dim;
+    }
+
+    // Rotation index probabilities.
+    let (mut high, mut low, mut after) = (0u64, [0u64; 2], [0u64; 2]);
+    for &r in &rotation {
+        let h = usize::from(r >> 1);
+        high += h as u64;
+        after[h] += 1;
+        low[h] += u64::from(r & 1);
+    }
+    let rotation_freq = [
+        freq(high, n as u64),
+        freq(low[0], after[0]),
+        freq(low[1], after[1]),
+    ];
+    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rotation) {
+        group_bits[gi] += bit_cost(high, n as u64, rotation_freq[0])
+            + bit_cost(low[0], after[0], rotation_freq[1])
+            + bit_cost(low[1], after[1], rotation_freq[2]);
+    }
+    let refine_bits: f64 = size_class
+        .iter()
+        .map(|&c| 3.0 * f64::from(plan.refine[usize::from(c)]))
+        .sum();
+    let layer = Layer {
+        coord_bits: grid.coord_bits,
+        voxel_size: grid.voxel_size,
+        pred_level,
+        rotation_freq,
+        size_threshold: threshold_u,
+        refine: plan.refine,
+        shift: plan.shift.clone(),
+        scale_offset,
+        predict: predict.clone(),
+        scale_table,
+    };
+
+    // Geometry per tile (§8, cell-relative), then the attributes.
+    let mut apos = Vec::with_capacity(tiles.len());
+    let mut gatt = Vec::with_capacity(tiles.len());
+    let mut expected = Gaussians {
+        sh_degree: p.sh_degree,
+        ..Gaussians::default()
+    };
+    for t in 0..tiles.len() {
+        let range = tiles.range(t);
+        let (level, cell) = tiles.cells[t];
+        let local: Vec<[u32; 3]> = grid.voxels[range.clone()]
+            .iter()
+            .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
+            .collect();
+        apos.push(crate::geometry::encode(&local, level, tables)?);
+        let mut w = Writer {
+            out: SymbolWriter::new(ChunkTag::GATT, tables),
+            coords: &coords[range.start * values..range.end * values],
+            rotation: &rotation[range.clone()],
+            refinement: &refinement[range.clone()],
+            values,
+        };
+        let symbols: TileSymbols = walk(&layer, groups, &grid.voxels[range.clone()], &mut w)?;
+        debug_assert_eq!(symbols.size_class, size_class[range.clone()]);
+        gatt.push(w.out.finish());
+        reconstruct_tile(
+            origin,
+            &layer,
+            groups,
+            rate,
+            &grid.voxels[range],
+            &symbols,
+            &mut expected,
+        );
+    }
+    let glay = layer.to_payload();
+    let tils = tiles.to_payload();
+    let mut apos_payload = vec![METHOD_CODED];
+    apos_payload.extend(join_bodies(&apos));
+    let mut gatt_payload = vec![METHOD_CODED];
+    gatt_payload.extend(join_bodies(&gatt));
+    let mut chunks = Vec::new();
+    write_chunk(&mut chunks, ChunkTag::GLAY, &glay);
+    write_chunk(&mut chunks, ChunkTag::TILS, &tils);
+    write_chunk(&mut chunks, ChunkTag::APOS, &apos_payload);
+    write_chunk(&mut chunks, ChunkTag::GATT, &gatt_payload);
+    Ok(CodedLayer {
+        chunks,
+        expected,
+        report: LayerReport {
+            rate,
+            coord_bits: grid.coord_bits,
+            voxel_size: grid.voxel_size,
+            pred_level,
+            refine: plan.refine,
+            glay_bytes: glay.len(),
+            tils_bytes: tils.len(),
+            apos_bytes: apos_payload.len(),
+            gatt_bytes: gatt_payload.len(),
+            group_bits,
+            refine_bits,
+            predict,
+            tiles: tiles.len(),
+        },
+    })
+}

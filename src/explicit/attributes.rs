@@ -1,0 +1,172 @@
+//! `GATT` (spec §3.5): the attribute symbols of one layer, one ANS body per tile, under the
+//! layer's causal prior. One traversal serves the encoder and the decoder (as
+//! [`crate::geometry::walk`] does): it asks an [`Events`] for each event, so both compute
+//! the same references, size classes, predictions and scale indices.
+
+use crate::entropy::SCALE_COUNT;
+use crate::error::{Error, Result};
+use crate::explicit::groups::{Group, GroupKind};
+use crate::explicit::layer::{Layer, CONTEXT_CLASSES};
+
+/// §3.5: the largest magnitude of a lattice coordinate (so that `float32(u)` is exact).
+pub const MAX_COORDINATE: i64 = 1 << 24;
+
+/// §3.5: the probability of a position refinement bit, ½ in units of 2^−16.
+pub const REFINE_FREQ: u32 = 1 << 15;
+
+/// Which binary event the traversal asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BitEvent {
+    /// Bit `bit` (most significant first) of the position refinement of axis `axis`.
+    Refine { axis: usize, bit: u8 },
+    /// The high bit of the rotation's largest-component index.
+    RotationHigh,
+    /// Its low bit.
+    RotationLow,
+}
+
+/// What the traversal asks of the coder: the encoder answers with the values it knows and
+/// records the events, the decoder reads them.
+pub trait Events {
+    /// A binary event with `freq_one` (units of 2^−16) of tile-local Gaussian `gaussian`.
+    fn bit(&mut self, freq_one: u32, gaussian: usize, what: BitEvent) -> Result<bool>;
+    /// The symbol (the residual `u − pred`) of coded value `value` of tile-local Gaussian
+    /// `gaussian` under scale index `k`.
+    fn symbol(&mut self, k: u8, gaussian: usize, value: usize, pred: i64) -> Result<i64>;
+}
+
+/// The decoded symbols of one tile.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TileSymbols {
+    /// Lattice coordinates, `values` per Gaussian, groups in order.
+    pub coords: Vec<i32>,
+    /// Index (0 … 3, w x y z) of each Gaussian's largest rotation component.
+    pub rotation_index: Vec<u8>,
+    /// Each Gaussian's size class.
+    pub size_class: Vec<u8>,
+    /// Each Gaussian's position refinement per axis (`refine[class]` bits).
+    pub refinement: Vec<[u32; 3]>,
+}
+
+/// §3.5: the context class of a value whose reference's symbol was `r_prev`.
+#[inline]
+pub fn context_class(has_reference: bool, r_prev: i64) -> usize {
+    if !has_reference {
+        return 0;
+    }
+    let bits = 64 - r_prev.unsigned_abs().leading_zeros() as usize;
+    1 + bits.min(CONTEXT_CLASSES - 2)
+}
+
+/// §3.5: whether Gaussian `i` of a tile (voxels in tile order) has a reference: the previous
+/// Gaussian of the tile, when their voxels agree above the `pred_level` low bits.
+#[inline]
+pub fn has_reference(voxels: &[[u32; 3]], i: usize, pred_level: u8) -> bool {
+    i > 0 && (0..3).all(|a| voxels[i - 1][a] >> pred_level == voxels[i][a] >> pred_level)
+}
+
+/// §3.5: a reference coordinate `u` coded with shift `from` as a prediction for shift `to`:
+/// `u · 2^(from − to)` when that is ≥ 1 (clamped to ±2^24), else rounded:
+/// `rshr(u, to − from)`.
+#[inline]
+pub fn rescale(u: i64, from: i8, to: i8) -> i64 {
+    let d = i32::from(from) - i32::from(to);
+    if d >= 0 {
+        (u << d).clamp(-MAX_COORDINATE, MAX_COORDINATE)
+    } else {
+        let s = -d;
+        (u + (1 << (s - 1))) >> s
+    }
+}
+
+/// §3.5: the scale index of table entry `k` with its size class's offset:
+/// `clamp(k + offset, 0, 63)`.
+#[inline]
+pub fn offset_scale(k: u8, offset: i8) -> u8 {
+    (i32::from(k) + i32::from(offset)).clamp(0, SCALE_COUNT as i32 - 1) as u8
+}
+
+/// §3.5: walks the events of one tile whose Gaussians sit at `voxels` (tile order).
+pub fn walk(
+    layer: &Layer,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    events: &mut impl Events,
+) -> Result<TileSymbols> {
+    let values: usize = groups.iter().map(|g| g.dim).sum();
+    let n = voxels.len();
+    let mut out = TileSymbols {
+        coords: Vec::with_capacity(n * values),
+        rotation_index: Vec::with_capacity(n),
+        size_class: Vec::with_capacity(n),
+        refinement: Vec::with_capacity(n),
+    };
+    let mut prev_r = vec![0i64; values];
+    let mut prev_u = vec![0i64; values];
+    let mut prev_shift = vec![0i8; groups.len()];
+    for i in 0..n {
+        let reference = has_reference(voxels, i, layer.pred_level);
+        let mut class = 0usize;
+        let mut v = 0usize;
+        for (gi, g) in groups.iter().enumerate() {
+            if gi == 1 {
+                // After the scale group: the size class, then the position refinement.
+                let scale = &out.coords[i * values..i * values + groups[0].dim];
+                let largest = scale.iter().map(|&u| i64::from(u)).max().unwrap_or(0);
+                class = layer.size_class(largest);
+                let e = layer.refine[class];
+                let mut w = [0u32; 3];
+                for (axis, wa) in w.iter_mut().enumerate() {
+                    for bit in (0..e).rev() {
+                        let b = events.bit(REFINE_FREQ, i, BitEvent::Refine { axis, bit })?;
+                        *wa = 2 * *wa + u32::from(b);
+                    }
+                }
+                out.size_class.push(class as u8);
+                out.refinement.push(w);
+            }
+            if g.kind == GroupKind::Rotation {
+                let f = &layer.rotation_freq;
+                let high = events.bit(u32::from(f[0]), i, BitEvent::RotationHigh)?;
+                let low = events.bit(
+                    u32::from(f[1 + usize::from(high)]),
+                    i,
+                    BitEvent::RotationLow,
+                )?;
+                out.rotation_index.push(2 * u8::from(high) + u8::from(low));
+            }
+            let shift = layer.group_shift(gi, class);
+            let offset = layer.group_offset(gi, class);
+            let predicted = reference && layer.predict[gi];
+            for _ in 0..g.dim {
+                // The reference's symbol, in this Gaussian's step units.
+                let r_ref = rescale(prev_r[v], prev_shift[gi], shift);
+                let k = offset_scale(
+                    layer.scale_table[v][context_class(reference, r_ref)],
+                    offset,
+                );
+                let pred = if predicted {
+                    rescale(prev_u[v], prev_shift[gi], shift)
+                } else {
+                    0
+                };
+                let r = events.symbol(k, i, v, pred)?;
+                let u = pred + r;
+                if u.abs() > MAX_COORDINATE {
+                    return Err(Error::ValueInvalid {
+                        tensor: "GATT.coordinate",
+                        index: vec![i as u64, v as u64],
+                        value: u,
+                        allowed: "|u| ≤ 2^24 (§3.5)",
+                    });
+                }
+                prev_r[v] = r;
+                prev_u[v] = u;
+                out.coords.push(u as i32);
+                v += 1;
+            }
+            prev_shift[gi] = shift;
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,258 @@
+//! `GLAY` (spec §3.4): one layer's voxel grid, size classes and the tables of its causal
+//! prior.
+
+use crate::container::bytes::{PayloadReader, PayloadWriter};
+use crate::container::chunk::ChunkTag;
+use crate::container::payload::{body, expect_len, METHOD_RAW};
+use crate::entropy::SCALE_COUNT;
+use crate::error::{Error, Field, Result};
+
+/// §3.5: context classes per coded value.
+pub const CONTEXT_CLASSES: usize = 8;
+
+/// §3.5: size classes of a Gaussian (from its scale coordinates).
+pub const SIZE_CLASSES: usize = 4;
+
+/// Largest `coord_bits` (§3.4; as §1.4).
+pub const MAX_COORD_BITS: u8 = 21;
+
+/// `coord_bits` plus a size class's refinement bits is at most this (§3.6: every
+/// refined coordinate is exact in binary32).
+pub const MAX_POSITION_BITS: u8 = 24;
+
+/// Largest magnitude of a step shift (§3.4).
+pub const MAX_SHIFT: i8 = 16;
+
+/// Largest magnitude of a scale-index offset (§3.4).
+pub const MAX_SCALE_OFFSET: i8 = 63;
+
+/// The decoded `GLAY` of one layer (Table 3-5).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layer {
+    /// Every voxel coordinate is below `2^coord_bits`.
+    pub coord_bits: u8,
+    /// Edge length of a voxel.
+    pub voxel_size: f32,
+    /// A Gaussian's reference is the previous one of its tile when their voxels agree above
+    /// this many low bits (§3.5).
+    pub pred_level: u8,
+    /// P(bit = 1) in units of 2^−16 of the rotation's largest-component index: its high
+    /// bit, then its low bit after a high bit of 0, then after a high bit of 1.
+    pub rotation_freq: [u16; 3],
+    /// Size class thresholds on the largest scale coordinate, non-decreasing.
+    pub size_threshold: [i32; SIZE_CLASSES - 1],
+    /// Per size class: refinement bits of each position coordinate.
+    pub refine: [u8; SIZE_CLASSES],
+    /// Per group after the first (scale): per size class, the step's power-of-two shift.
+    pub shift: Vec<[i8; SIZE_CLASSES]>,
+    /// Per group after the first: per size class, the offset added to the scale table's
+    /// entries (§3.5).
+    pub scale_offset: Vec<[i8; SIZE_CLASSES]>,
+    /// Per group: whether a value is predicted from the reference's (§3.5).
+    pub predict: Vec<bool>,
+    /// Scale index per coded value and context class: `[value][class]`, values in group
+    /// order.
+    pub scale_table: Vec<[u8; CONTEXT_CLASSES]>,
+}
+
+/// `GLAY`'s payload length for `groups` groups and `values` coded values per Gaussian.
+pub fn glay_len(groups: usize, values: usize) -> u64 {
+    let fixed = 1 + 1 + 4 + 1 + 6 + 4 * (SIZE_CLASSES - 1) + SIZE_CLASSES;
+    (fixed + 2 * SIZE_CLASSES * (groups - 1) + groups + CONTEXT_CLASSES * values) as u64
+}
+
+impl Layer {
+    pub fn to_payload(&self) -> Vec<u8> {
+        let mut w = PayloadWriter::default();
+        w.u8(METHOD_RAW);
+        w.u8(self.coord_bits);
+        w.f32(self.voxel_size);
+        w.u8(self.pred_level);
+        for f in self.rotation_freq {
+            w.u16(f);
+        }
+        for t in self.size_threshold {
+            w.u32(t as u32);
+        }
+        w.buf.extend_from_slice(&self.refine);
+        for row in self.shift.iter().chain(&self.scale_offset) {
+            w.buf.extend(row.iter().map(|&s| s as u8));
+        }
+        for &p in &self.predict {
+            w.u8(u8::from(p));
+        }
+        for row in &self.scale_table {
+            w.buf.extend_from_slice(row);
+        }
+        w.buf
+    }
+
+    /// §3.4: reads and checks `GLAY` for `groups` groups and `values` coded values.
+    pub fn parse(payload: &[u8], groups: usize, values: usize) -> Result<Layer> {
+        let tag = ChunkTag::GLAY;
+        let b = body(tag, payload, METHOD_RAW)?;
+        expect_len(tag, b, glay_len(groups, values) - 1)?;
+        let mut r = PayloadReader::new(tag, b);
+        let out_of_range = |field, value: i64, min: i64, max: i64| Error::FieldOutOfRange {
+            field,
+            value: value as u64,
+            min: min as u64,
+            max: max as u64,
+        };
+        let coord_bits = r.u8()?;
+        if !(1..=MAX_COORD_BITS).contains(&coord_bits) {
+            return Err(out_of_range(
+                Field::CoordBits,
+                coord_bits.into(),
+                1,
+                MAX_COORD_BITS.into(),
+            ));
+        }
+        let voxel_size = r.f32()?;
+        if !voxel_size.is_finite() {
+            return Err(Error::NonFiniteValue {
+                tensor: "GLAY.voxel_size",
+                index: vec![],
+            });
+        }
+        if voxel_size <= 0.0 {
+            return Err(Error::ValueNotPositive {
+                tensor: "GLAY.voxel_size",
+                index: vec![],
+                value: voxel_size,
+            });
+        }
+        let pred_level = r.u8()?;
+        if pred_level > coord_bits {
+            return Err(out_of_range(
+                Field::PredLevel,
+                pred_level.into(),
+                0,
+                coord_bits.into(),
+            ));
+        }
+        let mut rotation_freq = [0u16; 3];
+        for f in &mut rotation_freq {
+            *f = r.u16()?;
+            if *f == 0 {
+                return Err(out_of_range(Field::RotationFreq, 0, 1, 65535));
+            }
+        }
+        let mut size_threshold = [0i32; SIZE_CLASSES - 1];
+        for c in 0..SIZE_CLASSES - 1 {
+            let t = r.u32()? as i32;
+            if c > 0 && t < size_threshold[c - 1] {
+                return Err(Error::ValueInvalid {
+                    tensor: "GLAY.size_threshold",
+                    index: vec![c as u64],
+                    value: t.into(),
+                    allowed: "not below the previous threshold (§3.4)",
+                });
+            }
+            size_threshold[c] = t;
+        }
+        let mut refine = [0u8; SIZE_CLASSES];
+        let most = MAX_POSITION_BITS - coord_bits;
+        for e in &mut refine {
+            *e = r.u8()?;
+            if *e > most {
+                return Err(out_of_range(Field::Refine, (*e).into(), 0, most.into()));
+            }
+        }
+        let mut shift = Vec::with_capacity(groups - 1);
+        for g in 1..groups {
+            let mut row = [0i8; SIZE_CLASSES];
+            for (c, s) in row.iter_mut().enumerate() {
+                *s = r.u8()? as i8;
+                if !(-MAX_SHIFT..=MAX_SHIFT).contains(s) {
+                    return Err(Error::ValueInvalid {
+                        tensor: "GLAY.shift",
+                        index: vec![g as u64 - 1, c as u64],
+                        value: (*s).into(),
+                        allowed: "−16 … 16 (§3.4)",
+                    });
+                }
+            }
+            shift.push(row);
+        }
+        let mut scale_offset = Vec::with_capacity(groups - 1);
+        for g in 1..groups {
+            let mut row = [0i8; SIZE_CLASSES];
+            for (c, o) in row.iter_mut().enumerate() {
+                *o = r.u8()? as i8;
+                if !(-MAX_SCALE_OFFSET..=MAX_SCALE_OFFSET).contains(o) {
+                    return Err(Error::ValueInvalid {
+                        tensor: "GLAY.scale_offset",
+                        index: vec![g as u64 - 1, c as u64],
+                        value: (*o).into(),
+                        allowed: "−63 … 63 (§3.4)",
+                    });
+                }
+            }
+            scale_offset.push(row);
+        }
+        let mut predict = Vec::with_capacity(groups);
+        for _ in 0..groups {
+            match r.u8()? {
+                0 => predict.push(false),
+                1 => predict.push(true),
+                v => return Err(out_of_range(Field::PredictFlag, v.into(), 0, 1)),
+            }
+        }
+        let mut scale_table = Vec::with_capacity(values);
+        for _ in 0..values {
+            let mut row = [0u8; CONTEXT_CLASSES];
+            for k in &mut row {
+                *k = r.u8()?;
+                if usize::from(*k) >= SCALE_COUNT {
+                    return Err(out_of_range(
+                        Field::ScaleTable,
+                        (*k).into(),
+                        0,
+                        SCALE_COUNT as i64 - 1,
+                    ));
+                }
+            }
+            scale_table.push(row);
+        }
+        r.finish()?;
+        Ok(Layer {
+            coord_bits,
+            voxel_size,
+            pred_level,
+            rotation_freq,
+            size_threshold,
+            refine,
+            shift,
+            scale_offset,
+            predict,
+            scale_table,
+        })
+    }
+
+    /// §3.5: the size class of a Gaussian whose largest scale coordinate is `largest`.
+    pub fn size_class(&self, largest: i64) -> usize {
+        self.size_threshold
+            .iter()
+            .filter(|&&t| i64::from(t) <= largest)
+            .count()
+    }
+
+    /// The scale-index offset of group `g` in size class `c` (0 for the scale group).
+    pub fn group_offset(&self, g: usize, c: usize) -> i8 {
+        if g == 0 {
+            0
+        } else {
+            self.scale_offset[g - 1][c]
+        }
+    }
+
+    /// The step shift of group `g` (> 0) in size class `c`.
+    pub fn group_shift(&self, g: usize, c: usize) -> i8 {
+        if g == 0 {
+            0
+        } else {
+            self.shift[g - 1][c]
+        }
+    }
+}

@@ -1,0 +1,102 @@
+//! Reconstruction of the explicit profile (spec §3.6): decoded voxels and lattice coordinates
+//! to binary32 Gaussians, every operation an IEEE 754 binary32 operation with
+//! round-to-nearest-even in the order given, so every decoder outputs the same bits.
+
+use crate::explicit::attributes::TileSymbols;
+use crate::explicit::groups::{Group, GroupKind};
+use crate::explicit::layer::Layer;
+use crate::hyperprior::step::canonical_nan;
+use crate::render::Gaussians;
+
+/// §3.6 step 1: a Gaussian's position from its voxel `v`, its `e` refinement bits `w` per
+/// axis: with `c = v·2^e + w` (exact: below 2^24) and the refined edge
+/// `h = voxel_size ⊗ 2^−e`, `origin ⊕ ((float32(c) ⊕ 0.5) ⊗ h)` per axis.
+#[inline]
+pub fn position(origin: [f32; 3], voxel_size: f32, v: [u32; 3], e: u8, w: [u32; 3]) -> [f32; 3] {
+    let h = voxel_size * pow2(-i32::from(e));
+    std::array::from_fn(|a| {
+        let c = (v[a] << e) | w[a];
+        canonical_nan(origin[a] + (c as f32 + 0.5) * h)
+    })
+}
+
+/// 2^k as binary32, for |k| ≤ 126 (exact).
+#[inline]
+pub fn pow2(k: i32) -> f32 {
+    f32::from_bits(((127 + k) as u32) << 23)
+}
+
+/// §3.6 step 3: the quaternion (w, x, y, z) from its three smallest components `small` (in
+/// increasing component order, the largest left out) and the largest's index.
+#[inline]
+pub fn quaternion(small: [f32; 3], largest: u8) -> [f32; 4] {
+    let s = small[0] * small[0] + small[1] * small[1] + small[2] * small[2];
+    let t = 1.0 - s;
+    // max(t, +0), with a NaN t (from a non-finite component) taken as +0.
+    let t = if t > 0.0 { t } else { 0.0 };
+    let big = t.sqrt();
+    let mut q = [0.0f32; 4];
+    let mut k = 0;
+    for (c, out) in q.iter_mut().enumerate() {
+        if c == usize::from(largest) {
+            *out = big;
+        } else {
+            *out = small[k];
+            k += 1;
+        }
+    }
+    q
+}
+
+/// §3.6: the Gaussians of one tile, appended to `out`.
+pub fn reconstruct_tile(
+    origin: [f32; 3],
+    layer: &Layer,
+    groups: &[Group],
+    rate: u8,
+    voxels: &[[u32; 3]],
+    symbols: &TileSymbols,
+    out: &mut Gaussians,
+) {
+    let values: usize = groups.iter().map(|g| g.dim).sum();
+    let matrices: Vec<_> = groups.iter().map(Group::matrix).collect();
+    let steps: Vec<f32> = groups.iter().map(|g| g.rate_step(rate)).collect();
+    let widest = groups.iter().map(|g| g.dim).max().unwrap_or(0);
+    let mut z = vec![0.0f32; widest];
+    let mut u = vec![0i64; widest];
+    let mut x = vec![0.0f32; widest];
+    for (i, &voxel) in voxels.iter().enumerate() {
+        let class = usize::from(symbols.size_class[i]);
+        out.positions.push(position(
+            origin,
+            layer.voxel_size,
+            voxel,
+            layer.refine[class],
+            symbols.refinement[i],
+        ));
+        let coords = &symbols.coords[i * values..(i + 1) * values];
+        let mut at = 0;
+        for (gi, g) in groups.iter().enumerate() {
+            let d = g.dim;
+            for (uj, &c) in u.iter_mut().zip(&coords[at..at + d]) {
+                *uj = i64::from(c);
+            }
+            at += d;
+            // Step 2: Δ = G ⊗ 2^shift, z = B·float32(u) (§7.3), x = mean ⊕ (Δ ⊗ z).
+            let delta = steps[gi] * pow2(layer.group_shift(gi, class).into());
+            matrices[gi].apply(&u[..d], &mut z[..d]);
+            for j in 0..d {
+                x[j] = canonical_nan(g.mean[j] + delta * z[j]);
+            }
+            match g.kind {
+                GroupKind::Opacity => out.opacity_logit.push(x[0]),
+                GroupKind::Scale => out.log_scales.push([x[0], x[1], x[2]]),
+                GroupKind::Rotation => out
+                    .rotations
+                    .push(quaternion([x[0], x[1], x[2]], symbols.rotation_index[i])),
+                GroupKind::Dc => out.f_dc.push([x[0], x[1], x[2]]),
+                GroupKind::Rest => out.f_rest.extend_from_slice(&x[..d]),
+            }
+        }
+    }
+}

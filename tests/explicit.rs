@@ -1,0 +1,374 @@
+//! The explicit-Gaussians profile (spec §3, Annex A.8): round trips of synthetic and real
+//! scenes, extraction, thread independence, the encoder's input checks and rate control.
+
+use std::path::Path;
+
+use salvq::conformance::explicit_vectors::encode_synthetic;
+use salvq::decoder::{decode_any, is_explicit, DecodeOptions, Decoded};
+use salvq::encoder::explicit::input::{input_kind, InputKind};
+use salvq::encoder::explicit::ratios::RenderTarget;
+use salvq::encoder::explicit::{
+    encode_gaussians, encode_prepared, ExplicitOptions, PreparedGaussians, RateControl, RatePlan,
+};
+use salvq::explicit::{decode_gaussians, DecodedGaussians};
+use salvq::gen::gaussians::{generate_gaussians, GaussianParams};
+use salvq::render::ply::{ply_bytes, read_ply};
+use salvq::{Error, Limits};
+
+fn shared_data(name: &str) -> Option<Vec<u8>> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name);
+    match std::fs::read(&path) {
+        Ok(b) => Some(b),
+        Err(_) => {
+            eprintln!("skipped: {} not found", path.display());
+            None
+        }
+    }
+}
+
+fn plan(voxel: f64, groups: usize) -> RatePlan {
+    RatePlan {
+        voxel,
+        refine: [3, 2, 1, 0],
+        steps: [0.1, 0.25, 0.03, 0.03, 0.04][..groups].to_vec(),
+        shift: vec![[1, 0, 0, -1]; groups - 1],
+    }
+}
+
+fn plans(m: usize, groups: usize) -> Vec<RatePlan> {
+    (0..m)
+        .map(|k| {
+            let mut p = plan(0.05 * (k as f64).exp2(), groups);
+            p.steps.iter_mut().for_each(|s| *s *= (k as f64).exp2());
+            p
+        })
+        .collect()
+}
+
+fn decode(stream: &[u8], rate: u8) -> DecodedGaussians {
+    decode_gaussians(stream, &Limits::default(), Some(rate)).expect("the stream decodes")
+}
+
+#[test]
+fn every_rate_decodes_to_the_encoders_prediction() {
+    for (degree, n, tiles) in [(0u8, 300usize, 64u32), (1, 50, 16_384), (3, 200, 40)] {
+        let groups = if degree == 0 { 4 } else { 5 };
+        let e = encode_synthetic(
+            &GaussianParams::new(n, degree, 11),
+            plans(3, groups),
+            ExplicitOptions {
+                tile_gaussians: tiles,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(is_explicit(&e.stream));
+        for (report, _, expected) in &e.layers {
+            let d = decode(&e.stream, report.rate);
+            assert_eq!(
+                &d.gaussians, expected,
+                "degree {degree}, rate {}",
+                report.rate
+            );
+            assert_eq!(d.gaussians.len(), n);
+        }
+    }
+}
+
+#[test]
+fn coarser_rates_are_smaller_and_further_from_the_input() {
+    let params = GaussianParams::new(400, 2, 4);
+    let g = generate_gaussians(&params);
+    let p = PreparedGaussians::new(&g).unwrap();
+    let rate_plans = plans(3, 5);
+    let e = encode_synthetic(&params, rate_plans.clone(), ExplicitOptions::default()).unwrap();
+    let sizes: Vec<usize> = e.layers.iter().map(|l| l.1).collect();
+    assert!(sizes[0] > sizes[1] && sizes[1] > sizes[2], "{sizes:?}");
+    // Decoded Gaussians are in each layer's Morton order: compare through it.
+    let origin = p.min.map(|v| v as f32);
+    let errors: Vec<f64> = e
+        .layers
+        .iter()
+        .zip(&rate_plans)
+        .map(|(l, plan)| {
+            let order = salvq::encoder::explicit::layer::grid(&p, origin, plan.voxel).order;
+            order
+                .iter()
+                .enumerate()
+                .map(|(k, &i)| {
+                    (0..3)
+                        .map(|c| f64::from(l.2.f_dc[k][c] - g.f_dc[i][c]).powi(2))
+                        .sum::<f64>()
+                })
+                .sum()
+        })
+        .collect();
+    assert!(errors[0] < errors[1] && errors[1] < errors[2], "{errors:?}");
+}
+
+#[test]
+fn positions_and_attributes_stay_within_their_steps() {
+    let params = GaussianParams::new(300, 1, 8);
+    let g = generate_gaussians(&params);
+    let p = plans(1, 5);
+    let e = encode_synthetic(&params, p.clone(), ExplicitOptions::default()).unwrap();
+    let d = &e.layers[0].2;
+    // Decoded order is the stream's: match Gaussians by their (unique) scales' nearness.
+    let voxel = p[0].voxel;
+    for q in &d.positions {
+        let near = g
+            .positions
+            .iter()
+            .map(|o| {
+                (0..3)
+                    .map(|a| (f64::from(o[a]) - f64::from(q[a])).abs())
+                    .fold(0.0, f64::max)
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            near <= voxel * 0.5 + 1e-6,
+            "a position moved by {near}, voxel {voxel}"
+        );
+    }
+}
+
+#[test]
+fn extract_equals_encoding_the_rate_alone() {
+    let params = GaussianParams::new(150, 3, 21);
+    let all = encode_synthetic(&params, plans(3, 5), ExplicitOptions::default()).unwrap();
+    for r in 0..3u8 {
+        let alone = encode_synthetic(
+            &params,
+            plans(3, 5),
+            ExplicitOptions {
+                coded: Some(vec![r]),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let extracted = salvq::extract_rate(&all.stream, r, &Limits::default()).unwrap();
+        assert_eq!(extracted, alone.stream, "rate {r}");
+    }
+}
+
+#[test]
+fn one_and_two_threads_decode_the_same() {
+    let params = GaussianParams::new(600, 1, 3);
+    let e = encode_synthetic(
+        &params,
+        plans(1, 5),
+        ExplicitOptions {
+            tile_gaussians: 50,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let with = |threads| {
+        let o = DecodeOptions {
+            threads: Some(threads),
+            ..Default::default()
+        };
+        match decode_any(&e.stream, &o).unwrap() {
+            Decoded::Gaussians(d) => d.gaussians,
+            Decoded::Anchors(_) => panic!("an explicit stream"),
+        }
+    };
+    assert!(e.layers[0].0.tiles > 4);
+    assert_eq!(with(1), with(2));
+}
+
+#[test]
+fn a_region_decodes_only_the_tiles_it_meets() {
+    let params = GaussianParams::new(800, 0, 5);
+    let e = encode_synthetic(
+        &params,
+        plans(1, 4),
+        ExplicitOptions {
+            tile_gaussians: 64,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let all = decode(&e.stream, 0).gaussians;
+    let o = DecodeOptions {
+        region: Some([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]),
+        ..Default::default()
+    };
+    let Decoded::Gaussians(part) = decode_any(&e.stream, &o).unwrap() else {
+        panic!("an explicit stream")
+    };
+    let part = part.gaussians;
+    assert!(
+        !part.is_empty() && part.len() < all.len(),
+        "{} of {}",
+        part.len(),
+        all.len()
+    );
+    // Every Gaussian in the box is kept (tiles are a superset of the box).
+    let inside = |p: &[f32; 3]| p[0] <= 0.0 && p[1] <= 0.0;
+    let want = all.positions.iter().filter(|p| inside(p)).count();
+    let got = part.positions.iter().filter(|p| inside(p)).count();
+    assert_eq!(got, want);
+}
+
+#[test]
+fn the_anchors_decoder_names_the_other_profile() {
+    let e = encode_synthetic(
+        &GaussianParams::new(10, 0, 1),
+        plans(1, 4),
+        ExplicitOptions::default(),
+    )
+    .unwrap();
+    let err = salvq::decode(&e.stream).unwrap_err();
+    assert!(
+        matches!(err, Error::ChunkOrder { found, .. } if found.as_str() == "GHED"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_encoder_names_inputs_it_does_not_read() {
+    let cases: [(&[u8], &str); 5] = [
+        (&[0x1f, 0x8b, 8, 0], "gzip"),
+        (b"NGSP\x02\0\0\0", "SPZ"),
+        (b"PK\x03\x04....", "zip"),
+        (b"{\"means\": {}}", "JSON"),
+        (
+            b"ply\nformat binary_little_endian 1.0\nelement chunk 10\n",
+            "compressed PLY",
+        ),
+    ];
+    for (bytes, what) in cases {
+        let err = input_kind(bytes).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            matches!(err, Error::UnsupportedInput { .. }),
+            "{what}: {err}"
+        );
+        assert!(
+            text.contains(what) && text.contains("splat-transform"),
+            "{text}"
+        );
+    }
+    assert_eq!(
+        input_kind(b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n").unwrap(),
+        InputKind::Ply
+    );
+    assert_eq!(
+        input_kind(b"\x10\0\0\0\0\0\0\0{}").unwrap(),
+        InputKind::Model
+    );
+}
+
+#[test]
+fn a_nan_is_named_by_property_and_gaussian() {
+    let mut g = generate_gaussians(&GaussianParams::new(20, 1, 2));
+    g.f_rest[7 * 9 + 4] = f32::NAN;
+    let err = PreparedGaussians::new(&g).unwrap_err();
+    assert!(
+        matches!(&err, Error::PlyValueNotFinite { vertex: 7, property } if property == "f_rest_4"),
+        "{err}"
+    );
+    // Through the PLY reader as well, with the vertex's index.
+    let mut g = generate_gaussians(&GaussianParams::new(20, 0, 2));
+    g.log_scales[13][2] = f32::INFINITY;
+    let err = read_ply(&ply_bytes(&g).unwrap()).unwrap_err();
+    assert!(
+        matches!(&err, Error::PlyValueNotFinite { vertex: 13, property } if property == "scale_2"),
+        "{err}"
+    );
+}
+
+#[test]
+fn degenerate_scenes_encode_or_fail_with_a_typed_error() {
+    // No Gaussians at all.
+    let empty = salvq::render::Gaussians::default();
+    assert!(matches!(
+        PreparedGaussians::new(&empty),
+        Err(Error::FitFailed { .. })
+    ));
+    // One Gaussian; every Gaussian at one point (zero-size box).
+    for params in [
+        GaussianParams::new(1, 3, 1),
+        GaussianParams {
+            one_point: true,
+            ..GaussianParams::new(64, 0, 1)
+        },
+    ] {
+        let groups = if params.sh_degree == 0 { 4 } else { 5 };
+        let e = encode_synthetic(&params, plans(2, groups), ExplicitOptions::default()).unwrap();
+        for (r, _, expected) in &e.layers {
+            assert_eq!(&decode(&e.stream, r.rate).gaussians, expected);
+        }
+    }
+}
+
+#[test]
+fn truncated_and_malformed_ply_files_are_typed_errors() {
+    let g = generate_gaussians(&GaussianParams::new(10, 1, 4));
+    let bytes = ply_bytes(&g).unwrap();
+    for cut in [3usize, 20, 200, bytes.len() - 1] {
+        let err = read_ply(&bytes[..cut]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::PlyHeaderInvalid { .. } | Error::PlyTruncated { .. }
+            ),
+            "cut at {cut}: {err}"
+        );
+    }
+}
+
+/// The rate control on a real scene (fruit_drops, as trained): every rate lands within
+/// 3 dB of its render-PSNR target, and finer rates cost more. It renders a few hundred
+/// images: CI runs it in release (`cargo test --release --test explicit`).
+#[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "renders hundreds of images; run with --release"
+)]
+fn rates_meet_their_psnr_targets_on_a_real_scene() {
+    let Some(bytes) = shared_data("fruit_drops.ply") else {
+        return;
+    };
+    let g = read_ply(&bytes).unwrap();
+    let targets = vec![50.0, 40.0];
+    let e = encode_gaussians(
+        &g,
+        &ExplicitOptions {
+            rates: RateControl::Psnr(targets.clone()),
+            ..Default::default()
+        },
+        &|_| {},
+    )
+    .unwrap();
+    let target = RenderTarget::new(&g, 8, 256, 192).unwrap();
+    for ((report, _, expected), want) in e.layers.iter().zip(&targets) {
+        let got = target.psnr(expected).unwrap();
+        assert!(
+            (got - want).abs() < 3.0,
+            "rate {}: {got:.2} dB for {want} dB",
+            report.rate
+        );
+    }
+    assert!(e.layers[0].1 > e.layers[1].1);
+    // And the stream decodes to what the encoder predicted.
+    for (report, _, expected) in &e.layers {
+        assert_eq!(&decode(&e.stream, report.rate).gaussians, expected);
+    }
+}
+
+#[test]
+fn three_points_round_trip_through_the_plans() {
+    let Some(bytes) = shared_data("three_points.ply") else {
+        return;
+    };
+    let g = read_ply(&bytes).unwrap();
+    let p = PreparedGaussians::new(&g).unwrap();
+    let e = encode_prepared(&p, &plans(2, 5), &ExplicitOptions::default()).unwrap();
+    for (report, _, expected) in &e.layers {
+        assert_eq!(&decode(&e.stream, report.rate).gaussians, expected);
+    }
+}
