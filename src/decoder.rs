@@ -236,19 +236,7 @@ fn decode_stream(
             ChunkTag::AOFF => p.attributes[2] = bytes,
             _ => {
                 // SEND: empty, last, nothing after it (§1.5 rules 4-5).
-                if !bytes.is_empty() {
-                    return Err(Error::ChunkSizeMismatch {
-                        tag,
-                        expected: 0,
-                        found: bytes.len() as u64,
-                    });
-                }
-                let trailing = reader.remaining().len();
-                if trailing != 0 {
-                    return Err(Error::TrailingData {
-                        bytes: trailing as u64,
-                    });
-                }
+                crate::container::chunk::check_send(bytes, reader.remaining())?;
                 return assemble(p, tables, keep_symbols.then_some(&options.limits));
             }
         }

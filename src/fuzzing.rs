@@ -210,12 +210,12 @@ pub fn payload_base() -> &'static [u8] {
 
 /// The explicit profile's payload chunks [`payload_input`] replaces (§3).
 pub const EXPLICIT_PAYLOAD_TAGS: [ChunkTag; 6] = [
-    ChunkTag::GHED,
-    ChunkTag::GQUA,
-    ChunkTag::GLAY,
-    ChunkTag::TILS,
-    ChunkTag::APOS,
-    ChunkTag::GATT,
+    crate::explicit::decode::CRITICAL_CHUNKS[0],
+    crate::explicit::decode::CRITICAL_CHUNKS[1],
+    crate::explicit::decode::CRITICAL_CHUNKS[2],
+    crate::explicit::decode::CRITICAL_CHUNKS[3],
+    crate::explicit::decode::CRITICAL_CHUNKS[4],
+    crate::explicit::decode::CRITICAL_CHUNKS[5],
 ];
 
 /// The explicit-profile stream [`payload_input`] splices into: 40 synthetic Gaussians of SH

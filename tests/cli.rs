@@ -139,3 +139,56 @@ fn missing_input_is_an_io_error() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).starts_with("salvq: error[Io]: cannot read"));
 }
+
+/// The explicit profile from the command line (spec §3, Annex A.8): a PLY with a NaN fails
+/// naming the property and the Gaussian and leaves no file; `--drop-invalid` drops and
+/// counts it; the stream decodes to a PLY; a SOG `meta.json` is named and refused.
+#[test]
+fn encode_a_ply_with_a_nan() {
+    use salvq::gen::gaussians::{generate_gaussians, GaussianParams};
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = generate_gaussians(&GaussianParams::new(300, 1, 4));
+    g.f_dc[17][1] = f32::NAN;
+    let ply = dir.path().join("scene.ply");
+    std::fs::write(&ply, salvq::render::ply::ply_bytes(&g).unwrap()).unwrap();
+    let out = dir.path().join("scene.salvq");
+    let (ply_s, out_s) = (ply.to_str().unwrap(), out.to_str().unwrap());
+    let o = salvq(&["encode", ply_s, "-o", out_s, "--psnr", "30"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("PlyValueNotFinite") && err.contains("vertex 17") && err.contains("f_dc_1"),
+        "{err}"
+    );
+    assert_eq!(files_in(dir.path()), vec!["scene.ply"]);
+    let o = salvq(&[
+        "encode",
+        ply_s,
+        "-o",
+        out_s,
+        "--psnr",
+        "30",
+        "--drop-invalid",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("dropped 1 of 300"), "{err}");
+    let back = dir.path().join("back.ply");
+    let o = salvq(&["decode", out_s, "-o", back.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let decoded = salvq::render::ply::read_ply(&std::fs::read(&back).unwrap()).unwrap();
+    assert_eq!(decoded.len(), 299);
+    let meta = dir.path().join("meta.json");
+    std::fs::write(&meta, b"{\"version\": 2, \"means\": {}}").unwrap();
+    let o = salvq(&[
+        "encode",
+        meta.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.salvq").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("UnsupportedInput") && err.contains("SOG"),
+        "{err}"
+    );
+}

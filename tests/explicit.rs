@@ -1,32 +1,20 @@
 //! The explicit-Gaussians profile (spec §3, Annex A.8): round trips of synthetic and real
 //! scenes, extraction, thread independence, the encoder's input checks and rate control.
 
-use std::path::Path;
+mod common;
+use common::shared_data;
 
 use salvq::conformance::explicit_vectors::encode_synthetic;
 use salvq::decoder::{decode_any, is_explicit, DecodeOptions, Decoded};
 use salvq::encoder::explicit::input::{input_kind, InputKind};
-use salvq::encoder::explicit::ratios::RenderTarget;
 use salvq::encoder::explicit::{
     encode_gaussians, encode_prepared, ExplicitOptions, PreparedGaussians, RateControl, RatePlan,
 };
 use salvq::explicit::{decode_gaussians, DecodedGaussians};
 use salvq::gen::gaussians::{generate_gaussians, GaussianParams};
+use salvq::render::compare::RingTarget;
 use salvq::render::ply::{ply_bytes, read_ply};
 use salvq::{Error, Limits};
-
-fn shared_data(name: &str) -> Option<Vec<u8>> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    match std::fs::read(&path) {
-        Ok(b) => Some(b),
-        Err(_) => {
-            eprintln!("skipped: {} not found", path.display());
-            None
-        }
-    }
-}
 
 fn plan(voxel: f64, groups: usize) -> RatePlan {
     RatePlan {
@@ -344,7 +332,7 @@ fn rates_meet_their_psnr_targets_on_a_real_scene() {
         &|_| {},
     )
     .unwrap();
-    let target = RenderTarget::new(&g, 8, 256, 192).unwrap();
+    let target = RingTarget::new(&g, 8, 256, 192).unwrap();
     for ((report, _, expected), want) in e.layers.iter().zip(&targets) {
         let got = target.psnr(expected).unwrap();
         assert!(

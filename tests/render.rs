@@ -1,26 +1,16 @@
 //! Renderable output (spec Annex C): PLY I/O, Scaffold-GS neural Gaussians, the preview
 //! renderer, its metrics, and the `render` / `export-ply` commands.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::shared_data;
+
+use std::path::PathBuf;
 
 use salvq::gen::{generate, GenParams};
 use salvq::render::camera::{Axis, Bounds, Ring};
 use salvq::render::ply::{ply_bytes, read_ply};
 use salvq::render::{metrics, neural, raster, sh, Gaussians, Image};
 use salvq::Error;
-
-fn shared_data(name: &str) -> Option<Vec<u8>> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    match std::fs::read(&path) {
-        Ok(b) => Some(b),
-        Err(_) => {
-            eprintln!("skipped: {} not found", path.display());
-            None
-        }
-    }
-}
 
 /// `n` Gaussians of SH degree `degree` with awkward binary32 values (negative zero,
 /// subnormals, large exponents) so that a round trip has something to lose.

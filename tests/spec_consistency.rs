@@ -344,3 +344,44 @@ fn tensor_names_match_table_2_1() {
     assert_eq!(spec_sorted, code_sorted);
     assert_eq!(code.len(), 50);
 }
+
+/// §3.7 Table 3-2 lists the explicit profile's critical chunks in the order the decoder
+/// expects them (one layer shown), and Table 3-3 its groups with their value counts.
+#[test]
+fn explicit_profile_tables_match_the_code() {
+    use salvq::explicit::decode::expected_critical;
+    use salvq::explicit::{GroupKind, GROUP_KINDS};
+    let text = spec("03-explicit.md");
+    let chunks: Vec<String> = table_names(&text, "Table 3-2:")
+        .into_iter()
+        .filter(|t| t.chars().next().is_some_and(|c| c.is_ascii_uppercase()))
+        .collect();
+    let code: Vec<String> = (0..7)
+        .map(|i| expected_critical(i, 1).as_str().to_string())
+        .collect();
+    assert_eq!(chunks, code);
+    // Table 3-3: `| g | group | d | ...`, d as SH degree 3 gives it (3B = 45 for rest).
+    let start = text.find("Table 3-3:").expect("Table 3-3");
+    let rows: Vec<(String, String)> = text[start..]
+        .lines()
+        .skip_while(|l| !l.starts_with('|'))
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .map(|l| {
+            let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+            (cells[2].trim_matches('`').to_string(), cells[3].to_string())
+        })
+        .collect();
+    assert_eq!(rows.len(), GROUP_KINDS.len());
+    for ((name, d), kind) in rows.iter().zip(GROUP_KINDS) {
+        assert_eq!(name, kind.name());
+        let dim = kind.dim(3);
+        let stated = if d == "3B" {
+            45
+        } else {
+            d.parse().expect("a count")
+        };
+        assert_eq!(stated, dim, "{name}");
+    }
+    assert_eq!(GroupKind::present(0).len(), 4);
+}

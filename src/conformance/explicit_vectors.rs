@@ -11,7 +11,7 @@ use crate::gen::gaussians::{generate_gaussians, GaussianParams};
 use crate::render::Gaussians;
 use crate::Result;
 
-use super::must_fail::MustFailVector;
+use super::must_fail::{vector as must_fail, MustFailVector};
 
 /// Sections every explicit valid vector exercises.
 pub const EXPLICIT_SECTIONS: &[&str] = &[
@@ -202,23 +202,6 @@ fn edit(stream: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
 
 fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
     surgery::chunks(stream).expect("the base stream frames")
-}
-
-fn must_fail(
-    name: &'static str,
-    class: &'static str,
-    sections: &'static [&'static str],
-    description: &'static str,
-    stream: Vec<u8>,
-) -> MustFailVector {
-    MustFailVector {
-        name,
-        class,
-        sections,
-        description,
-        rate: 0,
-        stream,
-    }
 }
 
 /// Byte offsets inside the base stream's `GLAY` payload (§3.4): after `coding_method`,

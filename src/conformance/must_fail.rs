@@ -51,7 +51,7 @@ pub fn must_fail_vectors() -> Vec<MustFailVector> {
 }
 
 /// A vector asking for rate 0 (the lowest coded rate of a default-encoded stream).
-fn vector(
+pub(crate) fn vector(
     name: &'static str,
     class: &'static str,
     sections: &'static [&'static str],

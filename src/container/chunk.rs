@@ -101,6 +101,23 @@ pub fn chunk_crc(tag: ChunkTag, payload: &[u8]) -> u32 {
     crc32c::crc32c_append(crc32c::crc32c(&tag.0), payload)
 }
 
+/// §1.5 rules 4-5: `SEND` is empty and nothing follows it (`rest`: the bytes after it).
+pub fn check_send(payload: &[u8], rest: &[u8]) -> Result<()> {
+    if !payload.is_empty() {
+        return Err(Error::ChunkSizeMismatch {
+            tag: ChunkTag::SEND,
+            expected: 0,
+            found: payload.len() as u64,
+        });
+    }
+    if !rest.is_empty() {
+        return Err(Error::TrailingData {
+            bytes: rest.len() as u64,
+        });
+    }
+    Ok(())
+}
+
 /// Appends one framed chunk to `out`.
 pub fn write_chunk(out: &mut Vec<u8>, tag: ChunkTag, payload: &[u8]) {
     out.extend_from_slice(&(payload.len() as u32).to_le_bytes());

@@ -36,6 +36,17 @@ pub struct DecodedGaussians {
     pub gaussians: Gaussians,
 }
 
+/// §3.7 Table 3-2: the explicit profile's critical chunk types.
+pub const CRITICAL_CHUNKS: [ChunkTag; 7] = [
+    ChunkTag::GHED,
+    ChunkTag::GQUA,
+    ChunkTag::GLAY,
+    ChunkTag::TILS,
+    ChunkTag::APOS,
+    ChunkTag::GATT,
+    ChunkTag::SEND,
+];
+
 /// §3.7 Table 3-2: the critical chunk due at position `i` (0 = `GHED`) of a stream with
 /// `layers` layers.
 pub fn expected_critical(i: usize, layers: usize) -> ChunkTag {
@@ -148,16 +159,7 @@ pub fn decode_gaussians_in(
             }
             continue;
         }
-        let known = [
-            ChunkTag::GHED,
-            ChunkTag::GQUA,
-            ChunkTag::GLAY,
-            ChunkTag::TILS,
-            ChunkTag::APOS,
-            ChunkTag::GATT,
-            ChunkTag::SEND,
-        ];
-        if !known.contains(&tag) {
+        if !CRITICAL_CHUNKS.contains(&tag) {
             return Err(Error::UnknownCriticalChunk { tag });
         }
         let expected = expected_critical(next, layers);
@@ -212,19 +214,7 @@ pub fn decode_gaussians_in(
             }
             _ => {
                 // SEND: empty, last, nothing after it.
-                if !bytes.is_empty() {
-                    return Err(Error::ChunkSizeMismatch {
-                        tag,
-                        expected: 0,
-                        found: bytes.len() as u64,
-                    });
-                }
-                let trailing = reader.remaining().len();
-                if trailing != 0 {
-                    return Err(Error::TrailingData {
-                        bytes: trailing as u64,
-                    });
-                }
+                crate::container::chunk::check_send(bytes, reader.remaining())?;
                 break;
             }
         }

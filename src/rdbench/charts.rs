@@ -7,13 +7,16 @@ use plotters::prelude::*;
 use super::Point;
 use crate::error::{Error, IoOp, Result};
 
-const COLORS: [RGBColor; 6] = [
+/// The charts' line colours (the Okabe–Ito palette's, black first), in order.
+pub(super) const COLORS: [RGBColor; 8] = [
     RGBColor(0, 0, 0),
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(120, 120, 120),
     RGBColor(0, 158, 115),
     RGBColor(204, 121, 167),
+    RGBColor(230, 159, 0),
+    RGBColor(86, 180, 233),
 ];
 
 /// Draws `xy` as a labelled line with dots, and its legend entry.

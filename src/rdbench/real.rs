@@ -19,11 +19,8 @@ use crate::encoder::explicit::{
 use crate::error::{Error, IoOp, Result};
 use crate::explicit::decode_gaussians;
 use crate::limits::Limits;
-use crate::render::camera::{Bounds, Camera, Ring};
-use crate::render::metrics::{psnr, ssim};
+use crate::render::compare::RingTarget;
 use crate::render::ply::read_ply;
-use crate::render::raster::render;
-use crate::render::{Gaussians, Image};
 
 /// What to measure.
 #[derive(Debug, Clone)]
@@ -71,50 +68,6 @@ pub struct Row {
     pub decode_s: f64,
 }
 
-/// The input's renders and a comparer.
-struct Reference {
-    cameras: Vec<Camera>,
-    images: Vec<Image>,
-}
-
-impl Reference {
-    fn new(g: &Gaussians, o: &RealOptions) -> Result<Reference> {
-        let bounds = Bounds::of_points(&g.positions);
-        let ring = Ring {
-            views: o.views,
-            ..Ring::default()
-        };
-        let cameras = (0..o.views)
-            .map(|v| ring.camera(&bounds, v, o.width, o.height))
-            .collect::<Result<Vec<_>>>()?;
-        let images = cameras.iter().map(|c| render(g, c, [0.0; 3])).collect();
-        Ok(Reference { cameras, images })
-    }
-
-    /// (PSNR of the mean squared error over the views, mean SSIM).
-    fn compare(&self, g: &Gaussians) -> Result<(f64, f64)> {
-        let (mut mse, mut s) = (0.0, 0.0);
-        for (c, r) in self.cameras.iter().zip(&self.images) {
-            let im = render(g, c, [0.0; 3]);
-            let p = psnr(&im, r)?;
-            mse += if p.is_infinite() {
-                0.0
-            } else {
-                10f64.powf(-p / 10.0)
-            };
-            s += ssim(&im, r)?;
-        }
-        let n = self.images.len().max(1) as f64;
-        let mse = mse / n;
-        let p = if mse == 0.0 {
-            f64::INFINITY
-        } else {
-            -10.0 * mse.log10()
-        };
-        Ok((p, s / n))
-    }
-}
-
 fn io_err(path: &Path, e: &std::io::Error) -> Error {
     Error::io(IoOp::Write, path, e)
 }
@@ -127,7 +80,7 @@ fn salvq_rows(
     codec: &str,
     e: &EncodedGaussians,
     encode_s: f64,
-    reference: &Reference,
+    reference: &RingTarget,
 ) -> Result<Vec<Row>> {
     let n = f64::from(e.header.count.max(1));
     let mut rows = Vec::new();
@@ -144,7 +97,7 @@ fn salvq_rows(
                 ),
             });
         }
-        let (p, s) = reference.compare(&d.gaussians)?;
+        let (p, s) = reference.psnr_ssim(&d.gaussians)?;
         let bytes =
             (crate::container::signature::SIGNATURE_LEN + e.shared_bytes + layer_bytes + 12) as u64;
         rows.push(Row {
@@ -171,7 +124,7 @@ fn peer_row(
     format: &str,
     work: &Path,
     n: usize,
-    reference: &Reference,
+    reference: &RingTarget,
 ) -> Result<Option<Row>> {
     let encoded = work.join(format!("{scene}.{format}"));
     let decoded = work.join(format!("{scene}.{format}.ply"));
@@ -212,7 +165,7 @@ fn peer_row(
         .map_err(|e| Error::io(IoOp::Read, &encoded, &e))?
         .len();
     let g = read_ply(&crate::io::read_file(&decoded)?)?;
-    let (p, s) = reference.compare(&g)?;
+    let (p, s) = reference.psnr_ssim(&g)?;
     Ok(Some(Row {
         scene: scene.into(),
         codec: format.into(),
@@ -285,7 +238,7 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
         let g = read_ply(&crate::io::read_file(&input)?)?;
         let n = g.len();
         progress(&format!("{scene}: {n} Gaussians, rendering the input"));
-        let reference = Reference::new(&g, o)?;
+        let reference = RingTarget::new(&g, o.views, o.width, o.height)?;
         let p = PreparedGaussians::new(&g)?;
         let encode = |variant: Variant, klt: Option<bool>| -> Result<(EncodedGaussians, f64)> {
             let t = Instant::now();
@@ -471,16 +424,7 @@ fn summary(o: &RealOptions, rows: &[Row], groups: &str, multi: &str) -> String {
     s
 }
 
-const COLORS: [RGBColor; 8] = [
-    RGBColor(0, 0, 0),
-    RGBColor(0, 114, 178),
-    RGBColor(213, 94, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 121, 167),
-    RGBColor(230, 159, 0),
-    RGBColor(86, 180, 233),
-    RGBColor(120, 120, 120),
-];
+use super::charts::COLORS;
 
 fn chart(path: &Path, o: &RealOptions, rows: &[Row]) -> Result<()> {
     draw(path, o, rows).map_err(|_| Error::Io {
@@ -567,7 +511,7 @@ fn draw(
         c.configure_series_labels()
             .border_style(BLACK)
             .background_style(WHITE.mix(0.9))
-            .position(SeriesLabelPosition::LowerRight)
+            .position(SeriesLabelPosition::UpperLeft)
             .label_font(("sans-serif", 11))
             .draw()?;
     }

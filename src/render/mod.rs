@@ -23,6 +23,7 @@
 //! ```
 
 pub mod camera;
+pub mod compare;
 pub mod metrics;
 pub mod neural;
 pub mod ply;

@@ -204,6 +204,36 @@ const REQUIRED: [&str; 14] = [
 
 /// Reads the Gaussians of a 3DGS PLY file (Annex C.3).
 pub fn read_ply(bytes: &[u8]) -> Result<Gaussians> {
+    read_ply_with(bytes, true)
+}
+
+/// [`read_ply`] that keeps NaN and infinite values (an encoder that drops such Gaussians,
+/// Annex A.8.1, reads with it).
+pub fn read_ply_lenient(bytes: &[u8]) -> Result<Gaussians> {
+    read_ply_with(bytes, false)
+}
+
+/// The vertex properties of a PLY file that a Gaussian does not use (not the Annex C.3
+/// ones, the normals or `f_rest_*`): what a reader ignores. Empty if the header does not
+/// parse.
+pub fn unused_properties(bytes: &[u8]) -> Vec<String> {
+    let Ok(header) = parse_header(bytes) else {
+        return Vec::new();
+    };
+    header
+        .elements
+        .iter()
+        .filter(|e| e.name == "vertex")
+        .flat_map(|e| e.properties.iter().map(|p| p.0.clone()))
+        .filter(|n| {
+            !REQUIRED.contains(&n.as_str())
+                && !n.starts_with("f_rest_")
+                && !["nx", "ny", "nz"].contains(&n.as_str())
+        })
+        .collect()
+}
+
+fn read_ply_with(bytes: &[u8], strict: bool) -> Result<Gaussians> {
     let header = parse_header(bytes)?;
     let body = &bytes[header.body_start..];
     // Skip the elements before `vertex`; each must have a fixed record size.
@@ -290,7 +320,7 @@ pub fn read_ply(bytes: &[u8]) -> Result<Gaussians> {
             let x = c.2.read(&record[c.1..], little);
             // An infinite opacity logit is an alpha of exactly 0 or 1, which tools that
             // store 8-bit alphas write (splat-transform); the renderer's sigmoid takes it.
-            if x.is_finite() || (c.0 == "opacity" && x.is_infinite()) {
+            if !strict || x.is_finite() || (c.0 == "opacity" && x.is_infinite()) {
                 Ok(x)
             } else {
                 Err(Error::PlyValueNotFinite {

@@ -52,3 +52,18 @@ pub fn edit_payload(stream: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) 
 pub fn chunk_offset(stream: &[u8], tag: ChunkTag) -> usize {
     surgery::chunk_offset(stream, tag).unwrap_or_else(|| panic!("no chunk {tag}"))
 }
+
+/// A file of `../shared/data` (the real scenes beside the checkout), or `None` with a
+/// "skipped" note when it is not there.
+pub fn shared_data(name: &str) -> Option<Vec<u8>> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name);
+    match std::fs::read(&path) {
+        Ok(b) => Some(b),
+        Err(_) => {
+            eprintln!("skipped: {} not found", path.display());
+            None
+        }
+    }
+}

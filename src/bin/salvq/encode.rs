@@ -34,6 +34,10 @@ pub struct EncodeArgs {
     /// rate 0 first and finest), e.g. `62,56,50,45,40,35` (the default).
     #[arg(long, value_delimiter = ',')]
     pub(crate) psnr: Option<Vec<f64>>,
+    /// PLY input: drop (and count) Gaussians with a NaN or infinite value instead of
+    /// failing on the first (spec Annex A.8.1).
+    #[arg(long)]
+    pub(crate) drop_invalid: bool,
     /// Feature quantizer: `model` (the model's own), `usq` (identity), `dn` (D_n),
     /// `e8` (E8 product; the feature dimension must be a multiple of 8), `salvq` (the
     /// model's learned basis) or `klt` (a basis the encoder fits to the features' residuals,

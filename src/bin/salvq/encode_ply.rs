@@ -7,8 +7,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use salvq::encoder::explicit::ratios::{RenderTarget, FIT_HEIGHT, FIT_VIEWS, FIT_WIDTH};
+use salvq::encoder::explicit::ratios::{FIT_HEIGHT, FIT_VIEWS, FIT_WIDTH};
 use salvq::encoder::explicit::{self, ExplicitOptions, RateControl};
+use salvq::render::compare::RingTarget;
 use salvq::render::Gaussians;
 use salvq::Error;
 
@@ -45,13 +46,30 @@ struct Summary {
 
 /// Encodes the PLY file `input` (whose bytes are `bytes`) as `a` asks.
 pub fn run(a: EncodeArgs, bytes: &[u8], t: Instant, progress: &Progress) -> Result<(), Error> {
-    let g = salvq::render::ply::read_ply(bytes)?;
+    let g = if a.drop_invalid {
+        let g = salvq::render::ply::read_ply_lenient(bytes)?;
+        let (kept, dropped) = explicit::prepare::drop_invalid(&g);
+        progress.say(&format!(
+            "--drop-invalid: dropped {dropped} of {} Gaussians with a NaN or infinite value",
+            g.len()
+        ));
+        kept
+    } else {
+        salvq::render::ply::read_ply(bytes)?
+    };
     progress.say(&format!(
         "read {} Gaussians (SH degree {}) from {}",
         g.len(),
         g.sh_degree,
         a.input.display()
     ));
+    let ignored = salvq::render::ply::unused_properties(bytes);
+    if !ignored.is_empty() {
+        progress.say(&format!(
+            "ignored PLY properties (not part of a 3DGS Gaussian): {}",
+            ignored.join(", ")
+        ));
+    }
     let targets = a
         .psnr
         .clone()
@@ -80,7 +98,7 @@ pub fn layer_lines(
     e: &explicit::EncodedGaussians,
     targets: Option<&[f64]>,
 ) -> Result<Vec<LayerLine>, Error> {
-    let target = RenderTarget::new(g, FIT_VIEWS, FIT_WIDTH, FIT_HEIGHT)?;
+    let target = RingTarget::new(g, FIT_VIEWS, FIT_WIDTH, FIT_HEIGHT)?;
     let n = g.len().max(1) as f64;
     e.layers
         .iter()

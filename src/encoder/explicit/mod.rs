@@ -21,6 +21,7 @@ use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
 use crate::explicit::groups::{write_gqua, Group, GroupKind};
 use crate::explicit::header::GaussianHeader;
+use crate::render::compare::RingTarget;
 use crate::render::Gaussians;
 use crate::tiles::DEFAULT_TILE_ANCHORS;
 
@@ -231,8 +232,7 @@ pub fn rate_plans(
         }
     }
     let classes = SizeClasses::for_variant(p, variant);
-    let target =
-        ratios::RenderTarget::new(g, ratios::FIT_VIEWS, ratios::FIT_WIDTH, ratios::FIT_HEIGHT)?;
+    let target = RingTarget::new(g, ratios::FIT_VIEWS, ratios::FIT_WIDTH, ratios::FIT_HEIGHT)?;
     let curves = ratios::measure_curves(g, p, &classes, variant, &target, progress)?;
     // Each rate: allocate for the target, code the layer alone, render what the decoder
     // will output, and correct the allocation's target by the error it missed by (the

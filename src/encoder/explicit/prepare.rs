@@ -143,3 +143,34 @@ impl PreparedGaussians {
         })
     }
 }
+
+/// `g` without the Gaussians whose used values are not all finite (an infinite opacity
+/// logit is kept: it is an alpha of 0 or 1), and how many were dropped: what
+/// `salvq encode --drop-invalid` encodes instead of failing (Annex A.8.1).
+pub fn drop_invalid(g: &Gaussians) -> (Gaussians, usize) {
+    let b = 3 * g.rest_per_channel();
+    let ok = |i: usize| {
+        g.positions[i].iter().all(|v| v.is_finite())
+            && g.log_scales[i].iter().all(|v| v.is_finite())
+            && g.rotations[i].iter().all(|v| v.is_finite())
+            && g.rotations[i].iter().any(|&v| v != 0.0)
+            && g.f_dc[i].iter().all(|v| v.is_finite())
+            && !g.opacity_logit[i].is_nan()
+            && g.f_rest[i * b..(i + 1) * b].iter().all(|v| v.is_finite())
+    };
+    let keep: Vec<usize> = (0..g.len()).filter(|&i| ok(i)).collect();
+    let out = Gaussians {
+        positions: keep.iter().map(|&i| g.positions[i]).collect(),
+        sh_degree: g.sh_degree,
+        f_dc: keep.iter().map(|&i| g.f_dc[i]).collect(),
+        f_rest: keep
+            .iter()
+            .flat_map(|&i| g.f_rest[i * b..(i + 1) * b].iter().copied())
+            .collect(),
+        opacity_logit: keep.iter().map(|&i| g.opacity_logit[i]).collect(),
+        log_scales: keep.iter().map(|&i| g.log_scales[i]).collect(),
+        rotations: keep.iter().map(|&i| g.rotations[i]).collect(),
+    };
+    let dropped = g.len() - out.len();
+    (out, dropped)
+}

@@ -1,9 +1,9 @@
-//! The steps of each group, fitted to what a viewer sees (Annex A.8.2): each group alone is
-//! quantized at a trial step, the scene rendered from the camera ring and compared with the
-//! input's renders, and the step is set where the group's share of the render error is its
-//! share of the coded values. At high rate that is the equal-slope condition of
-//! rate-distortion theory (D_g = w_g Δ_g² and R_g = −n_g log2 Δ_g + c give equal slopes
-//! when D_g / n_g is the same for every group).
+//! The steps of each rate, fitted to what a viewer sees (Annex A.8.2): every part (the
+//! positions of a size class, the scale group, each later group in each size class) alone
+//! is quantized at trial steps, the scene rendered from the camera ring and compared with
+//! the input's renders, and its bits counted as the layer coder would pay them; then for a
+//! target error each part takes the step minimising `D + λ·R`, the equal-slope condition of
+//! rate-distortion theory, with λ bisected until the parts' errors add up to the target.
 
 use super::layer::{RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
@@ -11,60 +11,13 @@ use super::StepRatios;
 use crate::error::Result;
 use crate::explicit::groups::GroupKind;
 use crate::explicit::layer::SIZE_CLASSES;
-use crate::render::camera::{Bounds, Camera, Ring};
-use crate::render::metrics::psnr;
-use crate::render::raster::render;
-use crate::render::{Gaussians, Image};
+use crate::render::compare::RingTarget;
+use crate::render::Gaussians;
 
 /// Views and image size of the fit's renders (small: each trial renders them all).
 pub const FIT_VIEWS: u32 = 8;
 pub const FIT_WIDTH: u32 = 256;
 pub const FIT_HEIGHT: u32 = 192;
-
-/// The input's renders from the ring (Annex C.2) around its Gaussians.
-pub struct RenderTarget {
-    pub cameras: Vec<Camera>,
-    pub images: Vec<Image>,
-}
-
-impl RenderTarget {
-    pub fn new(g: &Gaussians, views: u32, width: u32, height: u32) -> Result<RenderTarget> {
-        let bounds = Bounds::of_points(&g.positions);
-        let ring = Ring {
-            views,
-            ..Ring::default()
-        };
-        let cameras = (0..views)
-            .map(|v| ring.camera(&bounds, v, width, height))
-            .collect::<Result<Vec<_>>>()?;
-        let images = cameras.iter().map(|c| render(g, c, [0.0; 3])).collect();
-        Ok(RenderTarget { cameras, images })
-    }
-
-    /// Mean squared error over every view (peak 1).
-    pub fn mse(&self, g: &Gaussians) -> Result<f64> {
-        let mut sum = 0.0;
-        for (c, reference) in self.cameras.iter().zip(&self.images) {
-            let p = psnr(&render(g, c, [0.0; 3]), reference)?;
-            sum += if p.is_infinite() {
-                0.0
-            } else {
-                10f64.powf(-p / 10.0)
-            };
-        }
-        Ok(sum / self.images.len().max(1) as f64)
-    }
-
-    /// PSNR (dB) of `g` against the target.
-    pub fn psnr(&self, g: &Gaussians) -> Result<f64> {
-        let m = self.mse(g)?;
-        Ok(if m == 0.0 {
-            f64::INFINITY
-        } else {
-            -10.0 * m.log10()
-        })
-    }
-}
 
 /// `g` with one part of the Gaussians of class `class` (all when `None`) uniformly
 /// quantized at `step`: group `group`, or the positions (voxel centres) when `None`.
@@ -136,7 +89,7 @@ pub fn measure_curves(
     p: &PreparedGaussians,
     classes: &SizeClasses,
     variant: super::Variant,
-    target: &RenderTarget,
+    target: &RingTarget,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<(Part, Curve)>> {
     use super::layer::{grid, group_bits, group_coordinates, BitCost};
