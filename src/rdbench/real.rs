@@ -47,7 +47,7 @@ pub fn provenance(scene: &str) -> &'static str {
     match scene {
         "donut" | "fruit_drops" | "alti" | "three_points" => "as trained",
         "guitar" => "lossy source (PlayCanvas compressed PLY)",
-        "playbot" => "lossy source (SOG, SH dropped)",
+        "playbot" => "lossy source (SOG; SH dropped)",
         _ => "unknown source",
     }
 }
@@ -214,7 +214,7 @@ fn variants() -> Vec<(&'static str, Variant, Option<bool>)> {
             None,
         ),
         (
-            "plain (factorized, one class, identity)",
+            "plain (factorized + one class + identity)",
             Variant {
                 factorized_prior: true,
                 single_class: true,
@@ -228,8 +228,9 @@ fn variants() -> Vec<(&'static str, Variant, Option<bool>)> {
 /// Runs the bench; returns the text summary (also written to `real.txt`).
 pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
     std::fs::create_dir_all(&o.out).map_err(|e| io_err(&o.out, &e))?;
-    let work = o.out.join("peers");
-    std::fs::create_dir_all(&work).map_err(|e| io_err(&work, &e))?;
+    // The peers' files are only measured: they go to a temporary folder.
+    let scratch = tempfile::tempdir().map_err(|e| io_err(&o.out, &e))?;
+    let work = scratch.path().to_path_buf();
     let mut rows: Vec<Row> = Vec::new();
     let mut groups_text = String::new();
     let mut multi_text = String::new();
@@ -327,6 +328,46 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
     let text = summary(o, &rows, &groups_text, &multi_text);
     std::fs::write(o.out.join("real.txt"), &text).map_err(|e| io_err(&o.out, &e))?;
     Ok(text)
+}
+
+/// Redraws `real.svg` in `dir` from its `real.csv` (no measurement).
+pub fn replot(dir: &Path, o: &RealOptions) -> Result<()> {
+    let path = dir.join("real.csv");
+    let text = String::from_utf8_lossy(&crate::io::read_file(&path)?).into_owned();
+    // A line that is not a row of `write_csv`'s.
+    let bad = |_line: usize| Error::Io {
+        op: IoOp::Read,
+        path: path.clone(),
+        kind: std::io::ErrorKind::InvalidData,
+    };
+    let mut rows = Vec::new();
+    let mut scenes: Vec<String> = Vec::new();
+    for (i, line) in text.lines().enumerate().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let [scene, _, codec, rate, bytes, bpg, db, s, enc, dec] = f[..] else {
+            return Err(bad(i + 1));
+        };
+        let num = |v: &str| v.parse::<f64>().map_err(|_| bad(i + 1));
+        if !scenes.iter().any(|x| x == scene) {
+            scenes.push(scene.to_string());
+        }
+        rows.push(Row {
+            scene: scene.into(),
+            codec: codec.into(),
+            rate: rate.parse().ok(),
+            bytes: num(bytes)? as u64,
+            bytes_per_gaussian: num(bpg)?,
+            psnr_db: num(db)?,
+            ssim: num(s)?,
+            encode_s: num(enc)?,
+            decode_s: num(dec)?,
+        });
+    }
+    let o = RealOptions {
+        scenes,
+        ..o.clone()
+    };
+    chart(&dir.join("real.svg"), &o, &rows)
 }
 
 fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
@@ -473,7 +514,11 @@ fn draw(
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(50)
-            .build_cartesian_2d((x0 - 0.2)..(x1 + 0.2), (y0 - 1.0)..(y1 + 1.0))?;
+            // Headroom above the points for the legend (upper left).
+            .build_cartesian_2d(
+                (x0 - 0.2)..(x1 + 0.2),
+                (y0 - 1.0)..(y1 + 0.6 * (y1 - y0) + 1.0),
+            )?;
         c.configure_mesh()
             .x_desc("bytes per Gaussian (log2)")
             .y_desc("render PSNR vs input (dB)")

@@ -222,6 +222,9 @@ enum Bench {
         /// Skip the ablations (each a full encode per scene).
         #[arg(long)]
         no_ablations: bool,
+        /// Only redraw OUT/real.svg from OUT/real.csv (nothing is measured).
+        #[arg(long)]
+        replot: bool,
         /// Ring views, image width and height of the renders compared.
         #[arg(long, default_value_t = 8)]
         views: u32,
@@ -435,6 +438,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                     psnr,
                     splat_transform,
                     no_ablations,
+                    replot,
                     views,
                     width,
                     height,
@@ -452,6 +456,11 @@ fn run(cli: Cli) -> Result<(), Error> {
                 width,
                 height,
             };
+            if replot {
+                salvq::rdbench::real::replot(&out, &options)?;
+                println!("redrew {}", out.join("real.svg").display());
+                return Ok(());
+            }
             let text = salvq::rdbench::real::run(&options, &|m| eprintln!("{m}"))?;
             print!("{text}");
             println!(
