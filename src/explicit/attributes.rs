@@ -70,9 +70,12 @@ pub fn has_reference(voxels: &[[u32; 3]], i: usize, pred_level: u8) -> bool {
 /// `rshr(u, to − from)`.
 #[inline]
 pub fn rescale(u: i64, from: i8, to: i8) -> i64 {
+    debug_assert!((-32..=32).contains(&(i32::from(from) - i32::from(to))));
     let d = i32::from(from) - i32::from(to);
     if d >= 0 {
-        (u << d).clamp(-MAX_COORDINATE, MAX_COORDINATE)
+        // Exact: a symbol reaches 2^31 + 127 and d 32, past i64 (§3.5 clamps the exact
+        // product).
+        (i128::from(u) << d).clamp(-i128::from(MAX_COORDINATE), i128::from(MAX_COORDINATE)) as i64
     } else {
         let s = -d;
         (u + (1 << (s - 1))) >> s
@@ -169,4 +172,20 @@ pub fn walk(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rescale_clamps_the_exact_product() {
+        // An escaped symbol of 2^31 + 127 shifted by 32 is far past 2^24, not wrapped.
+        assert_eq!(rescale((1 << 31) + 127, 16, -16), MAX_COORDINATE);
+        assert_eq!(rescale(-(1 << 31) - 127, 16, -16), -MAX_COORDINATE);
+        assert_eq!(rescale(3, 1, 0), 6);
+        // rshr rounds ties toward +∞.
+        assert_eq!(rescale(3, 0, 1), 2);
+        assert_eq!(rescale(-3, 0, 1), -1);
+    }
 }

@@ -243,16 +243,18 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
         let p = PreparedGaussians::new(&g)?;
         let encode = |variant: Variant, klt: Option<bool>| -> Result<(EncodedGaussians, f64)> {
             let t = Instant::now();
-            let plans = rate_plans(
+            let klt = klt.map(|k| vec![k; p.kinds.len()]);
+            let (plans, klt) = rate_plans(
                 &g,
                 &p,
                 &RateControl::Psnr(o.targets.clone()),
                 variant,
+                klt.as_deref(),
                 &|m| progress(&format!("{scene}: {m}")),
             )?;
             let options = ExplicitOptions {
                 rates: RateControl::Plans(plans.clone()),
-                klt: klt.map(|k| vec![k; p.kinds.len()]),
+                klt,
                 variant,
                 ..Default::default()
             };

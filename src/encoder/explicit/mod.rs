@@ -7,6 +7,7 @@
 pub mod input;
 pub mod layer;
 pub mod prepare;
+pub mod prior;
 pub mod ratios;
 
 use half::f16;
@@ -211,16 +212,43 @@ pub fn fit_groups(p: &PreparedGaussians, plans: &[RatePlan], klt: &[bool]) -> Ve
         .collect()
 }
 
-/// Each rate's plan: given, or fitted to its PSNR target by rendering (Annex A.8.2).
+/// Which groups get a KLT basis (Annex A.8.3): SH DC, then SH rest, each kept when `size`
+/// (the bytes of the shared model and one layer, coded with the quantizers it is given)
+/// shrinks.
+fn choose_klt(
+    p: &PreparedGaussians,
+    plans: &[RatePlan],
+    size: &dyn Fn(&[Group]) -> Result<usize>,
+) -> Result<Vec<bool>> {
+    let mut klt = vec![false; p.kinds.len()];
+    let mut best = size(&fit_groups(p, plans, &klt))?;
+    for (gi, kind) in p.kinds.iter().enumerate() {
+        if matches!(kind, GroupKind::Dc | GroupKind::Rest) {
+            klt[gi] = true;
+            let s = size(&fit_groups(p, plans, &klt))?;
+            if s < best {
+                best = s;
+            } else {
+                klt[gi] = false;
+            }
+        }
+    }
+    Ok(klt)
+}
+
+/// Each rate's plan, given or fitted to its PSNR target by rendering (Annex A.8.2), and the
+/// groups with a KLT basis (`klt` if given; else chosen on the middle target's first
+/// allocation, so that every rate is fitted with the quantizers it will be coded with).
 pub fn rate_plans(
     g: &Gaussians,
     p: &PreparedGaussians,
     rates: &RateControl,
     variant: Variant,
+    klt: Option<&[bool]>,
     progress: &dyn Fn(&str),
-) -> Result<Vec<RatePlan>> {
+) -> Result<(Vec<RatePlan>, Option<Vec<bool>>)> {
     let targets = match rates {
-        RateControl::Plans(s) => return Ok(s.clone()),
+        RateControl::Plans(s) => return Ok((s.clone(), klt.map(<[bool]>::to_vec))),
         RateControl::Psnr(t) => t,
     };
     for (r, &db) in targets.iter().enumerate() {
@@ -239,6 +267,30 @@ pub fn rate_plans(
     // parts' errors do not add up exactly).
     let tables = GaussianTables::standard();
     let origin = p.min.map(|v| v as f32);
+    let code = |groups: &[Group], plan: &RatePlan| {
+        layer::encode_layer(
+            p,
+            groups,
+            &classes,
+            plan,
+            origin,
+            0,
+            DEFAULT_TILE_ANCHORS,
+            variant,
+            tables,
+        )
+    };
+    let klt = match klt {
+        Some(k) => k.to_vec(),
+        None => {
+            progress("choosing KLT bases");
+            let middle = targets[targets.len() / 2];
+            let plan = ratios::allocate(p, &curves, 10f64.powf(-middle / 10.0));
+            choose_klt(p, std::slice::from_ref(&plan), &|groups: &[Group]| {
+                Ok(write_gqua(groups).len() + code(groups, &plan)?.chunks.len())
+            })?
+        }
+    };
     let mut out = Vec::with_capacity(targets.len());
     for (r, &db) in targets.iter().enumerate() {
         progress(&format!("fitting rate {r} to {db} dB"));
@@ -249,22 +301,8 @@ pub fn rate_plans(
         let plan = ratios::allocate(p, &curves, want);
         let measure = |f: f64| -> Result<f64> {
             let scaled = plan.scaled(f);
-            let groups = fit_groups(
-                p,
-                std::slice::from_ref(&scaled),
-                &vec![false; p.kinds.len()],
-            );
-            let coded = layer::encode_layer(
-                p,
-                &groups,
-                &classes,
-                &scaled,
-                origin,
-                0,
-                DEFAULT_TILE_ANCHORS,
-                variant,
-                tables,
-            )?;
+            let groups = fit_groups(p, std::slice::from_ref(&scaled), &klt);
+            let coded = code(&groups, &scaled)?;
             Ok(target.mse(&coded.expected)?.max(1e-30))
         };
         let (mut lf, mut got) = (0.0f64, measure(1.0)?);
@@ -287,7 +325,7 @@ pub fn rate_plans(
         }
         out.push(plan.scaled(best.1.exp()));
     }
-    Ok(out)
+    Ok((out, Some(klt)))
 }
 
 /// Encodes `p` (the prepared form of `g`) with each rate's `steps` (Annex A.8).
@@ -355,27 +393,9 @@ pub fn encode_prepared(
                 reason: format!("one choice per group ({}), not {}", p.kinds.len(), k.len()),
             })
         }
-        None => {
-            let middle = (m / 2) as u8;
-            let size = |klt: &[bool]| -> Result<usize> {
-                let groups = fit_groups(p, plans, klt);
-                Ok(write_gqua(&groups).len() + code_layer(&groups, middle)?.chunks.len())
-            };
-            let mut klt = vec![false; p.kinds.len()];
-            let mut best = size(&klt)?;
-            for (gi, kind) in p.kinds.iter().enumerate() {
-                if matches!(kind, GroupKind::Dc | GroupKind::Rest) {
-                    klt[gi] = true;
-                    let s = size(&klt)?;
-                    if s < best {
-                        best = s;
-                    } else {
-                        klt[gi] = false;
-                    }
-                }
-            }
-            klt
-        }
+        None => choose_klt(p, plans, &|groups: &[Group]| {
+            Ok(write_gqua(groups).len() + code_layer(groups, (m / 2) as u8)?.chunks.len())
+        })?,
     };
     let groups = fit_groups(p, plans, &klt);
     let mut stream = Signature::current().to_bytes().to_vec();
@@ -409,7 +429,18 @@ pub fn encode_gaussians(
     progress: &dyn Fn(&str),
 ) -> Result<EncodedGaussians> {
     let p = PreparedGaussians::new(g)?;
-    let plans = rate_plans(g, &p, &options.rates, options.variant, progress)?;
+    let (plans, klt) = rate_plans(
+        g,
+        &p,
+        &options.rates,
+        options.variant,
+        options.klt.as_deref(),
+        progress,
+    )?;
     progress("coding");
-    encode_prepared(&p, &plans, options)
+    let options = ExplicitOptions {
+        klt,
+        ..options.clone()
+    };
+    encode_prepared(&p, &plans, &options)
 }
