@@ -21,7 +21,7 @@ use crate::container::signature::{FORMAT_MAJOR, FORMAT_MINOR};
 use crate::decoder::{decode_with_symbols, DecodeOptions};
 use crate::explicit::decode_gaussians;
 
-use super::canonical::explicit_canonical_tensors;
+use super::canonical::{explicit_canonical_tensors, EXPLICIT_INTEGER_TENSORS};
 use super::explicit_vectors::{
     explicit_must_fail_vectors, explicit_valid_vectors, EXPLICIT_SECTIONS,
 };
@@ -113,23 +113,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
                 ));
             }
             let tensors = canonical_tensors(&model, &symbols);
-            let expected = format!("{}.r{rate}.safetensors", v.name);
-            // Large lossless tensors (hash-grid tables, big MLPs) are left to the integer hash,
-            // to keep the folder small; floats and symbols are always kept.
-            let (kept, omitted): (Vec<_>, Vec<_>) = tensors.iter().cloned().partition(|t| {
-                FLOAT_TENSORS.contains(&t.name.as_str())
-                    || SYMBOL_TENSORS.contains(&t.name.as_str())
-                    || t.data.len() <= OMIT_ABOVE_BYTES
-            });
-            decodes.push(ExpectedDecode {
-                rate,
-                expected: expected.clone(),
-                integer_sha256: integer_hash(&tensors),
-                float_sha256: float_hash(&tensors),
-                tolerance: Tolerance::STANDARD,
-                omitted: omitted.into_iter().map(|t| t.name).collect(),
-            });
-            files.insert(expected, canonical::to_safetensors(&kept));
+            decodes.push(expected_decode(v.name, rate, &tensors, &mut files));
         }
         entries.push(VectorEntry {
             decodes,
@@ -156,16 +140,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
                 ));
             }
             let tensors = explicit_canonical_tensors(&d);
-            let expected = format!("{}.r{rate}.safetensors", v.name);
-            decodes.push(ExpectedDecode {
-                rate,
-                expected: expected.clone(),
-                integer_sha256: integer_hash(&tensors),
-                float_sha256: float_hash(&tensors),
-                tolerance: Tolerance::STANDARD,
-                omitted: Vec::new(),
-            });
-            files.insert(expected, canonical::to_safetensors(&tensors));
+            decodes.push(expected_decode(v.name, rate, &tensors, &mut files));
         }
         let mut sections = EXPLICIT_SECTIONS.to_vec();
         sections.extend(v.sections.iter().filter(|s| !EXPLICIT_SECTIONS.contains(s)));
@@ -234,6 +209,34 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         manifest,
         coverage,
     })
+}
+
+/// The manifest's record of one expected decode, its file `<name>.r<rate>.safetensors` put
+/// in `files`. Large lossless tensors (hash-grid tables, big MLPs) are left to the integer
+/// hash, to keep the folder small; floats, symbols and the explicit profile's integer
+/// tensors are always kept.
+fn expected_decode(
+    name: &str,
+    rate: u8,
+    tensors: &[canonical::CanonicalTensor],
+    files: &mut BTreeMap<String, Vec<u8>>,
+) -> ExpectedDecode {
+    let expected = format!("{name}.r{rate}.safetensors");
+    let (kept, omitted): (Vec<_>, Vec<_>) = tensors.iter().cloned().partition(|t| {
+        FLOAT_TENSORS.contains(&t.name.as_str())
+            || SYMBOL_TENSORS.contains(&t.name.as_str())
+            || EXPLICIT_INTEGER_TENSORS.contains(&t.name.as_str())
+            || t.data.len() <= OMIT_ABOVE_BYTES
+    });
+    files.insert(expected.clone(), canonical::to_safetensors(&kept));
+    ExpectedDecode {
+        rate,
+        expected,
+        integer_sha256: integer_hash(tensors),
+        float_sha256: float_hash(tensors),
+        tolerance: Tolerance::STANDARD,
+        omitted: omitted.into_iter().map(|t| t.name).collect(),
+    }
 }
 
 /// A manifest entry's common fields (no decodes, rate or class yet).
