@@ -59,13 +59,12 @@ struct Cost<'a> {
 }
 
 impl Events for Cost<'_> {
-    fn bit(&mut self, freq_one: u32, _: usize, what: BitEvent) -> Result<bool> {
+    fn bit(&mut self, _freq_one: u32, _: usize, what: BitEvent) -> Result<bool> {
+        // A refinement bit costs one bit; the rotation index's bits are costed from the
+        // decoded indices afterwards (the traversal does not need them to be right here).
         if let BitEvent::Refine { .. } = what {
             self.refine += 1.0;
-            return Ok(false);
         }
-        // The bit itself is not known here; the decoded index is read back below.
-        let _ = freq_one;
         Ok(false)
     }
     fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> Result<i64> {

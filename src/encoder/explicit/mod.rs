@@ -26,21 +26,21 @@ use crate::render::compare::RingTarget;
 use crate::render::Gaussians;
 use crate::tiles::DEFAULT_TILE_ANCHORS;
 
-/// Steps per unit of the quality knob `t` (Annex A.8): `Δ_g = t · step_g` for each group of
-/// Table 3-3, and the voxel edge `t · position`.
+/// Where the rate-distortion curves' trial steps are centred (Annex A.8.2): the voxel edge
+/// and each group's step, in scene units, that the trials scale by powers of two.
 #[derive(Debug, Clone, PartialEq)]
-pub struct StepRatios {
-    /// Voxel edge per unit t, in scene units.
+pub struct TrialSteps {
+    /// Voxel edge, in scene units.
     pub position: f64,
     /// Per group present, in Table 3-3 order.
     pub groups: Vec<f64>,
 }
 
-impl StepRatios {
-    /// A starting point that does not look at the renders (Annex A.8): positions on a grid
-    /// of 2^-12 of the box per unit t, and steps in each group's own units.
-    pub fn default_for(p: &PreparedGaussians) -> StepRatios {
-        StepRatios {
+impl TrialSteps {
+    /// The centres used for every scene: a voxel edge of 2^−12 of the box, and a step in
+    /// each group's own units.
+    pub fn default_for(p: &PreparedGaussians) -> TrialSteps {
+        TrialSteps {
             position: p.extent.max(1e-30) / 4096.0,
             groups: p
                 .kinds

@@ -7,7 +7,7 @@
 
 use super::layer::{RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
-use super::StepRatios;
+use super::TrialSteps;
 use crate::error::Result;
 use crate::explicit::groups::GroupKind;
 use crate::explicit::layer::SIZE_CLASSES;
@@ -96,7 +96,7 @@ pub fn measure_curves(
     use crate::entropy::GaussianTables;
     use crate::tiles::{TileTable, DEFAULT_TILE_ANCHORS};
     let tables = GaussianTables::standard();
-    let start = StepRatios::default_for(p);
+    let start = TrialSteps::default_for(p);
     let origin = p.min.map(|v| v as f32);
     let reference = grid(p, origin, start.position);
     let class_of = classes.classes(p);
@@ -234,7 +234,7 @@ pub fn allocate(p: &PreparedGaussians, curves: &[(Part, Curve)], target_mse: f64
         }
     }
     let chosen = pick(10f64.powf(lo));
-    let start = StepRatios::default_for(p);
+    let start = TrialSteps::default_for(p);
     let mut position = [0f64; SIZE_CLASSES];
     let mut scale = 0.0;
     let mut group = vec![[0f64; SIZE_CLASSES]; p.kinds.len()];
