@@ -13,7 +13,7 @@ use crate::container::payload;
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
-use crate::error::{Error, Result, Structure};
+use crate::error::{Error, Result};
 use crate::hyperprior::prior::Prior;
 use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
@@ -151,14 +151,8 @@ fn decode_stream(
         None => GaussianTables::standard(),
     };
     loop {
-        let Some(chunk) = reader.next_chunk()? else {
-            // §1.5 rule 4: the stream ends only with SEND.
-            return Err(Error::Truncated {
-                structure: Structure::ChunkHeader,
-                needed: 8,
-                available: 0,
-            });
-        };
+        // §1.5 rule 4: the stream ends only with SEND.
+        let chunk = reader.next_before_send()?;
         let tag = chunk.tag;
         if !tag.is_critical() {
             // §1.5 rules 1-2: ancillary chunks after HEAD are skipped.

@@ -68,13 +68,8 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
     let mut section: Option<usize> = None;
     let mut head_seen = false;
     loop {
-        let Some(chunk) = reader.next_chunk()? else {
-            return Err(Error::Truncated {
-                structure: crate::error::Structure::ChunkHeader,
-                needed: 8,
-                available: 0,
-            });
-        };
+        // §1.5 rule 4: the stream ends only with SEND.
+        let chunk = reader.next_before_send()?;
         let tag = chunk.tag;
         if !tag.is_critical() {
             if !head_seen {

@@ -158,6 +158,16 @@ impl<'a> ChunkReader<'a> {
         self.rest
     }
 
+    /// The next chunk of a stream that must go on to `SEND`: running out of bytes is
+    /// **Truncated** (§1.5 rule 4).
+    pub fn next_before_send(&mut self) -> Result<Chunk<'a>> {
+        self.next_chunk()?.ok_or(Error::Truncated {
+            structure: Structure::ChunkHeader,
+            needed: 8,
+            available: 0,
+        })
+    }
+
     /// The next chunk, `Ok(None)` at the end of the bytes.
     pub fn next_chunk(&mut self) -> Result<Option<Chunk<'a>>> {
         if self.rest.is_empty() {

@@ -7,7 +7,7 @@ use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::payload::{body, read_apos, METHOD_CODED};
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::{GaussianTables, SymbolReader};
-use crate::error::{Error, Result, Structure};
+use crate::error::{Error, Result};
 use crate::explicit::attributes::{walk, BitEvent, Events, TileSymbols};
 use crate::explicit::groups::{read_gqua, Group};
 use crate::explicit::header::GaussianHeader;
@@ -142,13 +142,8 @@ pub fn decode_gaussians_in(
         expected: tag,
     };
     loop {
-        let Some(chunk) = reader.next_chunk()? else {
-            return Err(Error::Truncated {
-                structure: Structure::ChunkHeader,
-                needed: 8,
-                available: 0,
-            });
-        };
+        // §1.5 rule 4: the stream ends only with SEND.
+        let chunk = reader.next_before_send()?;
         let tag = chunk.tag;
         if !tag.is_critical() {
             if header.is_none() {
