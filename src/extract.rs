@@ -1,7 +1,7 @@
 //! Extracting one rate from a multi-rate stream (spec §7.5, §3.7): the shared chunks and one
 //! layer are copied as they are, the preflight is rewritten with the one rate, and nothing
 //! is re-coded, so the result is byte-identical to encoding that rate alone. One walk serves
-//! both profiles; [`Profile`] says what differs.
+//! both profiles; a `Profile` says what differs.
 
 use crate::container::chunk::{write_chunk, ChunkReader, ChunkTag};
 use crate::container::preflight::Preflight;
