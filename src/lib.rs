@@ -5,7 +5,14 @@
 //! quantization with per-rate gains). The normative text is `spec/` in this repository; every
 //! module cites the section it implements.
 //!
-//! ## Map of a stream (format 0.9)
+//! This crate is the decoder: it reads a stream of either profile and nothing else. The
+//! tools built on it are crates of their own (`crates/` in the repository): `salvq-encoder`
+//! (the reference encoder and `info`), `salvq-render` (scene files, the Inria PLY, the CPU
+//! preview renderer), `salvq-gen` (synthetic scenes), `salvq-conformance` (canonical form,
+//! vectors, runner, fuzzing harness), `salvq-bench` (research benches) and `salvq-cli` (the
+//! `salvq` command). Dependencies point one way, towards this crate.
+//!
+//! ## Map of a stream (format 0.11)
 //!
 //! | stream part | spec | module |
 //! |---|---|---|
@@ -14,30 +21,24 @@
 //! | `HEAD` preflight: dimensions, geometry, decoded size | §1.4 | [`container::preflight`] |
 //! | chunk order, critical / ancillary, `SEND` | §1.5 | [`decoder`] |
 //! | model payload chunks `MLPS` `QUAN` `GRID` | §1.6 | [`container::mlps`], [`container::payload`] |
+//! | the explicit-Gaussians profile: `GHED` `GQUA` `GLAY` `GATT` | §3 | [`explicit`] |
 //! | anchor positions `APOS`: an octree per tile, adaptive contexts, voxel counts | §8 | [`geometry`] |
 //! | tiles: `TILS`, per-tile bodies, parallel and region decoding | §10 | [`tiles`], [`decoder`] |
 //! | integer hyperprior: grid features, fixed-point MLP, steps, scale indices | §5 | [`hyperprior`] |
 //! | ANS, frequency tables, escapes | §6.1-§6.5 | [`entropy`] |
-//! | anchor attribute chunks `AMSK` `AFEA` `ASCL` `AOFF` | §6.6 | [`attributes`] (decoder), [`encoder::attributes`] |
+//! | anchor attribute chunks `AMSK` `AFEA` `ASCL` `AOFF` | §6.6 | [`attributes`] |
 //! | the scene model: tensors, shapes, dtypes | §2 | [`model`] |
 //! | model validation (finite, masks, bases, gains) | §2.3, §2.6 | [`model::validate`] |
 //! | limits and errors | §9 | [`limits`], [`error`] |
-//! | safetensors interchange | Annex A | [`model::interchange`] |
-//! | quantizers: lattices, reconstruction, rate layers, spatial regions | §7 | [`quantizer`], [`encoder::search`], [`extract`] |
-//! | encoder-side fits: KLT basis, scale rows | Annex A.5 | [`encoder::fit`] |
-//! | encoder choices: grid levels, MLP precisions, `--auto` quantizer | Annex A.5.1-A.5.4 | [`encoder::parsimony`], [`encoder::precision`], [`encoder::context_precision`], [`encoder::auto`] |
-//! | neural Gaussians, camera ring, 3DGS PLY, CPU renderer, PSNR / SSIM | Annex C | [`render`] |
-//! | measurements: R-D (feature SNR and render PSNR), search, stability, scaling, parsimony | — | [`rdbench`] |
-//! | canonical decoded form, hashes, vectors, runner | §11 | [`conformance`] |
-//! | synthetic scene generator | Annex B | [`gen`] |
+//! | quantizers: lattices, reconstruction, rate layers, spatial regions | §7 | [`quantizer`], [`extract`] |
 //!
 //! ## Use
 //!
 //! ```
-//! use salvq::gen::{generate, GenParams};
+//! use salvq_gen::{generate, GenParams};
 //! // A small synthetic scene with the identity basis (uniform scalar quantization).
 //! let model = generate(&GenParams { feat_basis: false, ..GenParams::small(100, 1) });
-//! let encoded = salvq::encoder::encode_full(&model, &Default::default())?;
+//! let encoded = salvq_encoder::encode_full(&model, &Default::default())?;
 //! let decoded = salvq::decode(&encoded.stream)?;
 //! // Decoding reproduces, bit for bit, the reconstruction the encoder predicted; positions
 //! // and masks are lossless, attributes lie within half a quantization step.
@@ -51,35 +52,24 @@
 //! before anything is allocated.
 
 // No unsafe code, except the one measured hot path that is isolated and justified in
-// `hyperprior::simd` (the context MLP's i16 dot product with SSE2's multiply-add).
+// `hyperprior::simd` (the context MLP's i16 dot products with SSE2 and AVX2).
 #![deny(unsafe_code)]
 
 pub mod attributes;
-pub mod bdrate;
-pub mod conformance;
 pub mod container;
 pub mod decoder;
-pub mod encoder;
 pub mod entropy;
 pub mod error;
 pub mod explicit;
 pub mod extract;
-pub mod fuzzing;
-pub mod gen;
 pub mod geometry;
 pub mod hyperprior;
-pub mod info;
-pub mod io;
-pub mod lattice;
 pub mod limits;
 pub mod model;
 pub mod quantizer;
-pub mod rdbench;
-pub mod render;
 pub mod tiles;
 
 pub use decoder::{decode, decode_with_limits, decode_with_options, DecodeOptions};
-pub use encoder::{encode, encode_with_options, EncodeOptions, Search};
 pub use error::{Error, Result};
 pub use extract::extract_rate;
 pub use limits::Limits;

@@ -30,9 +30,9 @@ impl fmt::Display for LimitKind {
 ///
 /// ```
 /// use salvq::{Limits, Error, limits::LimitKind};
-/// use salvq::gen::{generate, GenParams};
+/// use salvq_gen::{generate, GenParams};
 /// let model = generate(&GenParams { feat_basis: false, ..GenParams::small(64, 7) });
-/// let stream = salvq::encode(&model).unwrap();
+/// let stream = salvq_encoder::encode(&model).unwrap();
 /// let tiny = Limits { max_anchors: 10, ..Limits::default() };
 /// let err = salvq::decode_with_limits(&stream, &tiny).unwrap_err();
 /// assert!(matches!(err, Error::LimitExceeded { limit: LimitKind::Anchors, requested: 64, allowed: 10 }));

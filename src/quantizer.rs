@@ -2,11 +2,10 @@
 //! binary32, and the reconstruction `x = μ + Δ·(B u)` in a fixed order of binary32 operations.
 //!
 //! Decoding never searches a lattice: it multiplies the decoded integer coordinates `u` by the
-//! group's matrix B (§7.3). Which `u` an encoder picks is its own choice ([`crate::lattice`]).
+//! group's matrix B (§7.3). Which `u` an encoder picks is its own choice (the reference encoder's lattice search).
 
 use serde::Serialize;
 
-use crate::lattice::root::E8_BASIS_TWICE;
 use crate::model::{Basis, GroupQuantizer};
 
 /// The lattice of an attribute group (spec §7.1, Table 7-1).
@@ -305,6 +304,18 @@ pub fn general_matrix_non_finite(d: usize, f: &Basis) -> Option<(usize, usize)> 
         .position(|v| !v.is_finite())
         .map(|p| (p / d, p % d))
 }
+
+/// Table 7-2 times 2 (row-major): twice the E8 generator block.
+pub const E8_BASIS_TWICE: [i8; 64] = [
+    2, 2, 2, 2, 2, 1, 1, 0, //
+    0, 2, 2, 2, 2, 1, 1, 0, //
+    0, 0, 2, 2, 2, 1, 1, 0, //
+    0, 0, 0, 2, 2, 1, 1, 0, //
+    0, 0, 0, 0, 2, 1, 1, 0, //
+    0, 0, 0, 0, 0, 1, 1, 0, //
+    0, 0, 0, 0, 0, -1, 1, 0, //
+    -2, -4, -6, -8, -10, -5, -7, 4, //
+];
 
 #[cfg(test)]
 mod tests {

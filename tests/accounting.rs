@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use salvq::info::inspect;
 use salvq::Limits;
+use salvq_encoder::info::inspect;
 
 fn vector(name: &str) -> Vec<u8> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("conformance/vectors/{name}.salvq"));

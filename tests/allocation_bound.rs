@@ -1,6 +1,6 @@
 //! The decoder allocates no more than its preflight allows (spec §9.1, issue 8): peak heap
 //! during a decode, counted by a capping global allocator, against
-//! `salvq::fuzzing::allocation_bound` — the same bound the fuzz targets enforce. Each decode
+//! `salvq_conformance::fuzzing::allocation_bound` — the same bound the fuzz targets enforce. Each decode
 //! runs in a child process of this test so its peak is its own.
 
 use std::alloc::System;
@@ -40,7 +40,7 @@ fn main() {
     }
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let dir = root.join("conformance/vectors");
-    let manifest = salvq::conformance::runner::read_manifest(&dir).expect("manifest");
+    let manifest = salvq_conformance::runner::read_manifest(&dir).expect("manifest");
     let exe = std::env::current_exe().expect("test binary");
     let mut worst: f64 = 0.0;
     let mut failures = Vec::new();
@@ -63,7 +63,7 @@ fn main() {
                 ));
                 continue;
             };
-            let bound = salvq::fuzzing::allocation_bound(decoded, len);
+            let bound = salvq_conformance::fuzzing::allocation_bound(decoded, len);
             let ratio = peak as f64 / (decoded + len) as f64;
             worst = worst.max(ratio);
             println!(

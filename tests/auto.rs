@@ -1,10 +1,10 @@
 //! `--auto` (issue 10, Annex A.5.3): the feature quantizer chosen by total bytes at equal
 //! distortion, on two differently structured generated scenes.
 
-use salvq::encoder::auto::{choose, FeatureQuantizer, DISTORTION_TOLERANCE};
-use salvq::encoder::{encode_full, EncodeOptions};
-use salvq::gen::{generate, GenParams};
 use salvq::SceneModel;
+use salvq_encoder::auto::{choose, FeatureQuantizer, DISTORTION_TOLERANCE};
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
 
 /// A small scene whose feature residuals are mixed with singular values `decay^i` (Annex
 /// B.4.3): 1 draws uncorrelated residuals, lower values strongly correlated ones.
@@ -18,7 +18,7 @@ fn scene(decay: f64) -> SceneModel {
 }
 
 fn feature_mse(a: &SceneModel, b: &SceneModel) -> f64 {
-    salvq::encoder::values_mse(&a.anchors.feat, &b.anchors.feat)
+    salvq_encoder::values_mse(&a.anchors.feat, &b.anchors.feat)
 }
 
 /// Every candidate is measured at the target distortion, the choice is the fewest bytes, and

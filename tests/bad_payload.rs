@@ -18,9 +18,9 @@ fn padding_bits_set() {
     // GRID holds C bits per touched entry: find a scene whose count leaves padding bits.
     let (model, stream) = (14..40)
         .map(|n| {
-            salvq::gen::generate(&salvq::gen::GenParams {
+            salvq_gen::generate(&salvq_gen::GenParams {
                 feat_basis: false,
-                ..salvq::gen::GenParams::small(n, 1)
+                ..salvq_gen::GenParams::small(n, 1)
             })
         })
         .find_map(|m| {
@@ -33,7 +33,7 @@ fn padding_bits_set() {
                 .sum::<usize>()
                 * usize::from(m.dims.grid_channels);
             (bits % 8 != 0).then(|| {
-                let s = salvq::encode(&m).unwrap();
+                let s = salvq_encoder::encode(&m).unwrap();
                 (m, s)
             })
         })
@@ -294,11 +294,11 @@ fn context_precision_out_of_range_and_i8_weights_decode() {
     let m = small_model();
     let mut sizes = Vec::new();
     for p in [ContextPrecision::I16, ContextPrecision::I8] {
-        let options = salvq::EncodeOptions {
+        let options = salvq_encoder::EncodeOptions {
             context_precision: Some(p),
             ..Default::default()
         };
-        let e = salvq::encoder::encode_full(&m, &options).unwrap();
+        let e = salvq_encoder::encode_full(&m, &options).unwrap();
         assert_eq!(&decode(&e.stream).unwrap(), e.expected());
         sizes.push(e.stream.len());
     }

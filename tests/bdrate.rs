@@ -5,7 +5,7 @@
 
 use std::collections::HashMap;
 
-use salvq::bdrate::{bd_psnr, bd_rate, overlap, Curve, Interpolation};
+use salvq_bench::bdrate::{bd_psnr, bd_rate, overlap, Curve, Interpolation};
 
 const INPUTS: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

@@ -2,10 +2,10 @@
 //! smaller at equal distortion, with the base steps refined to hold the distortion.
 
 use salvq::container::payload::ContextPrecision;
-use salvq::encoder::context_precision::{MAX_REFINED_RATIO, MSE_TOLERANCE};
-use salvq::encoder::{encode_full, values_mse as mse, EncodeOptions};
-use salvq::gen::{generate, GenParams};
 use salvq::SceneModel;
+use salvq_encoder::context_precision::{MAX_REFINED_RATIO, MSE_TOLERANCE};
+use salvq_encoder::{encode_full, values_mse as mse, EncodeOptions};
+use salvq_gen::{generate, GenParams};
 
 fn group_mse(m: &SceneModel, d: &SceneModel) -> [f64; 3] {
     [

@@ -6,7 +6,7 @@ use salvq::container::chunk::ChunkTag;
 use salvq::entropy::reference;
 use salvq::entropy::{GaussianTables, SymbolReader, SymbolWriter, SCALE_COUNT};
 use salvq::error::{AnsFault, Error};
-use salvq::gen::rng::Stream;
+use salvq_gen::rng::Stream;
 
 const TAG: ChunkTag = ChunkTag::AOFF;
 

@@ -13,8 +13,8 @@ use salvq::entropy::{
     SCALE_COUNT,
 };
 use salvq::error::Error;
-use salvq::gen::rng::Stream;
-use salvq::rdbench::coder::{sigma_to_q16, synthetic_samples};
+use salvq_bench::coder::{sigma_to_q16, synthetic_samples};
+use salvq_gen::rng::Stream;
 
 const TAG: ChunkTag = ChunkTag::AFEA;
 

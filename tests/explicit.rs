@@ -4,17 +4,17 @@
 mod common;
 use common::shared_data;
 
-use salvq::conformance::explicit_vectors::encode_synthetic;
 use salvq::decoder::{decode_any, is_explicit, DecodeOptions, Decoded};
-use salvq::encoder::explicit::input::{input_kind, InputKind};
-use salvq::encoder::explicit::{
+use salvq::explicit::{decode_gaussians, DecodedGaussians};
+use salvq::{Error, Limits};
+use salvq_conformance::explicit_vectors::encode_synthetic;
+use salvq_encoder::explicit::input::{input_kind, InputKind};
+use salvq_encoder::explicit::{
     encode_gaussians, encode_prepared, ExplicitOptions, PreparedGaussians, RateControl, RatePlan,
 };
-use salvq::explicit::{decode_gaussians, DecodedGaussians};
-use salvq::gen::gaussians::{generate_gaussians, GaussianParams};
-use salvq::render::compare::RingTarget;
-use salvq::render::ply::{ply_bytes, read_ply};
-use salvq::{Error, Limits};
+use salvq_gen::gaussians::{generate_gaussians, GaussianParams};
+use salvq_render::compare::RingTarget;
+use salvq_render::ply::{ply_bytes, read_ply};
 
 fn plan(voxel: f64, groups: usize) -> RatePlan {
     RatePlan {
@@ -81,7 +81,7 @@ fn coarser_rates_are_smaller_and_further_from_the_input() {
         .iter()
         .zip(&rate_plans)
         .map(|(l, plan)| {
-            let order = salvq::encoder::explicit::layer::grid(&p, origin, plan.voxel).order;
+            let order = salvq_encoder::explicit::layer::grid(&p, origin, plan.voxel).order;
             order
                 .iter()
                 .enumerate()
@@ -272,7 +272,7 @@ fn a_nan_is_named_by_property_and_gaussian() {
 #[test]
 fn degenerate_scenes_encode_or_fail_with_a_typed_error() {
     // No Gaussians at all.
-    let empty = salvq::render::Gaussians::default();
+    let empty = salvq_render::Gaussians::default();
     assert!(matches!(
         PreparedGaussians::new(&empty),
         Err(Error::FitFailed { .. })

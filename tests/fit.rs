@@ -3,11 +3,11 @@
 //! rate; refitting helps every other lattice; a fitted basis decorrelates the residuals; the
 //! streams decode to what the encoder predicted; conflicting options are typed errors.
 
-use salvq::encoder::fit::{fit_feature_scales, fit_klt_basis};
-use salvq::encoder::{encode_full, EncodeOptions};
-use salvq::gen::{generate, GenParams};
 use salvq::quantizer::GroupLattices;
 use salvq::{decode, Error, LatticeKind, SceneModel};
+use salvq_encoder::fit::{fit_feature_scales, fit_klt_basis};
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
 
 fn model(n: u32) -> SceneModel {
     generate(&GenParams {

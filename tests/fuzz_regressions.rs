@@ -1,10 +1,10 @@
 //! Replays every fuzz finding kept under `tests/fuzz_regressions/` (`<target>-<name>.bin`)
 //! and every seed under `fuzz/seeds/<target>/` through the same checks the fuzz targets run
-//! (`salvq::fuzzing`), so a fixed bug stays fixed and the seeds stay valid inputs.
+//! (`salvq_conformance::fuzzing`), so a fixed bug stays fixed and the seeds stay valid inputs.
 
 use std::path::Path;
 
-use salvq::fuzzing::{
+use salvq_conformance::fuzzing::{
     decode_input, extract_input, geometry_input, payload_input, preflight_input, round_trip,
     RoundTrip,
 };
@@ -78,9 +78,9 @@ fn write_seeds() {
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     // Stream seeds for `decode`, and the same with a rate byte first for `extract`.
-    use salvq::encoder::{encode_full, EncodeOptions, Search};
-    use salvq::gen::{generate, GenParams};
     use salvq::LatticeKind;
+    use salvq_encoder::{encode_full, EncodeOptions, Search};
+    use salvq_gen::{generate, GenParams};
     let small = |n, seed, basis| GenParams {
         feat_basis: basis,
         ..GenParams::small(n, seed)
@@ -143,24 +143,27 @@ fn write_seeds() {
         std::fs::write(root.join(format!("fuzz/seeds/extract/{name}.bin")), e).unwrap();
     }
     // An explicit-profile stream (spec §3): the payload target's explicit base.
-    let explicit = salvq::fuzzing::explicit_payload_base();
+    let explicit = salvq_conformance::fuzzing::explicit_payload_base();
     std::fs::write(root.join("fuzz/seeds/decode/explicit_sh1.salvq"), explicit).unwrap();
     let mut e = vec![1];
     e.extend_from_slice(explicit);
     std::fs::write(root.join("fuzz/seeds/extract/explicit_sh1.bin"), e).unwrap();
     let dir = root.join("fuzz/seeds/payload");
     std::fs::create_dir_all(&dir).unwrap();
-    let base = chunks(salvq::fuzzing::payload_base()).unwrap();
-    for (i, tag) in salvq::fuzzing::PAYLOAD_TAGS.iter().enumerate() {
+    let base = chunks(salvq_conformance::fuzzing::payload_base()).unwrap();
+    for (i, tag) in salvq_conformance::fuzzing::PAYLOAD_TAGS.iter().enumerate() {
         let payload = &base.iter().find(|(t, _)| t == tag).unwrap().1;
         let mut seed = vec![i as u8];
         seed.extend_from_slice(payload);
         std::fs::write(dir.join(format!("{}.bin", tag.as_str())), seed).unwrap();
     }
-    let explicit = chunks(salvq::fuzzing::explicit_payload_base()).unwrap();
-    for (i, tag) in salvq::fuzzing::EXPLICIT_PAYLOAD_TAGS.iter().enumerate() {
+    let explicit = chunks(salvq_conformance::fuzzing::explicit_payload_base()).unwrap();
+    for (i, tag) in salvq_conformance::fuzzing::EXPLICIT_PAYLOAD_TAGS
+        .iter()
+        .enumerate()
+    {
         let payload = &explicit.iter().find(|(t, _)| t == tag).unwrap().1;
-        let mut seed = vec![(salvq::fuzzing::PAYLOAD_TAGS.len() + i) as u8];
+        let mut seed = vec![(salvq_conformance::fuzzing::PAYLOAD_TAGS.len() + i) as u8];
         seed.extend_from_slice(payload);
         std::fs::write(dir.join(format!("explicit-{}.bin", tag.as_str())), seed).unwrap();
     }

@@ -2,12 +2,12 @@
 //! included; edge cases of depth and count; on a generated scene the adaptive contexts beat
 //! the order-0 entropy of the occupancy bytes.
 
-use salvq::encoder::encode_full;
 use salvq::entropy::GaussianTables;
-use salvq::gen::rng::Stream;
-use salvq::gen::{generate, GenParams};
 use salvq::geometry::{decode, encode};
 use salvq::model::morton3;
+use salvq_encoder::encode_full;
+use salvq_gen::rng::Stream;
+use salvq_gen::{generate, GenParams};
 
 fn round_trip(mut voxels: Vec<[u32; 3]>, depth: u8) -> usize {
     voxels.sort_by_key(|v| morton3(*v));

@@ -3,8 +3,8 @@
 
 mod common;
 
-use salvq::info::inspect;
 use salvq::Limits;
+use salvq_encoder::info::inspect;
 
 #[test]
 fn info_text_of_a_small_stream() {

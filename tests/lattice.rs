@@ -1,4 +1,4 @@
-//! Lattice searches against brute force (`salvq::lattice`).
+//! Lattice searches against brute force (`salvq_encoder::lattice`).
 //!
 //! Brute force: every integer coordinate vector in a box that provably holds all lattice
 //! points within the claimed closest distance `d` of `y` (`|u_i − (M⁻¹y)_i| ≤ ‖row i of M⁻¹‖·d`)
@@ -6,12 +6,12 @@
 //! LLL-reduced basis `B T` (whose transform is checked unimodular separately); cases where
 //! both boxes are too large for a debug build are counted and skipped.
 
-use salvq::gen::rng::Stream as Rng;
-use salvq::lattice::linalg::{det_i64, inverse_from_qr, mat_vec, qr};
-use salvq::lattice::{
+use salvq_encoder::lattice::linalg::{det_i64, inverse_from_qr, mat_vec, qr};
+use salvq_encoder::lattice::{
     closest_dn, closest_e8, closest_e8_product, dn_basis, e8_basis, e8_product_basis, Lattice,
     LatticeError, SearchMethod, LLL_DELTA,
 };
+use salvq_gen::rng::Stream as Rng;
 
 fn orthogonal(rng: &mut Rng, n: usize) -> Vec<f64> {
     let a: Vec<f64> = (0..n * n).map(|_| rng.normal()).collect();
@@ -26,7 +26,7 @@ fn svd_basis(rng: &mut Rng, n: usize, cond: f64) -> Vec<f64> {
     if n > 1 {
         s[1] = cond;
     }
-    salvq::lattice::linalg::from_svd(n, &u, &s, &v)
+    salvq_encoder::lattice::linalg::from_svd(n, &u, &s, &v)
 }
 
 /// The same lattice in a worse basis: a few random integer column operations.
@@ -254,7 +254,7 @@ fn lll_output_is_reduced_and_the_transform_unimodular() {
         assert_eq!(det_i64(n, t).map(i128::abs), Some(1), "case {case}");
         // C = B T (to rounding).
         let c = lat.reduced_basis();
-        let bt = salvq::lattice::linalg::mat_mul(
+        let bt = salvq_encoder::lattice::linalg::mat_mul(
             n,
             &b,
             &t.iter().map(|&x| x as f64).collect::<Vec<_>>(),

@@ -7,10 +7,10 @@ mod common;
 
 use common::*;
 use salvq::container::chunk::ChunkTag;
-use salvq::encoder::{encode_full, EncodeOptions, Search};
 use salvq::error::Field;
-use salvq::gen::{generate, GenParams};
 use salvq::{decode, decode_with_options, extract_rate, DecodeOptions, Error, LatticeKind, Limits};
+use salvq_encoder::{encode_full, EncodeOptions, Search};
+use salvq_gen::{generate, GenParams};
 
 fn options(rates: &[u8], lattice: Option<LatticeKind>, search: Search) -> EncodeOptions {
     EncodeOptions {
@@ -216,7 +216,7 @@ fn salvq_stream() -> (Vec<u8>, usize, usize) {
     let m = small_salvq_model();
     let f = usize::from(m.dims.feat_dim);
     let rates = usize::from(m.dims.rates);
-    (salvq::encode(&m).unwrap(), f, rates)
+    (salvq_encoder::encode(&m).unwrap(), f, rates)
 }
 
 #[test]
@@ -320,8 +320,8 @@ fn lattice_names_round_trip_through_the_interchange_file() {
         LatticeKind::General,
     ] {
         let e = encode_full(&m, &options(&[0], Some(kind), Search::Auto)).unwrap();
-        let bytes = salvq::model::interchange::model_to_safetensors(e.expected());
-        let back = salvq::model::interchange::model_from_safetensors(&bytes);
+        let bytes = salvq_render::interchange::model_to_safetensors(e.expected());
+        let back = salvq_render::interchange::model_from_safetensors(&bytes);
         // A decoded model is written without encoder-only checks; reading it back applies
         // them, and a decoded E8/D_n/basis model must pass and keep its lattice.
         let back = back.unwrap();

@@ -6,9 +6,10 @@ use common::*;
 use safetensors::tensor::TensorView;
 use safetensors::{Dtype, SafeTensors};
 use salvq::error::Field;
-use salvq::model::interchange::{model_from_safetensors, model_to_safetensors};
 use salvq::model::names;
-use salvq::{encode, Error};
+use salvq::Error;
+use salvq_encoder::encode;
+use salvq_render::interchange::{model_from_safetensors, model_to_safetensors};
 
 /// The model file as (name, dtype, shape, bytes), editable.
 type Entry = (String, Dtype, Vec<usize>, Vec<u8>);

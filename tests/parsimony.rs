@@ -1,9 +1,9 @@
 //! Least sufficient structure (issue 10): removing a hash-grid level from a model.
 
-use salvq::encoder::parsimony::{grid_levels, prune_grid_levels, without_level, GridLevel};
-use salvq::encoder::{encode_full, EncodeOptions};
-use salvq::gen::{generate, GenParams};
 use salvq::model::validate::validate_model;
+use salvq_encoder::parsimony::{grid_levels, prune_grid_levels, without_level, GridLevel};
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
 
 fn model() -> salvq::SceneModel {
     generate(&GenParams {
@@ -96,7 +96,7 @@ fn pruning_never_grows_the_stream() {
 /// applies to every anchor.
 #[test]
 fn pruning_on_a_sample_applies_to_all_anchors() {
-    use salvq::encoder::parsimony::prune_grid_levels_sampled;
+    use salvq_encoder::parsimony::prune_grid_levels_sampled;
     let m = with_silent_level_1(model());
     let (pruned, trials) =
         prune_grid_levels_sampled(&m, &EncodeOptions::default(), 0.01, 100).unwrap();

@@ -5,10 +5,11 @@
 mod common;
 
 use common::*;
-use salvq::encoder::{encode_full, EncodeOptions};
-use salvq::gen::{generate, GenParams};
-use salvq::model::interchange::{model_from_safetensors, model_to_safetensors};
-use salvq::{decode, encode, encode_with_options, SceneModel};
+use salvq::{decode, SceneModel};
+use salvq_encoder::{encode, encode_with_options};
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
+use salvq_render::interchange::{model_from_safetensors, model_to_safetensors};
 
 fn sha256(bytes: &[u8]) -> String {
     use sha2::{Digest, Sha256};
@@ -40,7 +41,7 @@ fn check(m: &SceneModel) {
     // The Scaffold-GS MLPs are lossless at the precision the encoder chose (§1.6.2).
     assert_eq!(
         decoded.mlp_color,
-        salvq::encoder::precision::rounded(&c.mlp_color, e.scaffold.precision)
+        salvq_encoder::precision::rounded(&c.mlp_color, e.scaffold.precision)
     );
     // Quantizers are lossless but for the base steps the encoder may refine to hold the
     // distortion with i8 context-MLP weights (Annex A.5.4): at most a factor 1/sqrt(1.05).

@@ -7,11 +7,11 @@ mod common;
 
 use common::*;
 use salvq::container::chunk::ChunkTag;
-use salvq::encoder::{encode_full, EncodeOptions};
 use salvq::error::Field;
-use salvq::gen::{generate, GenParams};
 use salvq::quantizer::GroupLattices;
 use salvq::{decode, decode_with_options, extract_rate, DecodeOptions, Error, LatticeKind, Limits};
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
 
 fn model(n: u32) -> salvq::SceneModel {
     generate(&GenParams {
@@ -82,8 +82,8 @@ fn regions_survive_extraction_and_the_interchange_file() {
     )
     .unwrap();
     assert_eq!(d1, all.layers[1].expected);
-    let bytes = salvq::model::interchange::model_to_safetensors(&d1);
-    let back = salvq::model::interchange::model_from_safetensors(&bytes).unwrap();
+    let bytes = salvq_render::interchange::model_to_safetensors(&d1);
+    let back = salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
     assert_eq!(back, d1);
     assert_eq!(back.dims.feat_regions, 3);
     // Re-encoding the read-back model keeps its regions.

@@ -327,7 +327,7 @@ fn tensor_names_match_table_2_1() {
         }
         spec_names.extend(names.into_iter().map(|n| format!("{n}{rest}")));
     }
-    let mut dims = salvq::gen::generate(&salvq::gen::GenParams::small(1, 1)).dims;
+    let mut dims = salvq_gen::generate(&salvq_gen::GenParams::small(1, 1)).dims;
     dims.feat_lattice = salvq::LatticeKind::General;
     dims.scaling_lattice = salvq::LatticeKind::General;
     dims.feat_regions = 2;

@@ -6,11 +6,11 @@ mod common;
 
 use common::*;
 use salvq::container::chunk::ChunkTag;
-use salvq::encoder::{encode_full, EncodeOptions};
 use salvq::error::Field;
-use salvq::gen::{generate, GenParams};
 use salvq::tiles::TileTable;
 use salvq::{decode, decode_with_options, extract_rate, DecodeOptions, Error, Limits};
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
 
 fn model(n: u32) -> salvq::SceneModel {
     generate(&GenParams {
@@ -19,7 +19,7 @@ fn model(n: u32) -> salvq::SceneModel {
     })
 }
 
-fn tiled(m: &salvq::SceneModel, per_tile: u32) -> salvq::encoder::Encoded {
+fn tiled(m: &salvq::SceneModel, per_tile: u32) -> salvq_encoder::Encoded {
     encode_full(
         m,
         &EncodeOptions {
@@ -117,8 +117,8 @@ fn a_region_decodes_the_intersecting_tiles_only() {
     }
     assert_eq!(part.grid, full.grid);
     // The partial model is a valid model file.
-    let bytes = salvq::model::interchange::model_to_safetensors(&part);
-    salvq::model::interchange::model_from_safetensors(&bytes).unwrap();
+    let bytes = salvq_render::interchange::model_to_safetensors(&part);
+    salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
 }
 
 #[test]
@@ -142,8 +142,8 @@ fn region_decodes_rebase_spatial_quantizer_regions() {
     let o = full.origin.map(f64::from);
     let region = [0, 1, 2, 3, 4, 5].map(|c| o[c % 3] + (f64::from(b2[c]) + 0.5) * vs);
     let part = decode_with_options(&e.stream, &with(None, Some(region))).unwrap();
-    let bytes = salvq::model::interchange::model_to_safetensors(&part);
-    let back = salvq::model::interchange::model_from_safetensors(&bytes).unwrap();
+    let bytes = salvq_render::interchange::model_to_safetensors(&part);
+    let back = salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
     assert_eq!(back, part);
     assert!(part.dims.anchors < 900);
 }

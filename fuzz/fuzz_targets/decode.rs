@@ -1,12 +1,12 @@
-//! Whole-stream decode under tight limits (`salvq::fuzzing::decode_input_metered`), with the
-//! heap capped at what the preflight allows (`salvq::fuzzing::allocation_bound`): a decode
+//! Whole-stream decode under tight limits (`salvq_conformance::fuzzing::decode_input_metered`), with the
+//! heap capped at what the preflight allows (`salvq_conformance::fuzzing::allocation_bound`): a decode
 //! that allocates past it fails an allocation and aborts, and libFuzzer keeps the input.
 #![no_main]
 
 use std::alloc::System;
 
 use cap::Cap;
-use salvq::fuzzing::AllocationMeter;
+use salvq_conformance::fuzzing::AllocationMeter;
 
 #[global_allocator]
 static ALLOCATOR: Cap<System> = Cap::new(System, usize::MAX);
@@ -27,4 +27,4 @@ impl AllocationMeter for CapMeter {
     }
 }
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq::fuzzing::decode_input_metered(data, &CapMeter));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq_conformance::fuzzing::decode_input_metered(data, &CapMeter));

@@ -1,3 +1,3 @@
-//! The octree geometry decoder (§8) on arbitrary bodies (`salvq::fuzzing::geometry_input`).
+//! The octree geometry decoder (§8) on arbitrary bodies (`salvq_conformance::fuzzing::geometry_input`).
 #![no_main]
-libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq::fuzzing::geometry_input(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq_conformance::fuzzing::geometry_input(data));

@@ -1,4 +1,4 @@
-//! One payload of a valid stream replaced by the input (`salvq::fuzzing::payload_input`):
+//! One payload of a valid stream replaced by the input (`salvq_conformance::fuzzing::payload_input`):
 //! the payload decoders behind a valid signature, `HEAD`, chunk order and CRCs.
 #![no_main]
-libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq::fuzzing::payload_input(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq_conformance::fuzzing::payload_input(data));

@@ -1,3 +1,3 @@
-//! The `HEAD` preflight on arbitrary payloads (`salvq::fuzzing::preflight_input`).
+//! The `HEAD` preflight on arbitrary payloads (`salvq_conformance::fuzzing::preflight_input`).
 #![no_main]
-libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq::fuzzing::preflight_input(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| salvq_conformance::fuzzing::preflight_input(data));

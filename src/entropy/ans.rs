@@ -42,6 +42,9 @@ pub const COARSE_BITS: u32 = 8;
 
 /// Runs `$body` with `$p` (a runtime precision in `MIN_PRECISION..=MAX_PRECISION`) bound to
 /// the const generic `$P`. `constriction` takes the precision as a const generic parameter.
+/// Exported for the research benches that time the bare coder; not part of the API.
+#[doc(hidden)]
+#[macro_export]
 macro_rules! with_precision {
     ($p:expr, $P:ident => $body:expr) => {
         match $p {
@@ -103,7 +106,8 @@ macro_rules! with_precision {
         }
     };
 }
-pub(crate) use with_precision;
+#[doc(hidden)]
+pub use crate::with_precision;
 
 /// One coded event as the coder sees it: the interval [cum, cum + freq) of 2^P (§6.2.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

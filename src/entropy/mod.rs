@@ -12,7 +12,7 @@
 //! | §6.3.1 | scale grid σ_k, thresholds θ_k, [`scale_index`] | [`scale`] |
 //! | §6.3.2 – §6.3.5 | radius R_k, integer Φ, frequencies, the data file | [`tables`], `spec/tables/gaussian_tables.txt` |
 //! | §6.4 | escapes: Exp-Golomb order 0 with ½-probability bits | [`symbols`] |
-//! | §6.5 | choice of P, TAIL, R_MAX (informative) | [`analysis`], [`crate::rdbench::coder`], `benches/entropy_precision.rs` |
+//! | §6.5 | choice of P, TAIL, R_MAX (informative) | [`analysis`], `salvq_bench::coder`, `crates/salvq-bench/benches/entropy_precision.rs` |
 //!
 //! ## Use
 //!

@@ -573,7 +573,8 @@ impl Error {
         }
     }
 
-    pub(crate) fn io(op: IoOp, path: &std::path::Path, err: &std::io::Error) -> Error {
+    /// An I/O error on `path` during `op`.
+    pub fn io(op: IoOp, path: &std::path::Path, err: &std::io::Error) -> Error {
         Error::Io {
             op,
             path: path.to_path_buf(),

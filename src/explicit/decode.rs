@@ -13,8 +13,8 @@ use crate::explicit::groups::{read_gqua, Group};
 use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
 use crate::explicit::reconstruct::reconstruct_tile;
+use crate::explicit::Gaussians;
 use crate::limits::Limits;
-use crate::render::Gaussians;
 use crate::tiles::{split_bodies, TileTable};
 
 /// A decoded explicit-profile stream: the Gaussians of the selected layer and the integer

@@ -7,9 +7,9 @@ use crate::container::bytes::{PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, METHOD_RAW};
 use crate::error::{Error, Result};
+use crate::explicit::rest_per_channel;
 use crate::model::Basis;
 use crate::quantizer::{LatticeKind, LatticeMatrix};
-use crate::render::rest_per_channel;
 
 /// Table 3-3: the attribute groups, in stream order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -4,8 +4,8 @@
 use crate::container::bytes::{PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::error::{Error, Field, Result};
+use crate::explicit::rest_per_channel;
 use crate::limits::{LimitKind, Limits};
-use crate::render::rest_per_channel;
 
 /// `GHED` payload bytes (Table 3-1).
 pub const GHED_BYTES: usize = 4 + 1 + 1 + 1 + 8 + 12 + 8;

@@ -2,7 +2,7 @@
 //! layout) coded with the format's machinery — lattice quantizers with per-rate gains (§7),
 //! octree geometry (§8), tiles (§10) and ANS with the normative tables (§6) — under a
 //! causal integer prior fitted per scene and rate (§3.5). The decoded output is the
-//! Gaussians themselves ([`crate::render::Gaussians`]), reconstructed in binary32 exactly
+//! Gaussians themselves ([`Gaussians`]), reconstructed in binary32 exactly
 //! (§3.6).
 //!
 //! | stream part | spec | module |
@@ -11,17 +11,19 @@
 //! | `GQUA` attribute groups, lattices, steps, gains | §3.3 | [`groups`] |
 //! | `GLAY` a layer's grid and prior | §3.4 | [`layer`] |
 //! | `GATT` attribute symbols per tile | §3.5 | [`attributes`] |
-//! | reconstruction | §3.6 | [`reconstruct`] |
+//! | reconstruction, the decoded Gaussians | §3.6 | [`reconstruct`], [`gaussians`] |
 //! | stream order and decoding | §3.7 | [`decode`] |
 
 pub mod attributes;
 pub mod decode;
+pub mod gaussians;
 pub mod groups;
 pub mod header;
 pub mod layer;
 pub mod reconstruct;
 
 pub use decode::{decode_gaussians, DecodedGaussians};
+pub use gaussians::{rest_per_channel, Gaussians};
 pub use groups::{Group, GroupKind, GROUP_KINDS};
 pub use header::GaussianHeader;
 pub use layer::{Layer, CONTEXT_CLASSES};

@@ -5,8 +5,8 @@
 use crate::explicit::attributes::TileSymbols;
 use crate::explicit::groups::{Group, GroupKind};
 use crate::explicit::layer::Layer;
+use crate::explicit::Gaussians;
 use crate::hyperprior::step::canonical_nan;
-use crate::render::Gaussians;
 
 /// §3.6 step 1: a Gaussian's position from its voxel `v`, its `e` refinement bits `w` per
 /// axis: with `c = v·2^e + w` (exact: below 2^24) and the refined edge

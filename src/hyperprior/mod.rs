@@ -8,6 +8,8 @@ pub mod mlp;
 pub mod prior;
 mod simd;
 pub mod step;
+#[cfg(test)]
+mod test_scene;
 
 pub use grid::GridLayout;
 pub use mlp::IntMlp;

@@ -2,10 +2,9 @@
 //!
 //! [`SceneModel`] is both the encoder's input and the decoder's output. Its tensors are
 //! listed, in the spec's order, by [`tensor_table`] (spec Table 2-1); the interchange file
-//! (Annex A, [`interchange`]) and the preflight's `decoded_bytes` (§1.4) are both derived
+//! (Annex A, written by the encoder crate) and the preflight's `decoded_bytes` (§1.4) are both derived
 //! from that one table.
 
-pub mod interchange;
 pub mod validate;
 
 use std::fmt;

@@ -4,8 +4,8 @@
 
 use salvq::container::chunk::ChunkTag;
 use salvq::container::surgery;
-use salvq::gen::{generate, GenParams};
 use salvq::SceneModel;
+use salvq_gen::{generate, GenParams};
 
 /// 13 anchors of the small configuration with the identity basis (what format 0.2 codes).
 pub fn small_model() -> SceneModel {
@@ -21,12 +21,12 @@ pub fn small_salvq_model() -> SceneModel {
 }
 
 pub fn small_stream() -> Vec<u8> {
-    salvq::encode(&small_model()).expect("valid model encodes")
+    salvq_encoder::encode(&small_model()).expect("valid model encodes")
 }
 
 /// What a decoder must output for `small_stream()`.
 pub fn small_expected() -> SceneModel {
-    salvq::encoder::encode_full(&small_model(), &Default::default())
+    salvq_encoder::encode_full(&small_model(), &Default::default())
         .expect("valid model encodes")
         .layers
         .swap_remove(0)
@@ -56,9 +56,7 @@ pub fn chunk_offset(stream: &[u8], tag: ChunkTag) -> usize {
 /// A file of `../shared/data` (the real scenes beside the checkout), or `None` with a
 /// "skipped" note when it is not there.
 pub fn shared_data(name: &str) -> Option<Vec<u8>> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
+    let path = repo_root().join("../shared/data").join(name);
     match std::fs::read(&path) {
         Ok(b) => Some(b),
         Err(_) => {
@@ -66,4 +64,14 @@ pub fn shared_data(name: &str) -> Option<Vec<u8>> {
             None
         }
     }
+}
+
+/// The repository root (the workspace root, which holds `spec/`), from whichever crate of
+/// the workspace the test belongs to.
+pub fn repo_root() -> std::path::PathBuf {
+    let here = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    here.ancestors()
+        .find(|d| d.join("spec").is_dir())
+        .unwrap_or(here)
+        .to_path_buf()
 }

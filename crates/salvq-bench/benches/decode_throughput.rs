@@ -1,0 +1,211 @@
+//! Decode throughput of a generated 100 k-anchor scene (issue 4's measurement), and where the
+//! time goes: full decode vs the integer prior (grid features, MLP, scale indices) vs entropy
+//! decoding with per-symbol tables vs the bare constriction coder with one static model on the
+//! same symbols. Run: `cargo bench --bench decode_throughput [-- ANCHORS]`.
+//! Times are medians of several runs in one process; compare ratios, not absolute numbers.
+
+use std::time::Instant;
+
+use salvq::container::chunk::{ChunkReader, ChunkTag};
+use salvq::container::payload::{body, read_mlps, read_quan, METHOD_CODED};
+use salvq::container::preflight::Preflight;
+use salvq::entropy::{GaussianTables, SymbolReader};
+use salvq::hyperprior::prior::{Group, Prior};
+use salvq::Limits;
+use salvq_bench::coder as measure;
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
+
+fn median_secs(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut t: Vec<f64> = (0..runs)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[runs / 2]
+}
+
+fn main() {
+    let n: u32 = std::env::args()
+        .skip(1)
+        .find_map(|a| a.parse().ok())
+        .unwrap_or(100_000);
+    let model = generate(&GenParams {
+        feat_basis: false,
+        ..GenParams::new(n, 1)
+    });
+    let e = encode_full(&model, &EncodeOptions::default()).expect("encodes");
+    let stream = &e.stream;
+    let symbols_total: u64 = e.report().groups.iter().map(|g| g.symbols).sum();
+    println!(
+        "scene: {n} anchors, {symbols_total} attribute symbols, stream {} bytes",
+        stream.len()
+    );
+    for g in &e.report().groups {
+        println!(
+            "  {:<8} coded {:>9} B, ideal(int) {:>11.0} B, ideal(float) {:>11.0} B: coded/int {:.5}, int/float {:.5}",
+            g.group,
+            g.coded_bytes,
+            g.ideal_bits_integer / 8.0,
+            g.ideal_bits_float / 8.0,
+            g.coded_bytes as f64 * 8.0 / g.ideal_bits_integer,
+            g.ideal_bits_integer / g.ideal_bits_float
+        );
+    }
+    let (coded, int, flt) = e.report().groups.iter().fold((0f64, 0f64, 0f64), |a, g| {
+        (
+            a.0 + g.coded_bytes as f64 * 8.0,
+            a.1 + g.ideal_bits_integer,
+            a.2 + g.ideal_bits_float,
+        )
+    });
+    println!(
+        "  all      coded/int {:.5}, int/float {:.5}",
+        coded / int,
+        int / flt
+    );
+
+    // Full decode.
+    let runs = 5;
+    let t_full = median_secs(runs, || {
+        let m = salvq::decode(stream).expect("decodes");
+        assert_eq!(m.anchors.voxel.len(), n as usize);
+    });
+
+    // The pieces, rebuilt from the stream's chunks.
+    let mut r = ChunkReader::new(&stream[12..], 12, &Limits::default());
+    let mut payloads = std::collections::HashMap::new();
+    while let Some(c) = r.next_chunk().expect("valid") {
+        payloads.insert(c.tag, c.payload);
+    }
+    let head = Preflight::parse(payloads[&ChunkTag::HEAD], &Limits::default()).expect("head");
+    let d = &head.dims;
+    let (int_mlp, _) = read_mlps(payloads[&ChunkTag::MLPS], d).expect("mlps");
+    let quant = read_quan(payloads[&ChunkTag::QUAN], d).expect("quan");
+    let prior = Prior::new(
+        d,
+        head.coord_bits,
+        int_mlp,
+        [&quant[0], &quant[1], &quant[2]],
+        0,
+    );
+    let expected = e.expected();
+    let (f, s, k) = (
+        usize::from(d.feat_dim),
+        usize::from(d.scaling_dim),
+        usize::from(d.offsets),
+    );
+    let mut ctx = prior.context();
+    let t_grid = median_secs(runs, || {
+        let layout = &prior.layout;
+        let mut x = vec![0i16; layout.features()];
+        for &v in &expected.anchors.voxel {
+            layout.interpolate(&expected.grid, v, &mut x);
+        }
+        std::hint::black_box(&x);
+    });
+    let t_mlp = median_secs(runs, || {
+        for &v in &expected.anchors.voxel {
+            prior.eval(&expected.grid, v, &mut ctx);
+        }
+        std::hint::black_box(&ctx);
+    });
+    let mut ks: [Vec<u8>; 3] = [vec![], vec![], vec![]];
+    let t_prior = median_secs(runs, || {
+        for v in ks.iter_mut() {
+            v.clear();
+        }
+        for (i, &v) in expected.anchors.voxel.iter().enumerate() {
+            prior.eval(&expected.grid, v, &mut ctx);
+            for (g, width) in [(Group::Feature, f), (Group::Scaling, s)] {
+                let step = prior.step(&ctx.y, g);
+                for j in 0..width {
+                    ks[g as usize].push(prior.scale_index(&ctx.y, g, j, &step));
+                }
+            }
+            let step = prior.step(&ctx.y, Group::Offsets);
+            for j in 0..3 * k {
+                if expected.anchors.mask[i * k + j / 3] != 0 {
+                    ks[2].push(prior.scale_index(&ctx.y, Group::Offsets, j, &step));
+                }
+            }
+        }
+    });
+    let tables = GaussianTables::standard();
+    let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
+    let mut symbols: Vec<i64> = Vec::with_capacity(symbols_total as usize);
+    let t_entropy = median_secs(runs, || {
+        symbols.clear();
+        for (tag, ks) in tags.iter().zip(&ks) {
+            let b = body(*tag, payloads[tag], METHOD_CODED).expect("method");
+            let mut reader = SymbolReader::new(*tag, b, tables).expect("reader");
+            for &ki in ks {
+                symbols.push(reader.symbol(ki).expect("symbol"));
+            }
+            reader.finish().expect("finish");
+        }
+    });
+    let bare_ns = measure::bare_coder_decode_ns(&symbols, tables.precision(), runs);
+    let t_bare = bare_ns * 1e-9 * symbols.len() as f64;
+    // The machine is noisy: the ratio is taken within each round (full decode, then the bare
+    // coder, back to back) and its median over the rounds is reported.
+    let rounds = 9;
+    let mut ratios: Vec<f64> = (0..rounds)
+        .map(|_| {
+            let full = median_secs(1, || {
+                std::hint::black_box(salvq::decode(stream).expect("decodes"));
+            });
+            let bare = measure::bare_coder_decode_ns(&symbols, tables.precision(), 1)
+                * 1e-9
+                * symbols.len() as f64;
+            full / bare
+        })
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+
+    let per = |t: f64| t * 1e9 / symbols.len() as f64;
+    println!("\ndecode, medians of {runs} runs:");
+    println!(
+        "  full decode            {:>8.3} s  {:>7.1} ns/symbol  {:>10.0} anchors/s  {:>11.0} symbols/s",
+        t_full,
+        per(t_full),
+        f64::from(n) / t_full,
+        symbols.len() as f64 / t_full
+    );
+    println!(
+        "  grid features only     {:>8.3} s  {:>7.1} ns/symbol",
+        t_grid,
+        per(t_grid)
+    );
+    println!(
+        "  grid + MLP             {:>8.3} s  {:>7.1} ns/symbol",
+        t_mlp,
+        per(t_mlp)
+    );
+    println!(
+        "  prior (grid+MLP+index) {:>8.3} s  {:>7.1} ns/symbol",
+        t_prior,
+        per(t_prior)
+    );
+    println!(
+        "  entropy decode, tables {:>8.3} s  {:>7.1} ns/symbol",
+        t_entropy,
+        per(t_entropy)
+    );
+    println!(
+        "  bare coder, one model  {:>8.3} s  {:>7.1} ns/symbol",
+        t_bare, bare_ns
+    );
+    println!(
+        "ratio full decode / bare coder = {:.2} (medians above); per-round median {:.2} \
+         (min {:.2}, max {:.2}, {rounds} rounds; goal <= 4.0); prior / full = {:.2}",
+        t_full / t_bare,
+        ratios[rounds / 2],
+        ratios[0],
+        ratios[rounds - 1],
+        t_prior / t_full
+    );
+}

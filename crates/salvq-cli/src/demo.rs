@@ -1,0 +1,154 @@
+//! `salvq demo`: the main job on an embedded default scene.
+
+use std::path::Path;
+use std::time::Instant;
+
+use salvq::{Error, Limits};
+use salvq_encoder::info::{inspect, ByteClass};
+use salvq_gen::{generate, GenParams};
+use salvq_render::interchange::write_model;
+
+use super::secs;
+
+/// Generates a scene, encodes it, decodes it, checks the result, prints the tables.
+pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Error> {
+    let tmp;
+    let dir = match out {
+        Some(d) => {
+            std::fs::create_dir_all(d).map_err(|e| Error::Io {
+                op: salvq::error::IoOp::Write,
+                path: d.to_path_buf(),
+                kind: e.kind(),
+            })?;
+            d.to_path_buf()
+        }
+        None => {
+            tmp = tempfile::tempdir().map_err(|e| Error::Io {
+                op: salvq::error::IoOp::CreateTemp,
+                path: std::env::temp_dir(),
+                kind: e.kind(),
+            })?;
+            tmp.path().to_path_buf()
+        }
+    };
+    println!(
+        "salvq demo: format {}.{}, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n",
+        salvq::container::FORMAT_MAJOR,
+        salvq::container::FORMAT_MINOR
+    );
+    salvq::model::validate::check_field(salvq::error::Field::AnchorCount, anchors.into())?;
+    let params = GenParams {
+        feat_basis: false,
+        ..GenParams::new(anchors, seed)
+    };
+    let t = Instant::now();
+    let model = generate(&params);
+    let t_gen = secs(t);
+    let model_path = dir.join("scene.safetensors");
+    write_model(&model, &model_path)?;
+    let input_bytes = std::fs::metadata(&model_path).map(|m| m.len()).unwrap_or(0);
+
+    let options = salvq_encoder::EncodeOptions {
+        statistics: true,
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let encoded = salvq_encoder::encode_full(&model, &options)?;
+    let t_enc = secs(t);
+    let (stream, report) = (&encoded.stream, encoded.report());
+    salvq_render::io::write_bytes_atomic(&dir.join("scene.salvq"), stream)?;
+
+    let t = Instant::now();
+    let decoded = salvq::decode(stream)?;
+    let t_dec = secs(t);
+    write_model(&decoded, &dir.join("decoded.safetensors"))?;
+
+    let info = inspect(stream, &Limits::default())?;
+    println!("{:<10} {:>10}", "step", "seconds");
+    println!("{:<10} {:>10.3}", "generate", t_gen);
+    println!("{:<10} {:>10.3}", "encode", t_enc);
+    println!("{:<10} {:>10.3}", "decode", t_dec);
+    println!(
+        "decode throughput: {:.0} anchors/s, {:.0} symbols/s\n",
+        f64::from(anchors) / t_dec,
+        report.groups.iter().map(|g| g.symbols).sum::<u64>() as f64 / t_dec
+    );
+    println!(
+        "{:<6} {:<7} {:>12} {:>8} {:>12}",
+        "chunk", "class", "bytes", "share", "bits/anchor"
+    );
+    let total = info.totals.file_bytes as f64;
+    for c in &info.chunks {
+        let class = match c.class {
+            ByteClass::Model => "model",
+            ByteClass::Anchor => "anchor",
+            ByteClass::Other => "other",
+        };
+        println!(
+            "{:<6} {:<7} {:>12} {:>7.2}% {:>12.2}",
+            c.tag,
+            class,
+            c.total_bytes,
+            100.0 * c.total_bytes as f64 / total,
+            c.total_bytes as f64 * 8.0 / f64::from(anchors)
+        );
+    }
+    let t = &info.totals;
+    println!(
+        "\nmodel bytes {} ({:.2}%), anchor bytes {} ({:.2}%), other {}; total {} bytes = {:.2} bits/anchor",
+        t.model_bytes,
+        100.0 * t.model_bytes as f64 / total,
+        t.anchor_bytes,
+        100.0 * t.anchor_bytes as f64 / total,
+        t.other_bytes,
+        t.file_bytes,
+        t.bits_per_anchor
+    );
+    println!(
+        "input model file {} bytes; stream / input = {:.4}\n",
+        input_bytes,
+        total / input_bytes.max(1) as f64
+    );
+    print!("{}", salvq_encoder::info::groups_text(report));
+    // Verify: geometry and masks exact, attributes within half a step.
+    // The quantizer is lossless but for the base step the encoder may refine to hold the
+    // distortion with i8 context-MLP weights (spec Annex A.5.4).
+    let feat_quantizer = salvq::model::GroupQuantizer {
+        step: (f64::from(model.quant_feat.step) * encoded.context.step_factors[0]) as f32,
+        ..model.quant_feat.clone()
+    };
+    let exact = decoded.anchors.voxel == model.anchors.voxel
+        && decoded.anchors.mask == model.anchors.mask
+        && decoded.mlp_opacity == model.mlp_opacity
+        && decoded.quant_feat == feat_quantizer;
+    let bounded = report
+        .groups
+        .iter()
+        .all(|g| g.max_error_steps <= 0.5 + 1e-3);
+    println!("\n{:<8} {:>12} {:>14}", "group", "RMSE", "max |err|/step");
+    for g in &report.groups {
+        println!(
+            "{:<8} {:>12.3e} {:>14.4}",
+            g.group,
+            (g.squared_error / g.symbols.max(1) as f64).sqrt(),
+            g.max_error_steps
+        );
+    }
+    println!(
+        "check: voxels, masks, Scaffold-GS MLPs and quantizers {}; every coded value within half a step: {}",
+        if exact { "exact" } else { "DIFFER" },
+        if bounded { "yes" } else { "NO" }
+    );
+    if out.is_some() {
+        println!("files kept in {}", dir.display());
+    }
+    if !(exact && bounded) {
+        return Err(Error::ValueInvalid {
+            tensor: "demo check",
+            index: vec![],
+            value: 0,
+            allowed: "exact geometry and masks, errors within half a step",
+        });
+    }
+    Ok(())
+}

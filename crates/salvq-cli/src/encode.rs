@@ -1,0 +1,362 @@
+//! `salvq encode`: options, the encoder's choices (`--auto`, `--prune-grid`, Scaffold-GS
+//! precision) printed with their reasons, progress on long work, and the final summary as
+//! text or JSON (issues 10 and 12).
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+
+use salvq::Error;
+use salvq_encoder::auto::{self, AutoChoice};
+use salvq_encoder::parsimony::LevelTrial;
+use salvq_render::interchange::read_model;
+
+use super::secs;
+
+#[derive(clap::Args)]
+pub struct EncodeArgs {
+    /// Input: a model (safetensors, spec Annex A) or a trained 3DGS scene (standard Inria
+    /// PLY: the explicit-Gaussians profile, spec §3).
+    pub(crate) input: PathBuf,
+    /// Output stream.
+    #[arg(short, long)]
+    pub(crate) output: PathBuf,
+    /// Text for an `encd` ancillary chunk (encoder identification).
+    #[arg(long)]
+    pub(crate) note: Option<String>,
+    /// The rates to code, one symbol layer each, e.g. `0,1,2,3` (spec §7.4): indices into a
+    /// model's gains (default 0), or into `--psnr`'s targets for a PLY (default: all).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) rates: Option<Vec<u8>>,
+    /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views;
+    /// rate 0 first and finest), e.g. `62,56,50,45,40,35` (the default).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) psnr: Option<Vec<f64>>,
+    /// PLY input: drop (and count) Gaussians with a NaN or infinite value instead of
+    /// failing on the first (spec Annex A.8.1).
+    #[arg(long)]
+    pub(crate) drop_invalid: bool,
+    /// Feature quantizer: `model` (the model's own), `usq` (identity), `dn` (D_n),
+    /// `e8` (E8 product; the feature dimension must be a multiple of 8), `salvq` (the
+    /// model's learned basis) or `klt` (a basis the encoder fits to the features' residuals,
+    /// spec Annex A.5).
+    #[arg(long, default_value = "model", value_parser = ["model", "usq", "dn", "e8", "salvq", "klt"])]
+    quantizer: String,
+    /// Refit the context MLP's feature-scale rows to the coordinates of the chosen
+    /// quantizer (spec Annex A.5), as training for that quantizer would.
+    #[arg(long)]
+    fit_scales: bool,
+    /// With `--quantizer klt`: fit one basis per spatial region, R regions of equal
+    /// anchor count in Morton order (Sp-SALVQ, spec §7.6).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+    regions: u16,
+    /// Choose the feature quantizer (identity, the model's own lattice, or fitted bases with
+    /// 1, 2, 4 or 8 regions) by total stream bytes at the feature error of the model's own
+    /// quantizer (within 1 %; spec Annex A.5.3). Prints what it measured and chose; replaces
+    /// `--quantizer`, `--fit-scales` and `--regions`.
+    #[arg(long, conflicts_with_all = ["quantizer", "fit_scales", "regions"])]
+    auto: bool,
+    /// Anchors per tile (spec §10): tiles decode independently, in parallel or alone.
+    #[arg(long, default_value_t = salvq::tiles::DEFAULT_TILE_ANCHORS, value_parser = clap::value_parser!(u32).range(1..))]
+    pub(crate) tile_anchors: u32,
+    /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
+    /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`,
+    /// `closest` (Schnorr-Euchner, bounded) or `rdo` (auto's point refined for rate and
+    /// distortion with the integer entropy model, spec §7.3).
+    #[arg(long, default_value = "auto", value_parser = salvq_encoder::Search::NAMES)]
+    search: String,
+    /// Do not write the `ests` chunk (encoder statistics shown by `info`).
+    #[arg(long)]
+    no_stats: bool,
+    /// Drop hash-grid levels that do not pay for themselves: a level goes when the stream
+    /// without it is smaller and the feature error grows by at most 1 % (each candidate
+    /// is encoded; prints what it chose and why).
+    #[arg(long)]
+    prune_grid: bool,
+    /// How to store the Scaffold-GS MLPs (spec §1.6.2): `auto` (binary16 when their
+    /// outputs on the scene's anchors move by at most 2^-9, spec Annex A.5.2), `f32`, `f16`.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "f16"])]
+    scaffold_precision: String,
+    /// How to store the integer context MLP's weights (spec §1.6.2 Table 1-7): `auto` (i8
+    /// when the symbol bytes that costs, measured on a sample, are fewer than the model bytes
+    /// it saves, spec Annex A.5.4), `i16`, `i8`.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "i16", "i8"])]
+    context_precision: String,
+    /// Print the summary as JSON on stdout (choices, per-rate reports); nothing else goes to
+    /// stdout.
+    #[arg(long)]
+    pub(crate) json: bool,
+    /// Print nothing but errors (no progress, choices or summary).
+    #[arg(long, short, conflicts_with = "json")]
+    pub(crate) quiet: bool,
+}
+
+/// The `--json` summary.
+#[derive(Serialize)]
+struct Summary<'a> {
+    output: String,
+    anchors: u32,
+    bytes: u64,
+    bits_per_anchor: f64,
+    seconds: f64,
+    scaffold: &'a salvq_encoder::precision::PrecisionChoice,
+    context: &'a salvq_encoder::context_precision::ContextChoice,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    auto: Option<&'a AutoChoice>,
+    pruned_levels: Vec<PrunedLevel>,
+    layers: Vec<&'a salvq_encoder::EncodeReport>,
+}
+
+#[derive(Serialize)]
+struct PrunedLevel {
+    level: String,
+    resolution: u16,
+    bytes_with: u64,
+    bytes_without: u64,
+    mse_with: f64,
+    mse_without: f64,
+}
+
+/// Human messages: to stderr, through the progress bar so they do not tear it; nothing with
+/// `--quiet`.
+pub(crate) struct Progress {
+    bar: ProgressBar,
+    quiet: bool,
+}
+
+impl Progress {
+    pub(crate) fn new(quiet: bool) -> Self {
+        // indicatif draws only on a terminal; in pipes and CI the bar is hidden and only the
+        // messages below are printed.
+        let bar = if quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr())
+        };
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} [{elapsed}] {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        bar.enable_steady_tick(Duration::from_millis(120));
+        Progress { bar, quiet }
+    }
+
+    pub(crate) fn stage(&self, msg: impl Into<std::borrow::Cow<'static, str>>) {
+        self.bar.set_message(msg);
+    }
+
+    pub(crate) fn say(&self, line: &str) {
+        if !self.quiet {
+            self.bar.suspend(|| eprintln!("{line}"));
+        }
+    }
+
+    pub(crate) fn done(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+pub fn run(a: EncodeArgs) -> Result<(), Error> {
+    let t = Instant::now();
+    let progress = Progress::new(a.quiet);
+    progress.stage(format!("reading {}", a.input.display()));
+    let bytes = salvq_render::io::read_file(&a.input)?;
+    if salvq_encoder::explicit::input::input_kind(&bytes)?
+        == salvq_encoder::explicit::input::InputKind::Ply
+    {
+        return super::encode_ply::run(a, &bytes, t, &progress);
+    }
+    if a.psnr.is_some() {
+        return Err(Error::UnsupportedInput {
+            found: "a model file with --psnr",
+            hint: "--psnr sets the rates of a PLY input (spec Annex A.8); a model's rates are its gains (--rates)",
+        });
+    }
+    drop(bytes);
+    let mut model = read_model(&a.input)?;
+    let feat_lattice = match a.quantizer.as_str() {
+        "usq" => Some(salvq::LatticeKind::Identity),
+        "dn" => Some(salvq::LatticeKind::Dn),
+        "e8" => Some(salvq::LatticeKind::E8Product),
+        "salvq" => Some(salvq::LatticeKind::General),
+        _ => None,
+    };
+    let mut options = salvq_encoder::EncodeOptions {
+        encoder_note: a.note,
+        rates: a.rates.unwrap_or_else(|| vec![0]),
+        statistics: !a.no_stats,
+        feat_lattice,
+        search: salvq_encoder::Search::from_name(&a.search).unwrap_or_default(),
+        fit_basis: a.quantizer == "klt",
+        feat_regions: a.regions,
+        fit_scales: a.fit_scales,
+        tile_anchors: a.tile_anchors,
+        scaffold_precision: match a.scaffold_precision.as_str() {
+            "f32" => Some(salvq::container::payload::ScaffoldPrecision::F32),
+            "f16" => Some(salvq::container::payload::ScaffoldPrecision::F16),
+            _ => None,
+        },
+        context_precision: match a.context_precision.as_str() {
+            "i16" => Some(salvq::container::payload::ContextPrecision::I16),
+            "i8" => Some(salvq::container::payload::ContextPrecision::I8),
+            _ => None,
+        },
+    };
+    let mut pruned_levels = Vec::new();
+    if a.prune_grid {
+        progress.stage("--prune-grid: encoding the model without each grid level");
+        let (pruned, trials) = salvq_encoder::parsimony::prune_grid_levels(&model, &options, 0.01)?;
+        for tr in &trials {
+            progress.say(&pruned_line(tr, model.n()));
+            pruned_levels.push(PrunedLevel {
+                level: tr.level.to_string(),
+                resolution: tr.resolution,
+                bytes_with: tr.bytes_with,
+                bytes_without: tr.bytes_without,
+                mse_with: tr.mse_with,
+                mse_without: tr.mse_without,
+            });
+        }
+        if trials.is_empty() {
+            progress.say("kept every grid level: no removal made the stream smaller");
+        }
+        model = pruned;
+    }
+    let mut auto_choice = None;
+    if a.auto {
+        progress.stage("--auto: measuring feature quantizers at equal distortion");
+        let choice = auto::choose(&model, &options)?;
+        for line in auto_lines(&choice) {
+            progress.say(&line);
+        }
+        let (m, o) = choice.apply(&model, &options);
+        model = m;
+        options = o;
+        auto_choice = Some(choice);
+    }
+    progress.stage(format!("encoding {} anchors", model.n()));
+    let encoded = salvq_encoder::encode_full(&model, &options)?;
+    let sc = &encoded.scaffold;
+    progress.say(&format!(
+        "Scaffold-GS MLPs stored as {:?}: binary16 changes their outputs by at most {:.2e} \
+         (tolerance {:.2e}); {} bytes saved",
+        sc.precision, sc.max_output_change, sc.tolerance, sc.bytes_saved
+    ));
+    let cc = &encoded.context;
+    progress.say(&if cc.sample_anchors > 0 {
+        format!(
+            "context MLP weights stored as {:?}: i8 saves {} model bytes and costs {} symbol bytes, \
+             MSE x{:.4} / x{:.4} / x{:.4} with base steps x{:.4} / x{:.4} / x{:.4} (feature / \
+             scaling / offsets; measured on {} anchors)",
+            cc.precision,
+            cc.model_bytes_saved,
+            cc.symbol_bytes_cost,
+            cc.mse_ratio[0],
+            cc.mse_ratio[1],
+            cc.mse_ratio[2],
+            cc.step_factors[0],
+            cc.step_factors[1],
+            cc.step_factors[2],
+            cc.sample_anchors
+        )
+    } else {
+        format!("context MLP weights stored as {:?}", cc.precision)
+    });
+    progress.stage(format!("writing {}", a.output.display()));
+    let stream = &encoded.stream;
+    salvq_render::io::write_bytes_atomic(&a.output, stream)?;
+    progress.done();
+    let reports: Vec<_> = encoded.layers.iter().map(|l| &l.report).collect();
+    let anchors = model.dims.anchors;
+    let bits_per_anchor = stream.len() as f64 * 8.0 / f64::from(anchors.max(1));
+    if a.json {
+        let summary = Summary {
+            output: a.output.display().to_string(),
+            anchors,
+            bytes: stream.len() as u64,
+            bits_per_anchor,
+            seconds: secs(t),
+            scaffold: sc,
+            context: &encoded.context,
+            auto: auto_choice.as_ref(),
+            pruned_levels,
+            layers: reports,
+        };
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&summary).unwrap_or_default()
+        );
+    } else if !a.quiet {
+        let rates: Vec<u8> = reports.iter().map(|r| r.rate).collect();
+        println!(
+            "encoded {anchors} anchors at rates {rates:?} into {} ({} bytes, {bits_per_anchor:.2} bits/anchor) in {:.2} s",
+            a.output.display(),
+            stream.len(),
+            secs(t)
+        );
+        for r in reports {
+            println!("rate {}:", r.rate);
+            print!("{}", salvq_encoder::info::groups_text(r));
+        }
+    }
+    Ok(())
+}
+
+fn pruned_line(tr: &LevelTrial, anchors: usize) -> String {
+    let basis = if tr.sample_anchors < anchors {
+        format!(", estimated from {} sampled anchors", tr.sample_anchors)
+    } else {
+        String::new()
+    };
+    format!(
+        "dropped {} (resolution {}): {} -> {} bytes, feature MSE {:.4e} -> {:.4e}{basis}",
+        tr.level, tr.resolution, tr.bytes_with, tr.bytes_without, tr.mse_with, tr.mse_without
+    )
+}
+
+/// What `--auto` measured, one line per candidate, then the choice and why.
+fn auto_lines(c: &AutoChoice) -> Vec<String> {
+    let mut out = vec![format!(
+        "--auto: feature quantizers at the model's own feature MSE {:.4e} (within {:.0} %), \
+         measured on {} anchors",
+        c.target_mse,
+        c.tolerance * 100.0,
+        c.sample_anchors
+    )];
+    for (i, k) in c.candidates.iter().enumerate() {
+        out.push(format!(
+            "  {} {:<40} step x{:.3}  MSE {:.4e}  {:>10} bytes (model {:>8})",
+            if i == c.chosen { "*" } else { " " },
+            k.quantizer.to_string(),
+            k.step_factor,
+            k.mse,
+            k.bytes,
+            k.model_bytes
+        ));
+    }
+    if let Some(best) = c.candidates.get(c.chosen) {
+        let runner_up = c
+            .candidates
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != c.chosen)
+            .map(|(_, k)| k)
+            .min_by_key(|k| k.bytes);
+        let why = match runner_up {
+            Some(r) => format!(
+                "{} bytes ({:.2} %) fewer than the next best, {}",
+                r.bytes.saturating_sub(best.bytes),
+                100.0 * (r.bytes as f64 - best.bytes as f64) / r.bytes.max(1) as f64,
+                r.quantizer
+            ),
+            None => "the only candidate that could be fitted".into(),
+        };
+        out.push(format!(
+            "--auto chose {}: the smallest stream at equal distortion, {why}",
+            best.quantizer
+        ));
+    }
+    out
+}

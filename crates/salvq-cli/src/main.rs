@@ -1,0 +1,569 @@
+//! `salvq`: the command-line interface (DESIGN §4 CLI contract).
+//!
+//! Errors go to stderr as one line naming the rule broken and its spec section; the exit
+//! status is 1 for a failed operation and 2 for a usage error. Output files are written
+//! atomically: a failed command leaves nothing behind.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+mod demo;
+mod encode;
+mod encode_ply;
+mod render;
+mod tools;
+
+use demo::demo;
+use tools::{conformance, make_vectors, parse_fault};
+
+use clap::{Parser, Subcommand};
+use salvq::{Error, Limits};
+use salvq_encoder::info::inspect;
+use salvq_gen::{generate, GenParams};
+use salvq_render::interchange::{model_to_safetensors, write_model};
+
+#[derive(Parser)]
+#[command(
+    name = "salvq",
+    version,
+    about = "SALVQ compressed 3DGS scenes: reference encoder and decoder"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Generate a synthetic scene model (spec Annex B) and print its SHA-256.
+    Gen {
+        /// Number of anchors.
+        #[arg(long)]
+        anchors: u32,
+        /// Random seed: the same seed gives the same bytes on any machine.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Use the tiny model configuration (tests and examples) instead of HAC's.
+        #[arg(long)]
+        small: bool,
+        /// Feature quantizer of the model: `usq` (identity basis) or `salvq` (a learned
+        /// lattice basis B = U diag(s) V^T).
+        #[arg(long, default_value = "usq", value_parser = ["usq", "salvq"])]
+        quantizer: String,
+        /// Feature correlation (Annex B.4.3): the residual mixing matrix's singular values
+        /// decay as `d^i`; 1 draws uncorrelated features (a basis has nothing to exploit).
+        #[arg(long, default_value_t = salvq_gen::context::FEAT_DECAY, value_parser = parse_decay)]
+        feat_decay: f64,
+        /// Output model file (safetensors, spec Annex A).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Encode a model file into a SALVQ stream.
+    Encode(encode::EncodeArgs),
+    /// Decode a SALVQ stream into a model file.
+    Decode {
+        /// Input stream.
+        input: PathBuf,
+        /// Output model (safetensors).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The rate to decode (default: the lowest rate the stream carries).
+        #[arg(long)]
+        rate: Option<u8>,
+        /// Decode tiles on N threads (spec §10.3; the output is the same for every N).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+        threads: Option<u32>,
+        /// Decode only the tiles that intersect this world-space box:
+        /// `xmin,ymin,zmin,xmax,ymax,zmax` (spec §10.3).
+        #[arg(long, value_parser = parse_box, allow_hyphen_values = true)]
+        region: Option<[f64; 6]>,
+        /// Measure instead of writing: print the decode time and the process's peak resident
+        /// memory (used by `bench scale`).
+        #[arg(long, hide = true)]
+        measure: bool,
+        /// Write the canonical decoded form instead of the model file: the model's tensors
+        /// and the decoded symbols, as the conformance runner reads them (spec §11.1).
+        #[arg(long)]
+        canonical: bool,
+        /// Decode with a deliberate bug (`table:K`: one wrong entry in scale K's frequency
+        /// table), to show that the conformance vectors catch it (spec §11).
+        #[arg(long, hide = true, value_parser = parse_fault)]
+        inject_fault: Option<salvq::decoder::Fault>,
+    },
+    /// Run a decoder on the conformance vectors and compare its output with the manifest
+    /// (spec §11.5). The decoder command gets `{in}`, `{out}` and `{rate}` substituted, or
+    /// the three appended.
+    Conformance {
+        /// The decoder under test (default: this program's `decode --canonical`).
+        #[arg(long)]
+        decoder: Option<String>,
+        /// The vectors folder (with manifest.json).
+        #[arg(long, default_value = "conformance/vectors")]
+        vectors: PathBuf,
+        /// Run only the vectors whose name contains this text.
+        #[arg(long)]
+        filter: Option<String>,
+    },
+    /// Generate the conformance vectors, manifest and coverage table (spec §11.4), or with
+    /// `--check` verify that the committed ones are what the generator writes.
+    MakeVectors {
+        /// The vectors folder.
+        #[arg(long, default_value = "conformance/vectors")]
+        out: PathBuf,
+        /// The README whose coverage table is regenerated.
+        #[arg(long, default_value = "conformance/README.md")]
+        readme: PathBuf,
+        /// The spec folder (for the list of normative sections).
+        #[arg(long, default_value = "spec")]
+        spec: PathBuf,
+        /// Compare instead of writing; fail on any difference.
+        #[arg(long)]
+        check: bool,
+    },
+    /// Write the single-rate stream of one rate of a multi-rate stream, without re-coding
+    /// (byte-identical to encoding that rate alone).
+    Extract {
+        /// Input stream.
+        input: PathBuf,
+        /// The rate to keep.
+        #[arg(long)]
+        rate: u8,
+        /// Output stream.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Show what a stream holds: preflight, chunks, model vs anchor bytes.
+    Info {
+        /// Input stream.
+        input: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Measurements with charts: `bench rd` codes one generated scene with every feature
+    /// quantizer and search method (R-D with BD-rates, speed vs accuracy, stability).
+    Bench {
+        #[command(subcommand)]
+        which: Bench,
+    },
+    /// Render a preview image (PNG) of a stream, a model file or a 3DGS PLY file from a
+    /// camera of the ring (spec Annex C).
+    Render(render::RenderArgs),
+    /// Export a stream or a model file as a standard 3DGS PLY file (spec Annex C.3), its
+    /// view-dependent attributes evaluated from a ring camera.
+    ExportPly(render::ExportPlyArgs),
+    /// The main job on an embedded default: generate, encode, decode, verify, report.
+    Demo {
+        /// Number of anchors of the generated scene.
+        #[arg(long, default_value_t = 100_000)]
+        anchors: u32,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Keep the generated files in this folder (default: a temporary folder).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand)]
+enum Bench {
+    /// Rate-distortion of USQ, D_n, E8 and SALVQ on one generated scene (F = 48), BD-rates,
+    /// SALVQ's gain vs feature correlation, search methods' speed vs accuracy, and stability
+    /// over basis condition numbers and extreme gains: SVG charts, CSV and summary in OUT.
+    Rd {
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// Anchors of the generated scene.
+        #[arg(long, default_value_t = 20_000)]
+        anchors: u32,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Decode time and peak memory against scene size (1 k … `--max` anchors) with 1 and 2
+    /// threads, and a region decode of an eighth of the scene: SVG chart, CSV and summary
+    /// in OUT.
+    Scale {
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// Largest scene (anchors).
+        #[arg(long, default_value_t = 2_000_000)]
+        max: u32,
+    },
+    /// The explicit profile on real 3DGS scenes (issue 19): salvq's rates from one file
+    /// against splat-transform's SPZ, SOG and compressed PLY, render PSNR / SSIM from the
+    /// same ring cameras, encode and decode times, ablations and bits per attribute group
+    /// (SVG, CSV, text in OUT).
+    Real {
+        /// Folder holding the scenes as `<name>.ply`.
+        #[arg(long, default_value = "../shared/data")]
+        data: PathBuf,
+        /// Scenes (file stems in `--data`).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "donut,fruit_drops,alti,guitar,playbot"
+        )]
+        scenes: Vec<String>,
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// salvq's render-PSNR targets (rate 0 first).
+        #[arg(long, value_delimiter = ',', default_value = "62,56,50,45,40,35")]
+        psnr: Vec<f64>,
+        /// The splat-transform command for the peers (e.g. `node_modules/.bin/splat-transform`);
+        /// without it the peers are skipped.
+        #[arg(long)]
+        splat_transform: Option<String>,
+        /// Skip the ablations (each a full encode per scene).
+        #[arg(long)]
+        no_ablations: bool,
+        /// Only redraw OUT/real.svg from OUT/real.csv (nothing is measured).
+        #[arg(long)]
+        replot: bool,
+        /// Ring views, image width and height of the renders compared.
+        #[arg(long, default_value_t = 8)]
+        views: u32,
+        #[arg(long, default_value_t = 512)]
+        width: u32,
+        #[arg(long, default_value_t = 384)]
+        height: u32,
+    },
+    /// Model share of the stream and bits per anchor vs scene size, plain, with
+    /// `--prune-grid`, and with binary16 Scaffold-GS MLPs; then total bytes vs precision per
+    /// model tensor group at 100 k anchors (issue 10; SVG, CSV).
+    Parsimony {
+        /// Output folder.
+        #[arg(long, default_value = "charts")]
+        out: PathBuf,
+        /// Largest scene (anchors).
+        #[arg(long, default_value_t = 1_000_000)]
+        max: u32,
+    },
+}
+
+/// `xmin,ymin,zmin,xmax,ymax,zmax`: six finite numbers, each min ≤ its max.
+fn parse_box(s: &str) -> Result<[f64; 6], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("'{x}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let b: [f64; 6] = v
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("6 numbers expected, {} given", v.len()))?;
+    if b.iter().any(|x| !x.is_finite()) || (0..3).any(|a| b[a] > b[a + 3]) {
+        return Err("the box needs finite numbers and min <= max on each axis".into());
+    }
+    Ok(b)
+}
+
+fn parse_decay(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(d) if d > 0.0 && d <= 1.0 => Ok(d),
+        _ => Err(format!("expected a number in (0, 1], got {s}")),
+    }
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+fn secs(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+fn run(cli: Cli) -> Result<(), Error> {
+    match cli.command {
+        Command::Gen {
+            anchors,
+            seed,
+            small,
+            quantizer,
+            feat_decay,
+            output,
+        } => {
+            let mut params = if small {
+                GenParams::small(anchors, seed)
+            } else {
+                GenParams::new(anchors, seed)
+            };
+            params.feat_basis = quantizer == "salvq";
+            params.feat_decay = feat_decay;
+            salvq::model::validate::check_field(salvq::error::Field::AnchorCount, anchors.into())?;
+            let t = Instant::now();
+            let model = generate(&params);
+            let bytes = model_to_safetensors(&model);
+            salvq_render::io::write_bytes_atomic(&output, &bytes)?;
+            println!(
+                "wrote {} ({} anchors, seed {seed}, {} bytes) in {:.2} s\nsha256 {}",
+                output.display(),
+                anchors,
+                bytes.len(),
+                secs(t),
+                sha256_hex(&bytes)
+            );
+        }
+        Command::Encode(args) => encode::run(args)?,
+        Command::Extract {
+            input,
+            rate,
+            output,
+        } => {
+            let stream = salvq_render::io::read_file(&input)?;
+            let one = salvq::extract_rate(&stream, rate, &Limits::default())?;
+            salvq_render::io::write_bytes_atomic(&output, &one)?;
+            println!(
+                "extracted rate {rate} into {} ({} of {} bytes)",
+                output.display(),
+                one.len(),
+                stream.len()
+            );
+        }
+        Command::Decode {
+            input,
+            output,
+            rate,
+            threads,
+            region,
+            measure,
+            canonical,
+            inject_fault,
+        } => {
+            let t = Instant::now();
+            let stream = salvq_render::io::read_file(&input)?;
+            let options = salvq::DecodeOptions {
+                limits: Limits::default(),
+                rate,
+                threads: threads.map(|n| n as usize),
+                region,
+                fault: inject_fault,
+            };
+            if salvq::decoder::is_explicit(&stream) {
+                return decode_explicit(&stream, &options, &output, canonical, measure, t);
+            }
+            if canonical {
+                let (model, symbols) = salvq::decoder::decode_with_symbols(&stream, &options)?;
+                let tensors = salvq_conformance::canonical::canonical_tensors(&model, &symbols);
+                let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
+                salvq_render::io::write_bytes_atomic(&output, &bytes)?;
+                return Ok(());
+            }
+            let model = salvq::decode_with_options(&stream, &options)?;
+            if measure {
+                println!(
+                    "measure decode_secs={} peak_rss_bytes={} anchors={} decoded_bytes={}",
+                    secs(t),
+                    salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
+                    model.dims.anchors,
+                    salvq::model::decoded_bytes(&model.dims)
+                );
+                return Ok(());
+            }
+            if model.dims.anchors == 0 {
+                eprintln!("salvq: the region intersects no tile; nothing written");
+                return Ok(());
+            }
+            write_model(&model, &output)?;
+            println!(
+                "decoded {} anchors into {} in {:.2} s",
+                model.dims.anchors,
+                output.display(),
+                secs(t)
+            );
+        }
+        // Handled in `main`: their failures are mismatches, not stream errors.
+        Command::Conformance { .. } | Command::MakeVectors { .. } => {}
+        Command::Info { input, json } => {
+            let stream = salvq_render::io::read_file(&input)?;
+            if salvq::decoder::is_explicit(&stream) {
+                let info =
+                    salvq_encoder::info::explicit::inspect_explicit(&stream, &Limits::default())?;
+                if json {
+                    println!(
+                        "{}",
+                        serde_json::to_string_pretty(&info).unwrap_or_default()
+                    );
+                } else {
+                    print!("{}", info.to_text());
+                }
+                return Ok(());
+            }
+            let info = inspect(&stream, &Limits::default())?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&info).unwrap_or_default()
+                );
+            } else {
+                print!("{}", info.to_text());
+            }
+        }
+        Command::Bench {
+            which: Bench::Rd { out, anchors, seed },
+        } => {
+            let t = Instant::now();
+            let text = salvq_bench::run(&salvq_bench::RdOptions {
+                anchors,
+                seed,
+                out: out.clone(),
+            })?;
+            print!("{text}");
+            println!("wrote rd.svg, rd_correlation.svg, search_speed.svg, stability.svg, rd.csv, summary.txt to {} in {:.1} s", out.display(), secs(t));
+        }
+        Command::Bench {
+            which: Bench::Scale { out, max },
+        } => {
+            let t = Instant::now();
+            let text = salvq_bench::scale::run(&out, max)?;
+            print!("{text}");
+            println!(
+                "wrote scale.svg, scale.csv, scale.txt to {} in {:.1} s",
+                out.display(),
+                secs(t)
+            );
+        }
+        Command::Bench {
+            which:
+                Bench::Real {
+                    data,
+                    scenes,
+                    out,
+                    psnr,
+                    splat_transform,
+                    no_ablations,
+                    replot,
+                    views,
+                    width,
+                    height,
+                },
+        } => {
+            let t = Instant::now();
+            let options = salvq_bench::real::RealOptions {
+                data,
+                scenes,
+                out: out.clone(),
+                targets: psnr,
+                splat_transform,
+                ablations: !no_ablations,
+                views,
+                width,
+                height,
+            };
+            if replot {
+                salvq_bench::real::replot(&out, &options)?;
+                println!("redrew {}", out.join("real.svg").display());
+                return Ok(());
+            }
+            let text = salvq_bench::real::run(&options, &|m| eprintln!("{m}"))?;
+            print!("{text}");
+            println!(
+                "wrote real.svg, real.csv, real.txt to {} in {:.1} s",
+                out.display(),
+                secs(t)
+            );
+        }
+        Command::Bench {
+            which: Bench::Parsimony { out, max },
+        } => {
+            let t = Instant::now();
+            let text = salvq_bench::parsimony::run(&out, max)?;
+            print!("{text}");
+            println!(
+                "wrote parsimony and precision .svg, .csv, .txt to {} in {:.1} s",
+                out.display(),
+                secs(t)
+            );
+        }
+        Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref())?,
+        Command::Render(args) => render::render(args)?,
+        Command::ExportPly(args) => render::export_ply(args)?,
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    // The conformance tools fail on mismatches, not on stream errors: plain messages.
+    let tool = match &cli.command {
+        Command::Conformance {
+            decoder,
+            vectors,
+            filter,
+        } => Some(conformance(decoder.clone(), vectors, filter.as_deref())),
+        Command::MakeVectors {
+            out,
+            readme,
+            spec,
+            check,
+        } => Some(make_vectors(out, readme, spec, *check)),
+        _ => None,
+    };
+    if let Some(result) = tool {
+        return match result {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("salvq: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("salvq: error[{}]: {e}", e.class());
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `salvq decode` of an explicit-profile stream (spec §3): the Gaussians as a standard 3DGS
+/// PLY file, or the canonical form (§11.6).
+fn decode_explicit(
+    stream: &[u8],
+    options: &salvq::DecodeOptions,
+    output: &std::path::Path,
+    canonical: bool,
+    measure: bool,
+    t: Instant,
+) -> Result<(), Error> {
+    let decoded = match salvq::decoder::decode_any(stream, options)? {
+        salvq::decoder::Decoded::Gaussians(d) => d,
+        salvq::decoder::Decoded::Anchors(_) => unreachable!("is_explicit chose the profile"),
+    };
+    if canonical {
+        let tensors = salvq_conformance::canonical::explicit_canonical_tensors(&decoded);
+        let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
+        return salvq_render::io::write_bytes_atomic(output, &bytes);
+    }
+    let n = decoded.gaussians.len();
+    if measure {
+        println!(
+            "measure decode_secs={} peak_rss_bytes={} gaussians={n} decoded_bytes={}",
+            secs(t),
+            salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
+            decoded.header.decoded_bytes()
+        );
+        return Ok(());
+    }
+    if n == 0 {
+        eprintln!("salvq: the region intersects no tile; nothing written");
+        return Ok(());
+    }
+    salvq_render::ply::write_ply_file(&decoded.gaussians, output)?;
+    println!(
+        "decoded {n} Gaussians (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
+        decoded.rate,
+        decoded.header.rate_count,
+        output.display(),
+        secs(t)
+    );
+    Ok(())
+}

@@ -1,0 +1,216 @@
+//! `salvq render` and `salvq export-ply` (spec Annex C): a preview image of a stream, a model
+//! file or a 3DGS PLY file from a camera of the ring, and the standard 3DGS PLY of a stream
+//! or model file.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use salvq::Error;
+use salvq_render::camera::{Axis, Ring};
+use salvq_render::scene::Scene;
+use salvq_render::{ply, raster};
+
+use super::secs;
+
+/// The camera ring's settings (spec Annex C.2).
+#[derive(clap::Args)]
+pub(crate) struct RingArgs {
+    /// Camera I of the ring (0 … N − 1): the view rendered, or for export-ply the camera the
+    /// view-dependent MLPs (opacity, colour, covariance) are evaluated from (spec Annex C.1).
+    #[arg(long, default_value_t = 0)]
+    view: u32,
+    /// N: cameras on the ring, evenly spaced.
+    #[arg(long, default_value_t = 8)]
+    views: u32,
+    /// Elevation of the ring above the scene's centre, degrees.
+    #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
+    elevation: f64,
+    /// Vertical field of view, degrees.
+    #[arg(long, default_value_t = 50.0)]
+    fov: f64,
+    /// The scene's up axis: +x, -x, +y, -y, +z or -z (3DGS captures are usually -y up).
+    #[arg(long, default_value = "-y", value_parser = parse_axis, allow_hyphen_values = true)]
+    up: Axis,
+}
+
+impl RingArgs {
+    fn ring(&self) -> Ring {
+        Ring {
+            views: self.views,
+            elevation_deg: self.elevation,
+            fov_y_deg: self.fov,
+            up: self.up,
+        }
+    }
+}
+
+/// Arguments of `salvq render`.
+#[derive(clap::Args)]
+pub(crate) struct RenderArgs {
+    /// Input: a SALVQ stream, a safetensors model (spec Annex A) or a 3DGS PLY file.
+    input: PathBuf,
+    /// Output image (PNG, 8-bit RGB).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The rate to decode a stream at (default: the lowest rate it carries).
+    #[arg(long)]
+    rate: Option<u8>,
+    #[command(flatten)]
+    ring: RingArgs,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 512)]
+    width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 384)]
+    height: u32,
+    /// Background colour `r,g,b`, each in [0, 1].
+    #[arg(long, default_value = "0,0,0", value_parser = parse_rgb)]
+    background: [f32; 3],
+    /// Render on N threads (default: all cores; the image is the same for every N).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    threads: Option<u32>,
+}
+
+/// Arguments of `salvq export-ply`.
+#[derive(clap::Args)]
+pub(crate) struct ExportPlyArgs {
+    /// Input: a SALVQ stream or a safetensors model (spec Annex A).
+    input: PathBuf,
+    /// Output PLY file (Inria 3DGS layout, spec Annex C.3).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The rate to decode a stream at (default: the lowest rate it carries).
+    #[arg(long)]
+    rate: Option<u8>,
+    /// The ring camera that the view-dependent MLPs are evaluated from (spec Annex C.1, C.2).
+    #[command(flatten)]
+    ring: RingArgs,
+}
+
+fn parse_axis(s: &str) -> Result<Axis, String> {
+    Axis::parse(s).ok_or_else(|| format!("`{s}`: expected +x, -x, +y, -y, +z or -z"))
+}
+
+fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("'{x}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let rgb: [f32; 3] = v
+        .try_into()
+        .map_err(|v: Vec<f32>| format!("3 numbers expected, {} given", v.len()))?;
+    if rgb.iter().any(|c| !(0.0..=1.0).contains(c)) {
+        return Err("each channel is in [0, 1]".into());
+    }
+    Ok(rgb)
+}
+
+/// Runs `f` on a pool of `threads` threads, or on rayon's global pool.
+fn with_threads<T: Send>(threads: Option<u32>, f: impl FnOnce() -> T + Send) -> T {
+    let pool = threads.and_then(|n| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build()
+            .ok()
+    });
+    match pool {
+        Some(p) => p.install(f),
+        None => f(),
+    }
+}
+
+fn load(input: &std::path::Path, rate: Option<u8>) -> Result<Scene, Error> {
+    Scene::from_bytes(&salvq_render::io::read_file(input)?, rate)
+}
+
+/// `salvq render`.
+pub(crate) fn render(a: RenderArgs) -> Result<(), Error> {
+    let t = Instant::now();
+    let scene = load(&a.input, a.rate)?;
+    let load_secs = secs(t);
+    let camera = a
+        .ring
+        .ring()
+        .camera(&scene.bounds(), a.ring.view, a.width, a.height)?;
+    let (image, stats, gen_secs, raster_secs) = with_threads(a.threads, || {
+        let t = Instant::now();
+        let gaussians = scene.gaussians(camera.position)?;
+        let gen_secs = secs(t);
+        let t = Instant::now();
+        let (image, stats) = raster::render_with_stats(&gaussians, &camera, a.background);
+        Ok::<_, Error>((image, stats, gen_secs, secs(t)))
+    })?;
+    image.write_png(&a.output)?;
+    let source = match &scene {
+        Scene::Model(m) => format!(
+            "{} anchors -> neural Gaussians in {:.1} ms",
+            m.dims.anchors,
+            gen_secs * 1e3
+        ),
+        Scene::Gaussians(g) => format!("{} Gaussians (SH degree {})", g.len(), g.sh_degree),
+    };
+    println!(
+        "rendered view {} of {} ({}x{}) into {}: {source}; {} drawn, {} tile entries; \
+         read in {:.1} ms, rasterized in {:.1} ms",
+        a.ring.view,
+        a.ring.views,
+        a.width,
+        a.height,
+        a.output.display(),
+        stats.splats,
+        stats.tile_entries,
+        load_secs * 1e3,
+        raster_secs * 1e3
+    );
+    Ok(())
+}
+
+/// `salvq export-ply`.
+pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
+    let t = Instant::now();
+    let scene = load(&a.input, a.rate)?;
+    let model = match &scene {
+        Scene::Model(m) => m,
+        // An explicit-profile stream (spec §3): its Gaussians are the export.
+        Scene::Gaussians(g)
+            if salvq::decoder::is_explicit(&salvq_render::io::read_file(&a.input)?) =>
+        {
+            ply::write_ply_file(g, &a.output)?;
+            println!(
+                "exported {} Gaussians (SH degree {}) into {} in {:.2} s",
+                g.len(),
+                g.sh_degree,
+                a.output.display(),
+                secs(t)
+            );
+            return Ok(());
+        }
+        Scene::Gaussians(_) => {
+            return Err(Error::RenderSettingInvalid {
+                setting: "input",
+                value: 0.0,
+                rule: "export-ply reads a SALVQ stream or a safetensors model, not a PLY file",
+            })
+        }
+    };
+    // The camera position does not depend on the image size; any valid size will do.
+    let camera = a
+        .ring
+        .ring()
+        .camera(&scene.bounds(), a.ring.view, 512, 384)?;
+    let gaussians = salvq_render::neural::neural_gaussians(model, camera.position)?;
+    ply::write_ply_file(&gaussians, &a.output)?;
+    let unmasked = model.anchors.mask.iter().filter(|&&m| m == 1).count();
+    println!(
+        "exported {} Gaussians into {} in {:.2} s: the unmasked offsets ({unmasked}) of {} anchors \
+         with opacity > 0 seen from ring camera {} of {} at {:?}",
+        gaussians.len(),
+        a.output.display(),
+        secs(t),
+        model.dims.anchors,
+        a.ring.view,
+        a.ring.views,
+        camera.position,
+    );
+    Ok(())
+}

@@ -1,0 +1,86 @@
+//! The conformance tools: `salvq conformance`, `salvq make-vectors`, and the hidden decoder
+//! fault of `decode --inject-fault` (spec §11).
+
+use std::path::Path;
+use std::time::Instant;
+
+use super::secs;
+
+pub(crate) fn parse_fault(s: &str) -> Result<salvq::decoder::Fault, String> {
+    let k = s
+        .strip_prefix("table:")
+        .and_then(|k| k.parse::<u8>().ok())
+        .ok_or_else(|| format!("`{s}`: expected table:K"))?;
+    Ok(salvq::decoder::Fault::FrequencyTable { scale: k })
+}
+
+pub(crate) fn conformance(
+    decoder: Option<String>,
+    vectors: &Path,
+    filter: Option<&str>,
+) -> Result<(), String> {
+    let template = match decoder {
+        Some(d) => d,
+        None => {
+            let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+            format!(
+                "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical",
+                exe.display()
+            )
+        }
+    };
+    let (_, report) = salvq_conformance::runner::run(vectors, &template, filter)?;
+    for o in &report.outcomes {
+        let verdict = if o.passed { "pass" } else { "FAIL" };
+        println!("{verdict}  {:<32} {}", o.label, o.detail);
+    }
+    println!("{}", report.summary());
+    if report.failed() > 0 {
+        return Err(format!(
+            "{} of {} conformance checks failed",
+            report.failed(),
+            report.outcomes.len()
+        ));
+    }
+    Ok(())
+}
+
+pub(crate) fn make_vectors(
+    out: &Path,
+    readme: &Path,
+    spec: &Path,
+    check: bool,
+) -> Result<(), String> {
+    let t = Instant::now();
+    let g = salvq_conformance::generate::build(spec)?;
+    let bytes: usize = g.files.values().map(Vec::len).sum();
+    if check {
+        let diffs = salvq_conformance::generate::check(&g, out, readme);
+        for d in &diffs {
+            println!("stale: {d}");
+        }
+        if !diffs.is_empty() {
+            return Err(format!(
+                "{} conformance files differ from a fresh generation; run `salvq make-vectors` \
+                 (and bump the format version if the format changed)",
+                diffs.len()
+            ));
+        }
+        println!(
+            "{} vectors, {} files, {bytes} bytes: identical to a fresh generation ({:.1} s)",
+            g.manifest.vectors.len(),
+            g.files.len(),
+            secs(t)
+        );
+        return Ok(());
+    }
+    salvq_conformance::generate::write(&g, out, readme)?;
+    println!(
+        "wrote {} vectors ({} files, {bytes} bytes) to {} in {:.1} s",
+        g.manifest.vectors.len(),
+        g.files.len(),
+        out.display(),
+        secs(t)
+    );
+    Ok(())
+}

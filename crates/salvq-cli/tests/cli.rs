@@ -1,0 +1,194 @@
+//! The CLI contract: gen / encode / decode / info work end to end; a failure prints one line
+//! on stderr, exits non-zero, and leaves no output file (not even a temporary one) behind.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn salvq(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_salvq"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn gen_encode_decode_info() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    let out = salvq(&[
+        "gen",
+        "--anchors",
+        "300",
+        "--seed",
+        "3",
+        "--small",
+        "-o",
+        &p("m.safetensors"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("sha256 "));
+    let out = salvq(&[
+        "encode",
+        &p("m.safetensors"),
+        "-o",
+        &p("s.salvq"),
+        "--note",
+        "cli test",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = salvq(&["decode", &p("s.salvq"), "-o", &p("d.safetensors")]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let input = salvq_render::interchange::read_model(Path::new(&p("m.safetensors"))).unwrap();
+    let decoded = salvq_render::interchange::read_model(Path::new(&p("d.safetensors"))).unwrap();
+    assert_eq!(decoded.anchors.voxel, input.anchors.voxel);
+    assert_eq!(decoded.anchors.mask, input.anchors.mask);
+    assert_ne!(
+        decoded.anchors.feat, input.anchors.feat,
+        "features are quantized"
+    );
+    let out = salvq(&["info", &p("s.salvq"), "--json"]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["head"]["anchors"], 300);
+    assert_eq!(v["chunks"][1]["tag"], "encd");
+    assert_eq!(
+        files_in(dir.path()),
+        ["d.safetensors", "m.safetensors", "s.salvq"]
+    );
+}
+
+#[test]
+fn failed_decode_prints_one_line_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    assert!(salvq(&[
+        "gen",
+        "--anchors",
+        "50",
+        "--small",
+        "-o",
+        &p("m.safetensors")
+    ])
+    .status
+    .success());
+    assert!(salvq(&[
+        "encode",
+        &p("m.safetensors"),
+        "-o",
+        &p("s.salvq"),
+        "--no-stats"
+    ])
+    .status
+    .success());
+    let mut s = std::fs::read(p("s.salvq")).unwrap();
+    let n = s.len();
+    s[n - 20] ^= 4; // inside the last anchor chunk: a CRC mismatch
+    std::fs::write(p("bad.salvq"), &s).unwrap();
+    let out = salvq(&["decode", &p("bad.salvq"), "-o", &p("out.safetensors")]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    assert!(stderr.starts_with("salvq: error[ChunkCrcMismatch]: chunk AOFF: CRC-32C mismatch"));
+    assert!(stderr.trim_end().ends_with("[§1.3]"));
+    assert_eq!(
+        files_in(dir.path()),
+        ["bad.salvq", "m.safetensors", "s.salvq"]
+    );
+}
+
+#[test]
+fn failed_encode_of_a_bad_model_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    std::fs::write(p("bad.safetensors"), b"\x08\0\0\0\0\0\0\0{}      ").unwrap();
+    let out = salvq(&["encode", &p("bad.safetensors"), "-o", &p("s.salvq")]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1);
+    assert!(
+        stderr.contains("error[TensorMissing]: anchor.feat"),
+        "{stderr}"
+    );
+    assert_eq!(files_in(dir.path()), ["bad.safetensors"]);
+}
+
+#[test]
+fn missing_input_is_an_io_error() {
+    let out = salvq(&["info", "/nonexistent/x.salvq"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).starts_with("salvq: error[Io]: cannot read"));
+}
+
+/// The explicit profile from the command line (spec §3, Annex A.8): a PLY with a NaN fails
+/// naming the property and the Gaussian and leaves no file; `--drop-invalid` drops and
+/// counts it; the stream decodes to a PLY; a SOG `meta.json` is named and refused.
+#[test]
+fn encode_a_ply_with_a_nan() {
+    use salvq_gen::gaussians::{generate_gaussians, GaussianParams};
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = generate_gaussians(&GaussianParams::new(300, 1, 4));
+    g.f_dc[17][1] = f32::NAN;
+    let ply = dir.path().join("scene.ply");
+    std::fs::write(&ply, salvq_render::ply::ply_bytes(&g).unwrap()).unwrap();
+    let out = dir.path().join("scene.salvq");
+    let (ply_s, out_s) = (ply.to_str().unwrap(), out.to_str().unwrap());
+    let o = salvq(&["encode", ply_s, "-o", out_s, "--psnr", "30"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("PlyValueNotFinite") && err.contains("vertex 17") && err.contains("f_dc_1"),
+        "{err}"
+    );
+    assert_eq!(files_in(dir.path()), vec!["scene.ply"]);
+    let o = salvq(&[
+        "encode",
+        ply_s,
+        "-o",
+        out_s,
+        "--psnr",
+        "30",
+        "--drop-invalid",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("dropped 1 of 300"), "{err}");
+    let back = dir.path().join("back.ply");
+    let o = salvq(&["decode", out_s, "-o", back.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let decoded = salvq_render::ply::read_ply(&std::fs::read(&back).unwrap()).unwrap();
+    assert_eq!(decoded.len(), 299);
+    let meta = dir.path().join("meta.json");
+    std::fs::write(&meta, b"{\"version\": 2, \"means\": {}}").unwrap();
+    let o = salvq(&[
+        "encode",
+        meta.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.salvq").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("UnsupportedInput") && err.contains("SOG"),
+        "{err}"
+    );
+}

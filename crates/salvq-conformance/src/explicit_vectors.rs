@@ -1,0 +1,479 @@
+//! The explicit profile's conformance vectors (spec §3, §11.6): valid streams of seeded
+//! synthetic Gaussians (Annex B.6) coded with fixed plans (no rendering, so regenerating
+//! gives the same bytes), and must-fail streams that each break one rule of §3.
+
+use salvq::container::chunk::ChunkTag;
+use salvq::container::surgery;
+use salvq::explicit::Gaussians;
+use salvq::Result;
+use salvq_encoder::explicit::{
+    encode_prepared, EncodedGaussians, ExplicitOptions, PreparedGaussians, RateControl, RatePlan,
+};
+use salvq_gen::gaussians::{generate_gaussians, GaussianParams};
+
+use super::must_fail::{vector as must_fail, MustFailVector};
+
+/// Sections every explicit valid vector exercises.
+pub const EXPLICIT_SECTIONS: &[&str] = &[
+    "§0.1", "§0.2", "§0.4", "§1.1", "§1.2", "§1.3", "§1.5", "§3.1", "§3.2", "§3.3", "§3.4", "§3.5",
+    "§3.6", "§3.7", "§6.1", "§6.2", "§6.2.1", "§6.2.4", "§6.2.5", "§6.2.6", "§6.3", "§6.4", "§7.3",
+    "§8.1", "§8.2", "§8.3", "§8.4", "§10.1", "§10.2", "§11.4", "§11.5", "§11.6",
+];
+
+/// An explicit-profile stream a conformant decoder must decode, at each of `rates`, to the
+/// encoder's prediction `oracle`.
+pub struct ExplicitVector {
+    pub name: &'static str,
+    pub description: &'static str,
+    pub sections: &'static [&'static str],
+    pub stream: Vec<u8>,
+    pub rates: Vec<u8>,
+    pub oracle: Vec<Gaussians>,
+}
+
+/// A plan: voxel edge, refinement per size class, base steps (scale, opacity, rotation,
+/// DC, rest) and shifts per class for the groups after the scale.
+fn plan(voxel: f64, refine: [u8; 4], steps: &[f64], shift: &[[i8; 4]]) -> RatePlan {
+    RatePlan {
+        voxel,
+        refine,
+        steps: steps.to_vec(),
+        shift: shift.to_vec(),
+    }
+}
+
+/// `plans` scaled by 2^k for rate k (coarser rates), shifts kept.
+fn rates(first: &RatePlan, m: usize) -> Vec<RatePlan> {
+    (0..m)
+        .map(|k| {
+            let f = (k as f64).exp2();
+            RatePlan {
+                voxel: first.voxel * f,
+                steps: first.steps.iter().map(|s| s * f).collect(),
+                ..first.clone()
+            }
+        })
+        .collect()
+}
+
+/// Encodes the synthetic scene `params` with `plans` and `options`.
+pub fn encode_synthetic(
+    params: &GaussianParams,
+    plans: Vec<RatePlan>,
+    options: ExplicitOptions,
+) -> Result<EncodedGaussians> {
+    let g = generate_gaussians(params);
+    let p = PreparedGaussians::new(&g)?;
+    let options = ExplicitOptions {
+        rates: RateControl::Plans(plans.clone()),
+        ..options
+    };
+    encode_prepared(&p, &plans, &options)
+}
+
+fn vector(
+    name: &'static str,
+    description: &'static str,
+    sections: &'static [&'static str],
+    e: EncodedGaussians,
+) -> ExplicitVector {
+    ExplicitVector {
+        name,
+        description,
+        sections,
+        rates: e.layers.iter().map(|l| l.0.rate).collect(),
+        oracle: e.layers.into_iter().map(|l| l.2).collect(),
+        stream: e.stream,
+    }
+}
+
+const SHIFTS_SH0: [[i8; 4]; 3] = [[1, 0, 0, -1], [2, 1, 0, 0], [1, 0, 0, 0]];
+const SHIFTS_SH: [[i8; 4]; 4] = [[1, 0, 0, -1], [2, 1, 0, 0], [1, 0, 0, 0], [2, 1, 0, 0]];
+
+/// The base plan of the vectors with SH rest (`sh` true) or without.
+fn base_plan(sh: bool) -> RatePlan {
+    if sh {
+        plan(
+            0.05,
+            [3, 2, 1, 0],
+            &[0.1, 0.25, 0.03, 0.03, 0.04],
+            &SHIFTS_SH,
+        )
+    } else {
+        plan(0.05, [3, 2, 1, 0], &[0.1, 0.25, 0.03, 0.03], &SHIFTS_SH0)
+    }
+}
+
+/// Every explicit valid vector, in a fixed order.
+pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
+    let options = |tiles: u32, coded: Option<Vec<u8>>, klt: Option<Vec<bool>>| ExplicitOptions {
+        coded,
+        klt,
+        tile_gaussians: tiles,
+        ..Default::default()
+    };
+    Ok(vec![
+        vector(
+            "g-sh0",
+            "200 synthetic Gaussians, SH degree 0, one rate, identity lattices, size classes \
+             with refinement and step shifts, 3 tiles",
+            &[],
+            encode_synthetic(
+                &GaussianParams::new(200, 0, 3),
+                vec![base_plan(false)],
+                options(80, None, Some(vec![false; 4])),
+            )?,
+        ),
+        vector(
+            "g-sh3-rates",
+            "120 synthetic Gaussians, SH degree 3, three rates (all decoded), KLT bases \
+             (lattice 4) for SH DC and SH rest, 2 tiles",
+            &["§7.4"],
+            encode_synthetic(
+                &GaussianParams::new(120, 3, 5),
+                rates(&base_plan(true), 3),
+                options(64, None, Some(vec![false, false, false, true, true])),
+            )?,
+        ),
+        vector(
+            "g-sh1-single",
+            "one Gaussian, SH degree 1",
+            &[],
+            encode_synthetic(
+                &GaussianParams::new(1, 1, 7),
+                vec![base_plan(true)],
+                options(16_384, None, None),
+            )?,
+        ),
+        vector(
+            "g-sh1-predicted",
+            "80 synthetic Gaussians, SH degree 1, every group predicted from its reference \
+             (predict = 1, so the size class follows the predicted scale coordinates)",
+            &[],
+            encode_synthetic(
+                &GaussianParams::new(80, 1, 13),
+                vec![base_plan(true)],
+                ExplicitOptions {
+                    variant: salvq_encoder::explicit::Variant {
+                        predict_all: true,
+                        ..Default::default()
+                    },
+                    ..options(16_384, None, None)
+                },
+            )?,
+        ),
+        vector(
+            "g-sh2-one-voxel",
+            "40 Gaussians at one position (one voxel, counts of §8.4), SH degree 2, rate 1 of \
+             two coded alone",
+            &["§7.4"],
+            encode_synthetic(
+                &GaussianParams {
+                    one_point: true,
+                    ..GaussianParams::new(40, 2, 9)
+                },
+                rates(&base_plan(true), 2),
+                options(16_384, Some(vec![1]), None),
+            )?,
+        ),
+    ])
+}
+
+/// The base stream of the explicit must-fail vectors: 30 Gaussians, SH degree 1, rates 0 and
+/// 1 of 3 coded, KLT for SH DC, 2 tiles.
+fn base_stream() -> Vec<u8> {
+    encode_synthetic(
+        &GaussianParams::new(30, 1, 2),
+        rates(&base_plan(true), 3),
+        ExplicitOptions {
+            coded: Some(vec![0, 1]),
+            klt: Some(vec![false, false, false, true, false]),
+            tile_gaussians: 16,
+            ..Default::default()
+        },
+    )
+    .expect("a synthetic scene encodes")
+    .stream
+}
+
+fn edit(stream: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
+    surgery::edit_payload(stream, tag, f).expect("the chunk is in the base stream")
+}
+
+fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
+    surgery::chunks(stream).expect("the base stream frames")
+}
+
+/// Byte offsets inside the base stream's `GLAY` payload (§3.4): after `coding_method`,
+/// `coord_bits` (1), `voxel_size` (2), `pred_level` (6), `rotation_freq` (7), thresholds
+/// (13), refine (25), shifts (29), then the scale offsets, predict and the scale table.
+mod glay_at {
+    pub const COORD_BITS: usize = 1;
+    pub const PRED_LEVEL: usize = 6;
+    pub const ROTATION_FREQ: usize = 7;
+    pub const THRESHOLD: usize = 13;
+    pub const REFINE: usize = 25;
+    pub const SHIFT: usize = 29;
+}
+
+/// Every explicit must-fail vector, in decoding order (§3.2 – §3.7).
+pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
+    let base = base_stream();
+    let ghed = |f: &dyn Fn(&mut Vec<u8>)| edit(&base, ChunkTag::GHED, |p| f(p));
+    let gqua = |f: &dyn Fn(&mut Vec<u8>)| edit(&base, ChunkTag::GQUA, |p| f(p));
+    let glay = |f: &dyn Fn(&mut Vec<u8>)| edit(&base, ChunkTag::GLAY, |p| f(p));
+    // GQUA: group 0 (scale, identity) starts at 1: lattice, step (2), gains (6: M = 3).
+    let gqua_group0_step = 2;
+    let gqua_group0_gain0 = 6;
+    // Group 3 (sh_dc) has the KLT basis: find its lattice byte by walking the groups.
+    let gqua_dc_lattice = {
+        let mut at = 1;
+        for d in [3usize, 1, 3] {
+            at += 1 + 4 + 4 * 3 + 4 * d;
+        }
+        at
+    };
+    let swapped = {
+        let mut cs = chunks(&base);
+        let t = cs
+            .iter()
+            .position(|(t, _)| *t == ChunkTag::TILS)
+            .expect("TILS");
+        cs.swap(t, t + 1);
+        surgery::assemble(&base, &cs)
+    };
+    let unknown = {
+        let mut cs = chunks(&base);
+        cs.insert(2, (ChunkTag::AFEA, vec![1]));
+        surgery::assemble(&base, &cs)
+    };
+    let base_tiles = chunks(&base)
+        .into_iter()
+        .find(|(t, _)| *t == ChunkTag::TILS)
+        .map(|(_, p)| u32::from_le_bytes([p[1], p[2], p[3], p[4]]))
+        .expect("TILS");
+    let mut trailing = base.clone();
+    trailing.push(0);
+    vec![
+        must_fail(
+            "x-g-head-flags",
+            "ReservedBitsSet",
+            &["§3.2"],
+            "GHED head_flags = 1",
+            ghed(&|p| p[6] = 1),
+        ),
+        must_fail(
+            "x-g-sh-degree",
+            "FieldOutOfRange",
+            &["§3.2"],
+            "GHED sh_degree = 4",
+            ghed(&|p| p[4] = 4),
+        ),
+        must_fail(
+            "x-g-rate-mask",
+            "FieldOutOfRange",
+            &["§3.2"],
+            "GHED rate_mask has bit 3 set with M = 3",
+            ghed(&|p| p[7] |= 8),
+        ),
+        must_fail(
+            "x-g-origin-nan",
+            "NonFiniteValue",
+            &["§3.2"],
+            "GHED origin[1] is NaN",
+            ghed(&|p| p[19..23].copy_from_slice(&f32::NAN.to_le_bytes())),
+        ),
+        must_fail(
+            "x-g-decoded-size",
+            "DecodedSizeMismatch",
+            &["§3.2"],
+            "GHED decoded_bytes one too many",
+            ghed(&|p| p[27] = p[27].wrapping_add(1)),
+        ),
+        must_fail(
+            "x-g-ghed-length",
+            "ChunkSizeMismatch",
+            &["§3.2"],
+            "GHED one byte too long",
+            ghed(&|p| p.push(0)),
+        ),
+        must_fail(
+            "x-g-lattice",
+            "ValueInvalid",
+            &["§3.3"],
+            "GQUA scale group lattice = 3 (not used by this profile)",
+            gqua(&|p| p[1] = 3),
+        ),
+        must_fail(
+            "x-g-step-zero",
+            "ValueNotPositive",
+            &["§3.3"],
+            "GQUA scale step = 0",
+            gqua(&|p| {
+                p[gqua_group0_step..gqua_group0_step + 4].copy_from_slice(&0f32.to_le_bytes())
+            }),
+        ),
+        must_fail(
+            "x-g-gain-overflow",
+            "NonFiniteValue",
+            &["§3.3"],
+            "GQUA scale gain 0 finite but step × gain overflows",
+            gqua(&|p| {
+                p[gqua_group0_step..gqua_group0_step + 4].copy_from_slice(&1e30f32.to_le_bytes());
+                p[gqua_group0_gain0..gqua_group0_gain0 + 4].copy_from_slice(&1e30f32.to_le_bytes());
+            }),
+        ),
+        must_fail(
+            "x-g-basis-singular",
+            "BasisSingular",
+            &["§3.3"],
+            "GQUA sh_dc basis_s[1] = 0",
+            gqua(&|p| {
+                // basis_s follows lattice, step, 3 gains, 3 means and 9 basis_u values.
+                let s1 = gqua_dc_lattice + 1 + 4 + 12 + 12 + 18 + 2;
+                p[s1..s1 + 2].copy_from_slice(&[0, 0]);
+            }),
+        ),
+        must_fail(
+            "x-g-gqua-length",
+            "ChunkSizeMismatch",
+            &["§3.3"],
+            "GQUA one byte too long",
+            gqua(&|p| p.push(0)),
+        ),
+        must_fail(
+            "x-g-coord-bits",
+            "FieldOutOfRange",
+            &["§3.4"],
+            "GLAY coord_bits = 22",
+            glay(&|p| p[glay_at::COORD_BITS] = 22),
+        ),
+        must_fail(
+            "x-g-pred-level",
+            "FieldOutOfRange",
+            &["§3.4"],
+            "GLAY pred_level above coord_bits",
+            glay(&|p| p[glay_at::PRED_LEVEL] = 30),
+        ),
+        must_fail(
+            "x-g-rotation-freq",
+            "FieldOutOfRange",
+            &["§3.4"],
+            "GLAY rotation_freq[1] = 0",
+            glay(&|p| {
+                p[glay_at::ROTATION_FREQ + 2..glay_at::ROTATION_FREQ + 4].copy_from_slice(&[0, 0])
+            }),
+        ),
+        must_fail(
+            "x-g-threshold",
+            "ValueInvalid",
+            &["§3.4"],
+            "GLAY size_threshold[1] below size_threshold[0]",
+            glay(&|p| {
+                let t0 = i32::from_le_bytes([p[13], p[14], p[15], p[16]]);
+                let at = glay_at::THRESHOLD + 4;
+                p[at..at + 4].copy_from_slice(&(t0 - 1).to_le_bytes());
+            }),
+        ),
+        must_fail(
+            "x-g-refine",
+            "FieldOutOfRange",
+            &["§3.4"],
+            "GLAY refine[0] above 24 − coord_bits",
+            glay(&|p| p[glay_at::REFINE] = 24),
+        ),
+        must_fail(
+            "x-g-shift",
+            "ValueInvalid",
+            &["§3.4"],
+            "GLAY shift[0][2] = 17",
+            glay(&|p| p[glay_at::SHIFT + 2] = 17),
+        ),
+        must_fail(
+            "x-g-shift-min",
+            "ValueInvalid",
+            &["§3.4"],
+            "GLAY shift[0][0] = −128 (i8's least value: an absolute value overflows)",
+            glay(&|p| p[glay_at::SHIFT] = 0x80),
+        ),
+        must_fail(
+            "x-g-scale-offset",
+            "ValueInvalid",
+            &["§3.4"],
+            "GLAY scale_offset[1][3] = −64",
+            glay(&|p| p[glay_at::SHIFT + 4 * 4 + 4 + 3] = (-64i8) as u8),
+        ),
+        must_fail(
+            "x-g-predict",
+            "FieldOutOfRange",
+            &["§3.4"],
+            "GLAY predict[1] = 2",
+            glay(&|p| p[glay_at::SHIFT + 8 * 4 + 1] = 2),
+        ),
+        must_fail(
+            "x-g-scale-table",
+            "FieldOutOfRange",
+            &["§3.4"],
+            "GLAY's last scale_table entry = 64",
+            glay(&|p| *p.last_mut().expect("a table") = 64),
+        ),
+        must_fail(
+            "x-g-glay-length",
+            "ChunkSizeMismatch",
+            &["§3.4"],
+            "GLAY one byte short",
+            glay(&|p| {
+                p.pop();
+            }),
+        ),
+        must_fail(
+            "x-g-unknown-critical",
+            "UnknownCriticalChunk",
+            &["§3.7"],
+            "an anchors-profile AFEA chunk after GQUA",
+            unknown,
+        ),
+        must_fail(
+            "x-g-chunk-order",
+            "ChunkOrder",
+            &["§3.7"],
+            "layer 0's APOS before its TILS",
+            swapped,
+        ),
+        must_fail(
+            "x-g-gatt-method",
+            "UnknownCodingMethod",
+            &["§3.5"],
+            "GATT coding_method = 0",
+            edit(&base, ChunkTag::GATT, |p| p[0] = 0),
+        ),
+        must_fail(
+            "x-g-gatt-top-word",
+            "AnsStreamInvalid",
+            &["§3.5", "§6.2.6"],
+            "tile 0's GATT body starts with a zero top word",
+            edit(&base, ChunkTag::GATT, |p| {
+                // coding_method, T tile lengths, then tile 0's body (T from TILS, §10.1).
+                let at = 1 + 4 * base_tiles as usize;
+                p[at..at + 4].copy_from_slice(&[0, 0, 0, 0]);
+            }),
+        ),
+        must_fail(
+            "x-g-trailing",
+            "TrailingData",
+            &["§3.7"],
+            "a byte after SEND",
+            trailing,
+        ),
+        MustFailVector {
+            rate: 2,
+            ..must_fail(
+                "x-g-rate-not-coded",
+                "RateNotCoded",
+                &["§3.2"],
+                "rate 2 of 3 asked for; the stream codes rates 0 and 1",
+                base.clone(),
+            )
+        },
+    ]
+}

@@ -1,0 +1,20 @@
+//! Conformance (spec §11): the canonical decoded form and its hashes, golden vectors, the
+//! must-fail vectors, and a runner that tests any decoder through a command-line contract.
+//!
+//! | part | spec | module |
+//! |---|---|---|
+//! | canonical decoded form, integer and float hashes | §11.1, §11.2 | [`canonical`] |
+//! | float tolerances | §11.3 | [`manifest::Tolerance`] |
+//! | vectors and manifest | §11.4 | [`vectors`], [`must_fail`], [`manifest`], [`generate`] |
+//! | decoder contract and runner | §11.5 | [`runner`] |
+//! | what the fuzz targets (`fuzz/`) check | §9 | [`fuzzing`] |
+
+pub mod canonical;
+pub mod explicit_vectors;
+pub mod fuzzing;
+pub mod generate;
+pub mod manifest;
+pub mod models;
+pub mod must_fail;
+pub mod runner;
+pub mod vectors;

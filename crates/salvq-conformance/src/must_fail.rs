@@ -1,0 +1,534 @@
+//! Must-fail vectors (spec §11.5): one malformed stream per error class a stream decoder can
+//! report (Table 9-1), each reaching its rule with every earlier rule intact, so a conformant
+//! decoder reports exactly that class.
+//!
+//! Every vector starts from a tiny generated scene (Annex B: 13 anchors, seed 1, narrow MLPs)
+//! encoded by the reference encoder, and changes one thing with the chunk surgery of
+//! [`salvq::container::surgery`], which recomputes CRCs: every CRC a decoder reaches is valid
+//! except in `x-chunk-crc-mismatch`. The streams are deterministic: the generator is seeded
+//! and nothing else varies.
+//!
+//! `ScaleIndexOutOfRange` has no vector: §5.4 step 3 computes a scale index as a count of the
+//! 63 thresholds of Table 6-1, so no stream can make it fall outside 0 … 63.
+
+mod head;
+mod payload;
+
+use salvq::container::chunk::ChunkTag;
+use salvq::container::preflight::Preflight;
+use salvq::container::signature::SIGNATURE_LEN;
+use salvq::container::surgery;
+use salvq::limits::Limits;
+use salvq::model::SceneModel;
+use salvq_encoder::{encode_with_options, EncodeOptions};
+use salvq_gen::{generate, GenParams};
+
+/// A stream a conformant decoder must reject with `class`.
+#[derive(Debug, Clone)]
+pub struct MustFailVector {
+    /// File stem, `x-` prefixed (PngSuite's convention), e.g. `x-chunk-crc-mismatch`.
+    pub name: &'static str,
+    /// The error class (Table 9-1 spelling, [`salvq::Error::class`]).
+    pub class: &'static str,
+    /// The spec sections whose rule the stream breaks, e.g. `["§1.3"]`.
+    pub sections: &'static [&'static str],
+    /// One line: what is broken and how.
+    pub description: &'static str,
+    /// The rate the decoder is asked for.
+    pub rate: u8,
+    /// The stream.
+    pub stream: Vec<u8>,
+}
+
+/// Every must-fail vector, in a fixed order: roughly the order of the decoding process
+/// (signature, chunk framing, `HEAD`, chunk order, payloads, the layer chunks).
+pub fn must_fail_vectors() -> Vec<MustFailVector> {
+    let base = encode(&small_scene(13, false), &EncodeOptions::default());
+    let mut out = container_vectors(&base);
+    out.extend(head::head_vectors(&base));
+    out.extend(payload::payload_vectors(&base));
+    out
+}
+
+/// A vector asking for rate 0 (the lowest coded rate of a default-encoded stream).
+pub(crate) fn vector(
+    name: &'static str,
+    class: &'static str,
+    sections: &'static [&'static str],
+    description: &'static str,
+    stream: Vec<u8>,
+) -> MustFailVector {
+    MustFailVector {
+        name,
+        class,
+        sections,
+        description,
+        rate: 0,
+        stream,
+    }
+}
+
+/// A tiny generated scene (Annex B): [`GenParams::small`] with `n` anchors, seed 1, K = 2
+/// offsets and narrow MLPs (context hidden 4, Scaffold-GS hidden 2), so that a stream is
+/// under 2.5 KB; with a learned feature basis (general lattice) or the identity.
+fn small_scene(n: u32, feat_basis: bool) -> SceneModel {
+    generate(&GenParams {
+        feat_basis,
+        offsets: 2,
+        context_hidden: 4,
+        scaffold_hidden: 2,
+        ..GenParams::small(n, 1)
+    })
+}
+
+fn encode(m: &SceneModel, options: &EncodeOptions) -> Vec<u8> {
+    encode_with_options(m, options).expect("a generated scene encodes")
+}
+
+/// The stream's chunks as (tag, payload).
+fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
+    surgery::chunks(stream).expect("a generated stream frames")
+}
+
+/// The stream with the first `tag` chunk's payload changed by `f` (CRC recomputed).
+fn edit(stream: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
+    surgery::edit_payload(stream, tag, f).expect("the chunk is in a generated stream")
+}
+
+/// The first `tag` chunk's payload.
+fn payload_of(stream: &[u8], tag: ChunkTag) -> Vec<u8> {
+    chunks(stream)
+        .into_iter()
+        .find(|(t, _)| *t == tag)
+        .map(|(_, p)| p)
+        .expect("the chunk is in a generated stream")
+}
+
+/// Offset of the first `tag` chunk's length field.
+fn offset(stream: &[u8], tag: ChunkTag) -> usize {
+    surgery::chunk_offset(stream, tag).expect("the chunk is in a generated stream")
+}
+
+/// The stream's `HEAD`, parsed.
+fn head_of(stream: &[u8]) -> Preflight {
+    Preflight::parse(&payload_of(stream, ChunkTag::HEAD), &Limits::default())
+        .expect("a generated stream has a valid HEAD")
+}
+
+/// The stream with its `HEAD` fields changed by `f` and re-serialized (Table 1-4).
+fn edit_head(stream: &[u8], f: impl FnOnce(&mut Preflight)) -> Vec<u8> {
+    let mut h = head_of(stream);
+    f(&mut h);
+    edit(stream, ChunkTag::HEAD, |p| *p = h.to_payload())
+}
+
+/// The stream with a chunk inserted at index `at` of its chunk list.
+fn insert_chunk(stream: &[u8], at: usize, tag: ChunkTag, payload: &[u8]) -> Vec<u8> {
+    let mut cs = chunks(stream);
+    cs.insert(at, (tag, payload.to_vec()));
+    surgery::assemble(stream, &cs)
+}
+
+/// Signature, chunk framing, chunk order and the end of the stream (§1.2, §1.3, §1.5).
+fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let with = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut s = base.to_vec();
+        f(&mut s);
+        s
+    };
+    let set_len = |s: &mut Vec<u8>, tag: ChunkTag, len: u32| {
+        let at = offset(s, tag);
+        s[at..at + 4].copy_from_slice(&len.to_le_bytes());
+    };
+    let send = offset(base, ChunkTag::SEND);
+    let mut swapped = chunks(base);
+    swapped.swap(1, 2);
+    vec![
+        vector(
+            "x-signature-mismatch",
+            "SignatureMismatch",
+            &["§1.2"],
+            "magic byte 1 changed from 'S' to 'P'",
+            with(&|s| s[1] = b'P'),
+        ),
+        vector(
+            "x-truncated-signature",
+            "Truncated",
+            &["§1.2"],
+            "the stream is the magic and the major version only (9 bytes)",
+            base[..9].to_vec(),
+        ),
+        vector(
+            "x-unsupported-major-version",
+            "UnsupportedMajorVersion",
+            &["§1.2", "§1.2.1"],
+            "major version 1 (the decoder implements 0)",
+            with(&|s| s[8] = 1),
+        ),
+        vector(
+            "x-unsupported-minor-version",
+            "UnsupportedMinorVersion",
+            &["§1.2", "§1.2.1"],
+            "minor version one above the decoder's in the draft series",
+            with(&|s| s[9] = salvq::container::signature::FORMAT_MINOR + 1),
+        ),
+        vector(
+            "x-older-minor-version",
+            "UnsupportedMinorVersion",
+            &["§1.2", "§1.2.1"],
+            "minor version one below the decoder's in the draft series (draft versions are \
+             never read by a later draft's decoder)",
+            with(&|s| s[9] = salvq::container::signature::FORMAT_MINOR - 1),
+        ),
+        vector(
+            "x-reserved-file-flags",
+            "ReservedBitsSet",
+            &["§1.2"],
+            "file_flags = 0x8000: a reserved bit set",
+            with(&|s| s[SIGNATURE_LEN - 1] = 0x80),
+        ),
+        vector(
+            "x-chunk-tag-invalid",
+            "ChunkTagInvalid",
+            &["§1.3"],
+            "the GRID chunk's tag is G#ID",
+            with(&|s| {
+                let at = offset(s, ChunkTag::GRID) + 5;
+                s[at] = b'#';
+            }),
+        ),
+        vector(
+            "x-limit-chunk-length",
+            "LimitExceeded",
+            &["§1.3", "§9.1"],
+            "the MLPS chunk's length is 2^30 + 1, above the default chunk limit of 1 GiB",
+            with(&|s| set_len(s, ChunkTag::MLPS, (1 << 30) + 1)),
+        ),
+        vector(
+            "x-chunk-length-past-end",
+            "ChunkLengthPastEnd",
+            &["§1.3"],
+            "the AOFF chunk's length is 1 000 000, past the end of the stream",
+            with(&|s| set_len(s, ChunkTag::AOFF, 1_000_000)),
+        ),
+        vector(
+            "x-truncated-chunk-header",
+            "Truncated",
+            &["§1.3"],
+            "the stream ends 3 bytes into the SEND chunk's header",
+            base[..send + 3].to_vec(),
+        ),
+        vector(
+            "x-truncated-chunk-crc",
+            "Truncated",
+            &["§1.3"],
+            "the stream ends 2 bytes into the SEND chunk's CRC",
+            base[..base.len() - 2].to_vec(),
+        ),
+        vector(
+            "x-chunk-crc-mismatch",
+            "ChunkCrcMismatch",
+            &["§1.3"],
+            "one bit of the AFEA payload flipped, its CRC left as it was",
+            with(&|s| {
+                let at = offset(s, ChunkTag::AFEA) + 8 + 5;
+                s[at] ^= 0x10;
+            }),
+        ),
+        vector(
+            "x-unknown-critical-chunk",
+            "UnknownCriticalChunk",
+            &["§1.5"],
+            "a critical chunk ABCD (3-byte payload) inserted after HEAD",
+            insert_chunk(base, 1, ChunkTag(*b"ABCD"), &[1, 2, 3]),
+        ),
+        vector(
+            "x-chunk-order",
+            "ChunkOrder",
+            &["§1.5"],
+            "QUAN before MLPS",
+            surgery::assemble(base, &swapped),
+        ),
+        vector(
+            "x-chunk-order-ancillary-first",
+            "ChunkOrder",
+            &["§1.5"],
+            "an ancillary encd chunk before HEAD",
+            insert_chunk(base, 0, ChunkTag::ENCD, b"too early"),
+        ),
+        vector(
+            "x-truncated-before-send",
+            "Truncated",
+            &["§1.5"],
+            "the stream ends at a chunk boundary, before SEND",
+            base[..send].to_vec(),
+        ),
+        vector(
+            "x-send-not-empty",
+            "ChunkSizeMismatch",
+            &["§1.5"],
+            "SEND has a 1-byte payload",
+            edit(base, ChunkTag::SEND, |p| p.push(0)),
+        ),
+        vector(
+            "x-trailing-data",
+            "TrailingData",
+            &["§1.5"],
+            "4 bytes after SEND",
+            with(&|s| s.extend_from_slice(b"junk")),
+        ),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use salvq::decoder::{decode_with_options, DecodeOptions};
+    use salvq::error::{AnsFault, Error, Structure};
+    use salvq::geometry;
+    use std::collections::BTreeSet;
+
+    /// Table 9-1's classes a stream decoder can report (encoder-only and model-file classes
+    /// left out).
+    const STREAM_CLASSES: [&str; 29] = [
+        "SignatureMismatch",
+        "Truncated",
+        "UnsupportedMajorVersion",
+        "UnsupportedMinorVersion",
+        "ReservedBitsSet",
+        "ChunkTagInvalid",
+        "ChunkLengthPastEnd",
+        "ChunkCrcMismatch",
+        "ChunkOrder",
+        "UnknownCriticalChunk",
+        "TrailingData",
+        "FieldOutOfRange",
+        "DecodedSizeMismatch",
+        "LimitExceeded",
+        "ChunkSizeMismatch",
+        "UnknownCodingMethod",
+        "PaddingBitsSet",
+        "AnsStreamInvalid",
+        "EscapeOverflow",
+        "ScaleIndexOutOfRange",
+        "LatticeDimension",
+        "RateNotCoded",
+        "TileOrder",
+        "TileBoxMismatch",
+        "OctreeInvalid",
+        "NonFiniteValue",
+        "ValueNotPositive",
+        "ValueInvalid",
+        "BasisSingular",
+    ];
+
+    /// Classes no stream can reach (see the module documentation).
+    const UNREACHABLE: [&str; 1] = ["ScaleIndexOutOfRange"];
+
+    fn decode_vector(v: &MustFailVector) -> Error {
+        let options = DecodeOptions {
+            rate: Some(v.rate),
+            ..Default::default()
+        };
+        match decode_with_options(&v.stream, &options) {
+            Ok(_) => panic!("{}: decoded", v.name),
+            Err(e) => e,
+        }
+    }
+
+    #[test]
+    fn every_vector_fails_with_its_class() {
+        let vectors = must_fail_vectors();
+        let mut total = 0;
+        for v in &vectors {
+            let e = decode_vector(v);
+            assert_eq!(e.class(), v.class, "{}: {e}", v.name);
+            total += v.stream.len();
+            println!("{:32} {:24} {:5} {e}", v.name, v.class, v.stream.len());
+        }
+        println!("{} vectors, {total} bytes", vectors.len());
+        assert!(total < 100_000, "{total} bytes");
+        assert!(vectors.iter().all(|v| v.stream.len() < 8_000));
+    }
+
+    #[test]
+    fn names_are_unique_and_every_class_has_a_vector() {
+        let vectors = must_fail_vectors();
+        let names: BTreeSet<&str> = vectors.iter().map(|v| v.name).collect();
+        assert_eq!(names.len(), vectors.len(), "duplicate names");
+        for v in &vectors {
+            assert!(v.name.starts_with("x-"), "{}", v.name);
+            assert!(
+                v.name[2..]
+                    .bytes()
+                    .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-'),
+                "{}",
+                v.name
+            );
+            assert!(STREAM_CLASSES.contains(&v.class), "{}: {}", v.name, v.class);
+            assert!(!v.sections.is_empty() && !v.description.is_empty());
+            assert!(v.sections.iter().all(|s| s.starts_with('§')), "{}", v.name);
+        }
+        let classes: BTreeSet<&str> = vectors.iter().map(|v| v.class).collect();
+        for c in STREAM_CLASSES {
+            assert!(
+                classes.contains(c) != UNREACHABLE.contains(&c),
+                "class {c}: covered {}",
+                classes.contains(c)
+            );
+        }
+    }
+
+    /// Every section a vector names is a numbered heading of the spec.
+    #[test]
+    fn sections_are_spec_headings() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../spec");
+        let mut headings = BTreeSet::new();
+        for entry in std::fs::read_dir(dir).expect("spec folder") {
+            let text = std::fs::read_to_string(entry.expect("entry").path()).unwrap_or_default();
+            for line in text
+                .lines()
+                .filter(|l| l.starts_with("## ") || l.starts_with("### "))
+            {
+                if let Some(number) = line.split(' ').nth(1) {
+                    headings.insert(number.to_string());
+                }
+            }
+        }
+        for v in must_fail_vectors() {
+            for s in v.sections {
+                assert!(
+                    headings.contains(*s),
+                    "{}: {s} is not a spec heading",
+                    v.name
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn vectors_are_deterministic() {
+        let a = must_fail_vectors();
+        let b = must_fail_vectors();
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(&b) {
+            assert!(x.name == y.name && x.stream == y.stream, "{}", x.name);
+        }
+    }
+
+    fn octree_rule(e: &Error) -> Option<&'static str> {
+        match e {
+            Error::OctreeInvalid { rule, .. } => Some(rule),
+            _ => None,
+        }
+    }
+
+    /// The vectors with several rules behind one class reach the rule their name says.
+    #[test]
+    fn vectors_reach_the_named_rule() {
+        for v in must_fail_vectors() {
+            let e = decode_vector(&v);
+            let ok = match v.name {
+                "x-truncated-signature" => matches!(
+                    e,
+                    Error::Truncated {
+                        structure: Structure::Signature,
+                        ..
+                    }
+                ),
+                "x-truncated-chunk-header" | "x-truncated-before-send" => matches!(
+                    e,
+                    Error::Truncated {
+                        structure: Structure::ChunkHeader,
+                        ..
+                    }
+                ),
+                "x-truncated-chunk-crc" => matches!(
+                    e,
+                    Error::Truncated {
+                        structure: Structure::ChunkCrc,
+                        ..
+                    }
+                ),
+                "x-truncated-head" => matches!(
+                    e,
+                    Error::Truncated {
+                        structure: Structure::Payload(ChunkTag::HEAD),
+                        ..
+                    }
+                ),
+                "x-octree-too-many-nodes" => {
+                    octree_rule(&e) == Some(geometry::MORE_NODES_THAN_ANCHORS)
+                }
+                "x-octree-counts-above" => octree_rule(&e) == Some(geometry::COUNTS_ABOVE),
+                "x-octree-counts-below" => octree_rule(&e) == Some(geometry::COUNTS_BELOW),
+                "x-ans-zero-top-word-apos" => matches!(
+                    e,
+                    Error::AnsStreamInvalid {
+                        tag: ChunkTag::APOS,
+                        fault: AnsFault::ZeroTopWord
+                    }
+                ),
+                "x-ans-lowest-tile-reported" => matches!(
+                    e,
+                    Error::AnsStreamInvalid {
+                        tag: ChunkTag::AOFF,
+                        fault: AnsFault::ZeroTopWord
+                    }
+                ),
+                "x-truncated-tile-lengths" => matches!(
+                    e,
+                    Error::Truncated {
+                        structure: Structure::Payload(ChunkTag::APOS),
+                        ..
+                    }
+                ),
+                "x-tile-lengths-mismatch" => matches!(
+                    e,
+                    Error::ChunkSizeMismatch {
+                        tag: ChunkTag::AFEA,
+                        ..
+                    }
+                ),
+                "x-ans-out-of-words-afea" => matches!(
+                    e,
+                    Error::AnsStreamInvalid {
+                        tag: ChunkTag::AFEA,
+                        fault: AnsFault::OutOfWords
+                    }
+                ),
+                "x-escape-overflow" => matches!(
+                    e,
+                    Error::EscapeOverflow {
+                        tag: ChunkTag::AFEA,
+                        symbol: 0,
+                        prefix_bits: 31
+                    }
+                ),
+                "x-limit-chunk-length" => matches!(
+                    e,
+                    Error::LimitExceeded {
+                        limit: salvq::limits::LimitKind::ChunkBytes,
+                        ..
+                    }
+                ),
+                "x-limit-anchors" => matches!(
+                    e,
+                    Error::LimitExceeded {
+                        limit: salvq::limits::LimitKind::Anchors,
+                        ..
+                    }
+                ),
+                "x-limit-allocation" => matches!(
+                    e,
+                    Error::LimitExceeded {
+                        limit: salvq::limits::LimitKind::AllocationBytes,
+                        ..
+                    }
+                ),
+                _ => true,
+            };
+            assert!(ok, "{}: {e:?}", v.name);
+        }
+    }
+}

@@ -1,0 +1,496 @@
+//! One layer of an explicit-profile stream (spec §3.4, §3.5, Annex A.8.3): the coarse voxel
+//! grid, the size classes with their position refinement and step shifts, the canonical
+//! order, the tiles, the lattice coordinates, and the causal prior's tables fitted to them
+//! by their exact coded cost.
+
+use nalgebra::DMatrix;
+
+use super::prepare::PreparedGaussians;
+use super::prior::{bit_cost, fit_prior, freq, group_histograms, PRED_LEVEL_CANDIDATES};
+pub use super::prior::{group_bits, BitCost, Variant};
+use salvq::container::chunk::{write_chunk, ChunkTag};
+use salvq::container::payload::METHOD_CODED;
+use salvq::entropy::{GaussianTables, SymbolWriter};
+use salvq::error::Result;
+use salvq::explicit::attributes::{walk, BitEvent, Events, TileSymbols, MAX_COORDINATE};
+use salvq::explicit::groups::{Group, GroupKind};
+use salvq::explicit::layer::{Layer, MAX_COORD_BITS, SIZE_CLASSES};
+use salvq::explicit::reconstruct::reconstruct_tile;
+use salvq::explicit::Gaussians;
+use salvq::model::morton3;
+use salvq::tiles::{join_bodies, TileTable};
+
+/// What one rate's layer quantizes with (Annex A.8.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RatePlan {
+    /// Edge of the coarse voxel grid (the octree's).
+    pub voxel: f64,
+    /// Position refinement bits per size class.
+    pub refine: [u8; SIZE_CLASSES],
+    /// Per group (Table 3-3 order), the base step.
+    pub steps: Vec<f64>,
+    /// Per group after the first, the step shift of each size class.
+    pub shift: Vec<[i8; SIZE_CLASSES]>,
+}
+
+impl RatePlan {
+    /// Every step and the voxel edge times `f` (refinement and shifts kept).
+    pub fn scaled(&self, f: f64) -> RatePlan {
+        RatePlan {
+            voxel: self.voxel * f,
+            steps: self.steps.iter().map(|s| s * f).collect(),
+            ..self.clone()
+        }
+    }
+}
+
+/// The size classes of a scene (Annex A.8.2): thresholds on a Gaussian's largest log-scale,
+/// the same for every rate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SizeClasses {
+    pub thresholds: [f64; SIZE_CLASSES - 1],
+}
+
+impl SizeClasses {
+    /// One class for every Gaussian (thresholds above any scale).
+    pub fn single() -> SizeClasses {
+        SizeClasses {
+            thresholds: [f64::INFINITY; SIZE_CLASSES - 1],
+        }
+    }
+
+    /// The reference encoder's classes: quartiles of the largest log-scale, or one class
+    /// for [`Variant::single_class`].
+    pub fn for_variant(p: &PreparedGaussians, variant: Variant) -> SizeClasses {
+        if variant.single_class {
+            SizeClasses::single()
+        } else {
+            SizeClasses::quartiles(p)
+        }
+    }
+
+    /// Quartiles of the largest log-scale.
+    pub fn quartiles(p: &PreparedGaussians) -> SizeClasses {
+        let mut largest: Vec<f64> = p.values[0]
+            .chunks_exact(3)
+            .map(|s| s.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+            .collect();
+        largest.sort_by(f64::total_cmp);
+        let q = |f: f64| largest[((largest.len() - 1) as f64 * f) as usize];
+        SizeClasses {
+            thresholds: [q(0.25), q(0.5), q(0.75)],
+        }
+    }
+
+    /// The class of each Gaussian (input order), by its unquantized scales.
+    pub fn classes(&self, p: &PreparedGaussians) -> Vec<u8> {
+        p.values[0]
+            .chunks_exact(3)
+            .map(|s| {
+                let l = s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                self.thresholds.iter().filter(|&&t| t <= l).count() as u8
+            })
+            .collect()
+    }
+}
+
+/// What one layer cost and holds.
+#[derive(Debug, Clone)]
+pub struct LayerReport {
+    pub rate: u8,
+    pub coord_bits: u8,
+    pub voxel_size: f32,
+    pub pred_level: u8,
+    pub refine: [u8; SIZE_CLASSES],
+    /// Payload bytes of GLAY, TILS, APOS, GATT (framing excluded).
+    pub glay_bytes: usize,
+    pub tils_bytes: usize,
+    pub apos_bytes: usize,
+    pub gatt_bytes: usize,
+    /// Ideal bits per group under the fitted tables (the rotation index in its group).
+    pub group_bits: Vec<f64>,
+    /// Bits of the position refinement.
+    pub refine_bits: f64,
+    /// Whether each group is predicted from its reference.
+    pub predict: Vec<bool>,
+    pub tiles: usize,
+}
+
+/// A coded layer: its chunks, what the decoder will output, and its report.
+pub struct CodedLayer {
+    pub chunks: Vec<u8>,
+    pub expected: Gaussians,
+    pub report: LayerReport,
+}
+
+/// The layer's grid: the voxel of each Gaussian and the canonical order.
+pub struct Grid {
+    pub coord_bits: u8,
+    pub voxel_size: f32,
+    pub origin: [f32; 3],
+    /// Canonical order: `order[k]` is the input index of the k-th Gaussian.
+    pub order: Vec<usize>,
+    /// Voxels in canonical order.
+    pub voxels: Vec<[u32; 3]>,
+}
+
+/// The grid whose voxel edge is about `step` (Annex A.8.3): the fewest bits whose voxels of
+/// edge `step` cover the box, at most 21 (then the edge grows to cover it).
+pub fn grid(p: &PreparedGaussians, origin: [f32; 3], step: f64) -> Grid {
+    let extent = p.extent.max(f64::MIN_POSITIVE);
+    let mut bits = ((extent / step).log2().ceil() as i64 + 1).clamp(1, MAX_COORD_BITS.into()) as u8;
+    let mut size = step as f32;
+    let cells = |size: f32| extent / f64::from(size) + 1.0;
+    while cells(size) >= (1u64 << bits) as f64 {
+        if bits < MAX_COORD_BITS {
+            bits += 1;
+        } else {
+            size *= 1.0 + 1.0 / 1024.0;
+        }
+    }
+    let max = (1u32 << bits) - 1;
+    let vox: Vec<[u32; 3]> = p
+        .positions
+        .iter()
+        .map(|q| {
+            std::array::from_fn(|a| {
+                let t = (q[a] - f64::from(origin[a])) / f64::from(size);
+                (t.floor().max(0.0) as u64).min(u64::from(max)) as u32
+            })
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..p.len()).collect();
+    order.sort_by_key(|&i| (morton3(vox[i]), i));
+    let voxels = order.iter().map(|&i| vox[i]).collect();
+    Grid {
+        coord_bits: bits,
+        voxel_size: size,
+        origin,
+        order,
+        voxels,
+    }
+}
+
+/// One group's lattice coordinates (`dim` per Gaussian, canonical `order`) with step
+/// `delta · 2^shift[k]` for the k-th Gaussian: `round(B⁻¹ (x − mean) / Δ)`, the nearest
+/// lattice point for the identity and for `B = U·diag(s)` with orthogonal columns.
+pub fn group_coordinates(
+    values: &[f64],
+    g: &Group,
+    delta: f32,
+    shift: &dyn Fn(usize) -> i8,
+    order: &[usize],
+) -> Vec<i32> {
+    let d = g.dim;
+    let inverse = g.basis.as_ref().map(|_| {
+        let b = DMatrix::from_row_slice(d, d, &g.matrix().to_f64());
+        b.try_inverse().unwrap_or_else(|| DMatrix::identity(d, d))
+    });
+    let limit = MAX_COORDINATE as f64;
+    let mut out = Vec::with_capacity(order.len() * d);
+    let mut t = vec![0.0f64; d];
+    for (k, &i) in order.iter().enumerate() {
+        let step = f64::from(delta * salvq::explicit::reconstruct::pow2(shift(k).into()));
+        let x = &values[i * d..(i + 1) * d];
+        for j in 0..d {
+            t[j] = (x[j] - f64::from(g.mean[j])) / step;
+        }
+        for j in 0..d {
+            let w = match &inverse {
+                None => t[j],
+                Some(inv) => (0..d).map(|c| inv[(j, c)] * t[c]).sum(),
+            };
+            out.push(w.round().clamp(-limit, limit) as i32);
+        }
+    }
+    out
+}
+
+struct Writer<'a, 't> {
+    out: SymbolWriter<'t>,
+    coords: &'a [i32],
+    rotation: &'a [u8],
+    refinement: &'a [[u32; 3]],
+    values: usize,
+}
+
+impl Events for Writer<'_, '_> {
+    fn bit(&mut self, freq_one: u32, i: usize, what: BitEvent) -> Result<bool> {
+        let bit = match what {
+            BitEvent::RotationHigh => self.rotation[i] >> 1 == 1,
+            BitEvent::RotationLow => self.rotation[i] & 1 == 1,
+            BitEvent::Refine { axis, bit } => self.refinement[i][axis] >> bit & 1 == 1,
+        };
+        self.out.bit(bit, freq_one);
+        Ok(bit)
+    }
+    fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> Result<i64> {
+        let r = i64::from(self.coords[i * self.values + v]) - pred;
+        self.out.symbol(r, k)?;
+        Ok(r)
+    }
+}
+
+/// Codes layer `rate` of `p` with the quantizers `groups` (rate steps), `classes` and the
+/// rate's `plan` (Annex A.8.3).
+#[allow(clippy::too_many_arguments)]
+pub fn encode_layer(
+    p: &PreparedGaussians,
+    groups: &[Group],
+    classes: &SizeClasses,
+    plan: &RatePlan,
+    origin: [f32; 3],
+    rate: u8,
+    tile_gaussians: u32,
+    variant: Variant,
+    tables: &GaussianTables,
+) -> Result<CodedLayer> {
+    let grid = grid(p, origin, plan.voxel);
+    let tiles = TileTable::cut(&grid.voxels, tile_gaussians);
+    let values: usize = groups.iter().map(|g| g.dim).sum();
+    let n = grid.order.len();
+
+    // The scale group first: its coordinates give each Gaussian's size class (§3.5).
+    let scale = &groups[0];
+    let scale_delta = scale.rate_step(rate);
+    let scale_coords = group_coordinates(&p.values[0], scale, scale_delta, &|_| 0, &grid.order);
+    let threshold_u = classes.thresholds.map(|t| {
+        let u = ((t - f64::from(scale.mean[0])) / f64::from(scale_delta)).round();
+        u.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    });
+    let size_class: Vec<u8> = scale_coords
+        .chunks_exact(scale.dim)
+        .map(|c| {
+            let largest = c.iter().copied().max().unwrap_or(0);
+            threshold_u.iter().filter(|&&t| t <= largest).count() as u8
+        })
+        .collect();
+
+    // Position refinement: the fine cell within the coarse voxel.
+    let refinement: Vec<[u32; 3]> = (0..n)
+        .map(|k| {
+            let e = plan.refine[usize::from(size_class[k])];
+            let h = f64::from(grid.voxel_size) / f64::from(1u32 << e);
+            let q = p.positions[grid.order[k]];
+            std::array::from_fn(|a| {
+                let fine = ((q[a] - f64::from(origin[a])) / h).floor().max(0.0) as u64;
+                let lo = u64::from(grid.voxels[k][a]) << e;
+                (fine.clamp(lo, lo + (1u64 << e) - 1) - lo) as u32
+            })
+        })
+        .collect();
+
+    // Every group's coordinates, side by side.
+    let mut coords = vec![0i32; n * values];
+    let mut shifts_of: Vec<Vec<i8>> = Vec::with_capacity(groups.len());
+    let mut at = 0;
+    for (gi, g) in groups.iter().enumerate() {
+        let shifts: Vec<i8> = (0..n)
+            .map(|k| {
+                if gi == 0 {
+                    0
+                } else {
+                    plan.shift[gi - 1][usize::from(size_class[k])]
+                }
+            })
+            .collect();
+        let c = if gi == 0 {
+            scale_coords.clone()
+        } else {
+            group_coordinates(
+                &p.values[gi],
+                g,
+                g.rate_step(rate),
+                &|k| shifts[k],
+                &grid.order,
+            )
+        };
+        for (k, row) in c.chunks_exact(g.dim).enumerate() {
+            coords[k * values + at..k * values + at + g.dim].copy_from_slice(row);
+        }
+        shifts_of.push(shifts);
+        at += g.dim;
+    }
+    let rotation: Vec<u8> = grid.order.iter().map(|&i| p.rotation_index[i]).collect();
+    let cost = BitCost::new(tables);
+
+    // The prior: for each candidate pred_level, each group with and without prediction,
+    // tables fitted by exact cost under the shifts' offsets; the cheapest wins, and its
+    // tables and per-class offsets are then fitted together.
+    let class_shifts = |gi: usize| {
+        if gi == 0 {
+            [0i8; SIZE_CLASSES]
+        } else {
+            plan.shift[gi - 1]
+        }
+    };
+    let histograms = |gi: usize, at: usize, level: u8, pr: bool| {
+        group_histograms(
+            &coords,
+            values,
+            at,
+            groups[gi].dim,
+            &size_class,
+            &shifts_of[gi],
+            &grid.voxels,
+            &tiles,
+            level,
+            pr,
+        )
+    };
+    let mut best: Option<(f64, u8, Vec<bool>)> = None;
+    for offset in PRED_LEVEL_CANDIDATES {
+        let Some(level) = grid.coord_bits.checked_sub(offset) else {
+            continue;
+        };
+        let mut total = 0.0;
+        let mut predict = Vec::new();
+        let mut at = 0;
+        for (gi, g) in groups.iter().enumerate() {
+            let bits = |pr: bool| {
+                fit_prior(
+                    &histograms(gi, at, level, pr),
+                    &cost,
+                    variant.factorized_prior,
+                    class_shifts(gi),
+                    false,
+                )
+                .2
+            };
+            let off = bits(false);
+            let on = if variant.factorized_prior {
+                f64::INFINITY
+            } else {
+                bits(true)
+            };
+            let pr = variant.predict_all || on < off;
+            predict.push(pr);
+            total += if pr { on } else { off };
+            at += g.dim;
+        }
+        if best.as_ref().map_or(true, |b| total < b.0) {
+            best = Some((total, level, predict));
+        }
+    }
+    let (_, pred_level, predict) = best.expect("at least one pred_level candidate fits");
+    let (mut scale_table, mut scale_offset) = (Vec::new(), Vec::new());
+    let mut group_bits = Vec::new();
+    let mut at = 0;
+    for (gi, g) in groups.iter().enumerate() {
+        let h = histograms(gi, at, pred_level, predict[gi]);
+        let (rows, offsets, bits) = fit_prior(
+            &h,
+            &cost,
+            variant.factorized_prior,
+            class_shifts(gi),
+            gi > 0,
+        );
+        scale_table.extend(rows);
+        if gi > 0 {
+            scale_offset.push(offsets);
+        }
+        group_bits.push(bits);
+        at += g.dim;
+    }
+
+    // Rotation index probabilities.
+    let (mut high, mut low, mut after) = (0u64, [0u64; 2], [0u64; 2]);
+    for &r in &rotation {
+        let h = usize::from(r >> 1);
+        high += h as u64;
+        after[h] += 1;
+        low[h] += u64::from(r & 1);
+    }
+    let rotation_freq = [
+        freq(high, n as u64),
+        freq(low[0], after[0]),
+        freq(low[1], after[1]),
+    ];
+    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rotation) {
+        group_bits[gi] += bit_cost(high, n as u64, rotation_freq[0])
+            + bit_cost(low[0], after[0], rotation_freq[1])
+            + bit_cost(low[1], after[1], rotation_freq[2]);
+    }
+    let refine_bits: f64 = size_class
+        .iter()
+        .map(|&c| 3.0 * f64::from(plan.refine[usize::from(c)]))
+        .sum();
+    let layer = Layer {
+        coord_bits: grid.coord_bits,
+        voxel_size: grid.voxel_size,
+        pred_level,
+        rotation_freq,
+        size_threshold: threshold_u,
+        refine: plan.refine,
+        shift: plan.shift.clone(),
+        scale_offset,
+        predict: predict.clone(),
+        scale_table,
+    };
+
+    // Geometry per tile (§8, cell-relative), then the attributes.
+    let mut apos = Vec::with_capacity(tiles.len());
+    let mut gatt = Vec::with_capacity(tiles.len());
+    let mut expected = Gaussians {
+        sh_degree: p.sh_degree,
+        ..Gaussians::default()
+    };
+    for t in 0..tiles.len() {
+        let range = tiles.range(t);
+        let (level, cell) = tiles.cells[t];
+        let local: Vec<[u32; 3]> = grid.voxels[range.clone()]
+            .iter()
+            .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
+            .collect();
+        apos.push(salvq::geometry::encode(&local, level, tables)?);
+        let mut w = Writer {
+            out: SymbolWriter::new(ChunkTag::GATT, tables),
+            coords: &coords[range.start * values..range.end * values],
+            rotation: &rotation[range.clone()],
+            refinement: &refinement[range.clone()],
+            values,
+        };
+        let symbols: TileSymbols = walk(&layer, groups, &grid.voxels[range.clone()], &mut w)?;
+        debug_assert_eq!(symbols.size_class, size_class[range.clone()]);
+        gatt.push(w.out.finish());
+        reconstruct_tile(
+            origin,
+            &layer,
+            groups,
+            rate,
+            &grid.voxels[range],
+            &symbols,
+            &mut expected,
+        );
+    }
+    let glay = layer.to_payload();
+    let tils = tiles.to_payload();
+    let mut apos_payload = vec![METHOD_CODED];
+    apos_payload.extend(join_bodies(&apos));
+    let mut gatt_payload = vec![METHOD_CODED];
+    gatt_payload.extend(join_bodies(&gatt));
+    let mut chunks = Vec::new();
+    write_chunk(&mut chunks, ChunkTag::GLAY, &glay);
+    write_chunk(&mut chunks, ChunkTag::TILS, &tils);
+    write_chunk(&mut chunks, ChunkTag::APOS, &apos_payload);
+    write_chunk(&mut chunks, ChunkTag::GATT, &gatt_payload);
+    Ok(CodedLayer {
+        chunks,
+        expected,
+        report: LayerReport {
+            rate,
+            coord_bits: grid.coord_bits,
+            voxel_size: grid.voxel_size,
+            pred_level,
+            refine: plan.refine,
+            glay_bytes: glay.len(),
+            tils_bytes: tils.len(),
+            apos_bytes: apos_payload.len(),
+            gatt_bytes: gatt_payload.len(),
+            group_bits,
+            refine_bits,
+            predict,
+            tiles: tiles.len(),
+        },
+    })
+}

@@ -1,0 +1,446 @@
+//! The explicit-profile encoder (spec §3, Annex A.8): a trained 3DGS scene (Inria PLY) to a
+//! multi-rate stream. The input is validated and put in coding form once
+//! ([`PreparedGaussians`]); the quantizers (means, a KLT basis for the higher SH bands,
+//! steps per group) are fitted to it, then each rate's layer is coded with its own voxel
+//! grid and prior tables.
+
+pub mod input;
+pub mod layer;
+pub mod prepare;
+pub mod prior;
+pub mod ratios;
+
+use half::f16;
+use nalgebra::{DMatrix, SymmetricEigen};
+
+pub use layer::{CodedLayer, LayerReport, RatePlan, SizeClasses, Variant};
+pub use prepare::PreparedGaussians;
+
+use salvq::container::chunk::{write_chunk, ChunkTag};
+use salvq::container::signature::Signature;
+use salvq::entropy::GaussianTables;
+use salvq::error::{Error, Result};
+use salvq::explicit::groups::{write_gqua, Group, GroupKind};
+use salvq::explicit::header::GaussianHeader;
+use salvq::explicit::Gaussians;
+use salvq::tiles::DEFAULT_TILE_ANCHORS;
+use salvq_render::compare::RingTarget;
+
+/// Where the rate-distortion curves' trial steps are centred (Annex A.8.2): the voxel edge
+/// and each group's step, in scene units, that the trials scale by powers of two.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialSteps {
+    /// Voxel edge, in scene units.
+    pub position: f64,
+    /// Per group present, in Table 3-3 order.
+    pub groups: Vec<f64>,
+}
+
+impl TrialSteps {
+    /// The centres used for every scene: a voxel edge of 2^−12 of the box, and a step in
+    /// each group's own units.
+    pub fn default_for(p: &PreparedGaussians) -> TrialSteps {
+        TrialSteps {
+            position: p.extent.max(1e-30) / 4096.0,
+            groups: p
+                .kinds
+                .iter()
+                .map(|k| match k {
+                    GroupKind::Opacity => 0.2,
+                    GroupKind::Scale => 0.1,
+                    GroupKind::Rotation => 0.03,
+                    GroupKind::Dc => 0.03,
+                    GroupKind::Rest => 0.04,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Allocations tried per rate before the closest to its target is kept (Annex A.8.2).
+const CORRECTIONS: usize = 4;
+
+/// How the encoder sets each rate's steps (Annex A.8.2).
+#[derive(Debug, Clone, PartialEq)]
+pub enum RateControl {
+    /// A render-PSNR target (dB, against the input, from the camera ring) per rate, rate 0
+    /// first; the steps are fitted by rendering.
+    Psnr(Vec<f64>),
+    /// The plan of each rate, given.
+    Plans(Vec<RatePlan>),
+}
+
+impl RateControl {
+    pub fn rate_count(&self) -> usize {
+        match self {
+            RateControl::Psnr(t) => t.len(),
+            RateControl::Plans(s) => s.len(),
+        }
+    }
+}
+
+/// The reference encoder's default rates: render PSNR targets from near-lossless to a
+/// preview (rate 0 is the finest).
+pub const DEFAULT_PSNR_TARGETS: [f64; 6] = [62.0, 56.0, 50.0, 45.0, 40.0, 35.0];
+
+/// What the explicit encoder is asked to do.
+#[derive(Debug, Clone)]
+pub struct ExplicitOptions {
+    pub rates: RateControl,
+    /// The rates coded (each below M); `None`: all.
+    pub coded: Option<Vec<u8>>,
+    /// Which groups get a fitted KLT basis (`B = U`, Annex A.8.3): per group in Table 3-3
+    /// order; `None`: SH DC and SH rest each when it makes the middle rate's layer, basis
+    /// included, smaller.
+    pub klt: Option<Vec<bool>>,
+    pub tile_gaussians: u32,
+    /// Text for an `encd` chunk (§1.7), written after `GQUA`.
+    pub note: Option<String>,
+    /// The reference encoder, or a restricted one for ablations (Annex A.8.4).
+    pub variant: Variant,
+}
+
+impl Default for ExplicitOptions {
+    fn default() -> Self {
+        ExplicitOptions {
+            rates: RateControl::Psnr(DEFAULT_PSNR_TARGETS.to_vec()),
+            coded: None,
+            klt: None,
+            tile_gaussians: DEFAULT_TILE_ANCHORS,
+            note: None,
+            variant: Variant::default(),
+        }
+    }
+}
+
+/// An encoded explicit-profile stream.
+pub struct EncodedGaussians {
+    pub stream: Vec<u8>,
+    pub header: GaussianHeader,
+    pub groups: Vec<Group>,
+    /// Bytes of GHED and GQUA (framed): the model shared by every layer.
+    pub shared_bytes: usize,
+    /// Per coded layer: its report, framed bytes, and the Gaussians the decoder outputs.
+    pub layers: Vec<(LayerReport, usize, Gaussians)>,
+}
+
+/// The KLT of a group's values: `U` (row-major, columns the eigenvectors by decreasing
+/// eigenvalue, each signed so its largest component is positive), in binary16.
+pub fn klt_basis(values: &[f64], d: usize, mean: &[f32]) -> Vec<f16> {
+    let n = values.len() / d;
+    let mut cov = DMatrix::<f64>::zeros(d, d);
+    for row in values.chunks_exact(d) {
+        let r: Vec<f64> = (0..d).map(|j| row[j] - f64::from(mean[j])).collect();
+        for a in 0..d {
+            for b in a..d {
+                cov[(a, b)] += r[a] * r[b];
+            }
+        }
+    }
+    for a in 0..d {
+        for b in 0..a {
+            cov[(a, b)] = cov[(b, a)];
+        }
+    }
+    cov /= n.max(1) as f64;
+    let eig = SymmetricEigen::new(cov);
+    let mut idx: Vec<usize> = (0..d).collect();
+    idx.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+    let mut u = vec![f16::ZERO; d * d];
+    for (col, &e) in idx.iter().enumerate() {
+        let v = eig.eigenvectors.column(e);
+        let big = (0..d).fold(0, |m, i| if v[i].abs() > v[m].abs() { i } else { m });
+        let sign = if v[big] < 0.0 { -1.0 } else { 1.0 };
+        for i in 0..d {
+            u[i * d + col] = f16::from_f64(sign * v[i]);
+        }
+    }
+    u
+}
+
+/// The means of group `gi` (§3.3): per value, except the scale group, whose three values
+/// share one mean so that its largest coordinate is its largest log-scale (§3.5's size
+/// class).
+pub fn group_means(p: &PreparedGaussians, gi: usize) -> Vec<f32> {
+    let d = p.dim(gi);
+    let v = &p.values[gi];
+    let n = p.len() as f64;
+    if p.kinds[gi] == GroupKind::Scale {
+        let m = (v.iter().sum::<f64>() / (n * d as f64)) as f32;
+        return vec![m; d];
+    }
+    (0..d)
+        .map(|j| (v.iter().skip(j).step_by(d).sum::<f64>() / n) as f32)
+        .collect()
+}
+
+/// Group `gi` with its means, unit step and the identity: what the curves measure with.
+pub fn measurement_group(p: &PreparedGaussians, gi: usize) -> Group {
+    Group {
+        kind: p.kinds[gi],
+        dim: p.dim(gi),
+        step: 1.0,
+        gains: vec![1.0],
+        mean: group_means(p, gi),
+        basis: None,
+    }
+}
+
+/// The quantizers (§3.3) for `p`: means, the finest rate's steps as base steps, each rate's
+/// steps as gains over them, and a KLT basis for each group where `klt` says so.
+pub fn fit_groups(p: &PreparedGaussians, plans: &[RatePlan], klt: &[bool]) -> Vec<Group> {
+    p.kinds
+        .iter()
+        .enumerate()
+        .map(|(gi, &kind)| {
+            let d = p.dim(gi);
+            let mean = group_means(p, gi);
+            let basis = klt[gi].then(|| (klt_basis(&p.values[gi], d, &mean), vec![f16::ONE; d]));
+            let step = plans[0].steps[gi] as f32;
+            Group {
+                kind,
+                dim: d,
+                step,
+                gains: plans
+                    .iter()
+                    .map(|s| (s.steps[gi] / f64::from(step)) as f32)
+                    .collect(),
+                mean,
+                basis,
+            }
+        })
+        .collect()
+}
+
+/// Which groups get a KLT basis (Annex A.8.3): SH DC, then SH rest, each kept when `size`
+/// (the bytes of the shared model and one layer, coded with the quantizers it is given)
+/// shrinks.
+fn choose_klt(
+    p: &PreparedGaussians,
+    plans: &[RatePlan],
+    size: &dyn Fn(&[Group]) -> Result<usize>,
+) -> Result<Vec<bool>> {
+    let mut klt = vec![false; p.kinds.len()];
+    let mut best = size(&fit_groups(p, plans, &klt))?;
+    for (gi, kind) in p.kinds.iter().enumerate() {
+        if matches!(kind, GroupKind::Dc | GroupKind::Rest) {
+            klt[gi] = true;
+            let s = size(&fit_groups(p, plans, &klt))?;
+            if s < best {
+                best = s;
+            } else {
+                klt[gi] = false;
+            }
+        }
+    }
+    Ok(klt)
+}
+
+/// Each rate's plan, given or fitted to its PSNR target by rendering (Annex A.8.2), and the
+/// groups with a KLT basis (`klt` if given; else chosen on the middle target's first
+/// allocation, so that every rate is fitted with the quantizers it will be coded with).
+pub fn rate_plans(
+    g: &Gaussians,
+    p: &PreparedGaussians,
+    rates: &RateControl,
+    variant: Variant,
+    klt: Option<&[bool]>,
+    progress: &dyn Fn(&str),
+) -> Result<(Vec<RatePlan>, Option<Vec<bool>>)> {
+    let targets = match rates {
+        RateControl::Plans(s) => return Ok((s.clone(), klt.map(<[bool]>::to_vec))),
+        RateControl::Psnr(t) => t,
+    };
+    for (r, &db) in targets.iter().enumerate() {
+        if !(db.is_finite() && db > 0.0) {
+            return Err(Error::FitFailed {
+                tensor: "psnr target",
+                reason: format!("rate {r}: a target is a PSNR in dB above 0, not {db}"),
+            });
+        }
+    }
+    let classes = SizeClasses::for_variant(p, variant);
+    let target = RingTarget::new(g, ratios::FIT_VIEWS, ratios::FIT_WIDTH, ratios::FIT_HEIGHT)?;
+    let curves = ratios::measure_curves(g, p, &classes, variant, &target, progress)?;
+    // Each rate: allocate for the target, code the layer alone, render what the decoder
+    // will output, and correct the allocation's target by the error it missed by (the
+    // parts' errors do not add up exactly).
+    let tables = GaussianTables::standard();
+    let origin = p.min.map(|v| v as f32);
+    let code = |groups: &[Group], plan: &RatePlan| {
+        layer::encode_layer(
+            p,
+            groups,
+            &classes,
+            plan,
+            origin,
+            0,
+            DEFAULT_TILE_ANCHORS,
+            variant,
+            tables,
+        )
+    };
+    let klt = match klt {
+        Some(k) => k.to_vec(),
+        None => {
+            progress("choosing KLT bases");
+            let middle = targets[targets.len() / 2];
+            let plan = ratios::allocate(p, &curves, 10f64.powf(-middle / 10.0));
+            choose_klt(p, std::slice::from_ref(&plan), &|groups: &[Group]| {
+                Ok(write_gqua(groups).len() + code(groups, &plan)?.chunks.len())
+            })?
+        }
+    };
+    let mut out = Vec::with_capacity(targets.len());
+    for (r, &db) in targets.iter().enumerate() {
+        progress(&format!("fitting rate {r} to {db} dB"));
+        let want = 10f64.powf(-db / 10.0);
+        // The allocation is on a grid of steps; a common factor f on every step then lands
+        // on the target (secant on log f against log MSE, which at high rate rises by 2
+        // per unit of log f).
+        let plan = ratios::allocate(p, &curves, want);
+        let measure = |f: f64| -> Result<f64> {
+            let scaled = plan.scaled(f);
+            let groups = fit_groups(p, std::slice::from_ref(&scaled), &klt);
+            let coded = code(&groups, &scaled)?;
+            Ok(target.mse(&coded.expected)?.max(1e-30))
+        };
+        let (mut lf, mut got) = (0.0f64, measure(1.0)?);
+        let mut best = (((got / want).log2()).abs(), lf);
+        let mut slope = 2.0;
+        for _ in 0..CORRECTIONS {
+            if best.0 < 0.05 {
+                break;
+            }
+            let next = (lf + (want.ln() - got.ln()) / slope).clamp(lf - 3.0, lf + 3.0);
+            let g2 = measure(next.exp())?;
+            if (next - lf).abs() > 1e-6 && g2 != got {
+                slope = ((g2.ln() - got.ln()) / (next - lf)).clamp(0.5, 4.0);
+            }
+            (lf, got) = (next, g2);
+            let miss = (got / want).log2().abs();
+            if miss < best.0 {
+                best = (miss, lf);
+            }
+        }
+        out.push(plan.scaled(best.1.exp()));
+    }
+    Ok((out, Some(klt)))
+}
+
+/// Encodes `p` (the prepared form of `g`) with each rate's `steps` (Annex A.8).
+pub fn encode_prepared(
+    p: &PreparedGaussians,
+    plans: &[RatePlan],
+    options: &ExplicitOptions,
+) -> Result<EncodedGaussians> {
+    let m = plans.len();
+    let classes = SizeClasses::for_variant(p, options.variant);
+    let coded = options
+        .coded
+        .clone()
+        .unwrap_or_else(|| (0..m as u8).collect());
+    if m == 0 || m > 64 || coded.is_empty() {
+        return Err(Error::FitFailed {
+            tensor: "rates",
+            reason: format!(
+                "1 … 64 rates with at least one coded, not {m} with {} coded",
+                coded.len()
+            ),
+        });
+    }
+    let mut rate_mask = 0u64;
+    for &r in &coded {
+        if usize::from(r) >= m {
+            return Err(Error::FieldOutOfRange {
+                field: salvq::error::Field::CodedRate,
+                value: r.into(),
+                min: 0,
+                max: m as u64 - 1,
+            });
+        }
+        rate_mask |= 1 << r;
+    }
+    let tables = GaussianTables::standard();
+    let origin = p.min.map(|v| v as f32);
+    let header = GaussianHeader {
+        count: p.len() as u32,
+        sh_degree: p.sh_degree,
+        rate_count: m as u8,
+        rate_mask,
+        origin,
+    };
+    let code_layer = |groups: &[Group], r: u8| {
+        layer::encode_layer(
+            p,
+            groups,
+            &classes,
+            &plans[usize::from(r)],
+            origin,
+            r,
+            options.tile_gaussians,
+            options.variant,
+            tables,
+        )
+    };
+    // A KLT is kept where it makes the middle rate's layer (and its basis) smaller, so the
+    // choice does not depend on which rates are coded (extraction, §7.5).
+    let klt = match &options.klt {
+        Some(k) if k.len() == p.kinds.len() => k.clone(),
+        Some(k) => {
+            return Err(Error::FitFailed {
+                tensor: "klt",
+                reason: format!("one choice per group ({}), not {}", p.kinds.len(), k.len()),
+            })
+        }
+        None => choose_klt(p, plans, &|groups: &[Group]| {
+            Ok(write_gqua(groups).len() + code_layer(groups, (m / 2) as u8)?.chunks.len())
+        })?,
+    };
+    let groups = fit_groups(p, plans, &klt);
+    let mut stream = Signature::current().to_bytes().to_vec();
+    write_chunk(&mut stream, ChunkTag::GHED, &header.to_payload());
+    write_chunk(&mut stream, ChunkTag::GQUA, &write_gqua(&groups));
+    if let Some(note) = &options.note {
+        write_chunk(&mut stream, ChunkTag::ENCD, note.as_bytes());
+    }
+    let shared_bytes = stream.len() - salvq::container::signature::SIGNATURE_LEN;
+    let mut layers = Vec::new();
+    for r in header.coded_rates() {
+        let l = code_layer(&groups, r)?;
+        stream.extend_from_slice(&l.chunks);
+        layers.push((l.report, l.chunks.len(), l.expected));
+    }
+    write_chunk(&mut stream, ChunkTag::SEND, &[]);
+    Ok(EncodedGaussians {
+        stream,
+        header,
+        groups,
+        shared_bytes,
+        layers,
+    })
+}
+
+/// Encodes the Gaussians `g`: validated and prepared once (Annex A.8.1), steps fitted per
+/// rate (A.8.2), then coded (A.8.3). `progress` hears what the encoder is doing.
+pub fn encode_gaussians(
+    g: &Gaussians,
+    options: &ExplicitOptions,
+    progress: &dyn Fn(&str),
+) -> Result<EncodedGaussians> {
+    let p = PreparedGaussians::new(g)?;
+    let (plans, klt) = rate_plans(
+        g,
+        &p,
+        &options.rates,
+        options.variant,
+        options.klt.as_deref(),
+        progress,
+    )?;
+    progress("coding");
+    let options = ExplicitOptions {
+        klt,
+        ..options.clone()
+    };
+    encode_prepared(&p, &plans, &options)
+}

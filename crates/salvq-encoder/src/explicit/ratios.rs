@@ -1,0 +1,264 @@
+//! The steps of each rate, fitted to what a viewer sees (Annex A.8.2): every part (the
+//! positions of a size class, the scale group, each later group in each size class) alone
+//! is quantized at trial steps, the scene rendered from the camera ring and compared with
+//! the input's renders, and its bits counted as the layer coder would pay them; then for a
+//! target error each part takes the step minimising `D + λ·R`, the equal-slope condition of
+//! rate-distortion theory, with λ bisected until the parts' errors add up to the target.
+
+use super::layer::{RatePlan, SizeClasses};
+use super::prepare::PreparedGaussians;
+use super::TrialSteps;
+use salvq::error::Result;
+use salvq::explicit::groups::GroupKind;
+use salvq::explicit::layer::SIZE_CLASSES;
+use salvq::explicit::Gaussians;
+use salvq_render::compare::RingTarget;
+
+/// Views and image size of the fit's renders (small: each trial renders them all).
+pub const FIT_VIEWS: u32 = 8;
+pub const FIT_WIDTH: u32 = 256;
+pub const FIT_HEIGHT: u32 = 192;
+
+/// `g` with one part of the Gaussians of class `class` (all when `None`) uniformly
+/// quantized at `step`: group `group`, or the positions (voxel centres) when `None`.
+fn quantized(
+    g: &Gaussians,
+    p: &PreparedGaussians,
+    group: Option<usize>,
+    class: Option<(u8, &[u8])>,
+    step: f64,
+) -> Gaussians {
+    let mut out = g.clone();
+    let q = |x: f64| (step * (x / step).round()) as f32;
+    let chosen = |i: usize| class.map_or(true, |(c, classes)| classes[i] == c);
+    let Some(gi) = group else {
+        for (i, pos) in out.positions.iter_mut().enumerate() {
+            if !chosen(i) {
+                continue;
+            }
+            for (a, v) in pos.iter_mut().enumerate() {
+                let m = p.min[a];
+                *v = (m + step * (((f64::from(*v) - m) / step).floor() + 0.5)) as f32;
+            }
+        }
+        return out;
+    };
+    let d = p.dim(gi);
+    let v = &p.values[gi];
+    for i in (0..p.len()).filter(|&i| chosen(i)) {
+        let x = &v[i * d..(i + 1) * d];
+        match p.kinds[gi] {
+            GroupKind::Opacity => out.opacity_logit[i] = q(x[0]),
+            GroupKind::Scale => out.log_scales[i] = [q(x[0]), q(x[1]), q(x[2])],
+            GroupKind::Dc => out.f_dc[i] = [q(x[0]), q(x[1]), q(x[2])],
+            GroupKind::Rest => {
+                for (o, &v) in out.f_rest[i * d..(i + 1) * d].iter_mut().zip(x) {
+                    *o = q(v);
+                }
+            }
+            GroupKind::Rotation => {
+                let s = [q(x[0]), q(x[1]), q(x[2])];
+                out.rotations[i] = salvq::explicit::reconstruct::quaternion(s, p.rotation_index[i]);
+            }
+        }
+    }
+    out
+}
+
+/// A part's measured operating points: (log2 of the step over the part's default, render
+/// MSE, bits per Gaussian of the whole scene).
+pub type Curve = Vec<(f64, f64, f64)>;
+
+/// The parts whose steps the allocation chooses (Annex A.8.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    /// The positions of one size class.
+    Position(u8),
+    /// The scale group (all classes: it defines them).
+    Scale,
+    /// Group `g ≥ 1` in one size class.
+    Group(usize, u8),
+}
+
+/// Every part's rate-distortion curve (Annex A.8.2): each part alone is quantized at trial
+/// steps, its render error measured against `target` and its bits counted as the layer
+/// coder would pay them (positions: the octree at that edge, shared by classes in
+/// proportion to their Gaussians).
+pub fn measure_curves(
+    g: &Gaussians,
+    p: &PreparedGaussians,
+    classes: &SizeClasses,
+    variant: super::Variant,
+    target: &RingTarget,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<(Part, Curve)>> {
+    use super::layer::{grid, group_bits, group_coordinates, BitCost};
+    use salvq::entropy::GaussianTables;
+    use salvq::tiles::{TileTable, DEFAULT_TILE_ANCHORS};
+    let tables = GaussianTables::standard();
+    let start = TrialSteps::default_for(p);
+    let origin = p.min.map(|v| v as f32);
+    let reference = grid(p, origin, start.position);
+    let class_of = classes.classes(p);
+    let n = p.len() as f64;
+    let cost = BitCost::new(tables);
+    let mut parts = Vec::new();
+    for c in 0..SIZE_CLASSES as u8 {
+        parts.push(Part::Position(c));
+    }
+    parts.push(Part::Scale);
+    for gi in 1..p.kinds.len() {
+        for c in 0..SIZE_CLASSES as u8 {
+            parts.push(Part::Group(gi, c));
+        }
+    }
+    // Octree bits per Gaussian at each trial edge, shared by the position parts.
+    let mut octree_bits: rustc_hash::FxHashMap<i64, f64> = Default::default();
+    let mut out = Vec::with_capacity(parts.len());
+    for part in parts {
+        let (group, class, base, half) = match part {
+            Part::Position(c) => (None, Some(c), start.position, false),
+            Part::Scale => (Some(0), None, start.groups[0], true),
+            Part::Group(gi, c) => (Some(gi), Some(c), start.groups[gi], false),
+        };
+        progress(&format!("measuring {part:?}"));
+        let members: Vec<usize> = match class {
+            Some(c) => reference
+                .order
+                .iter()
+                .copied()
+                .filter(|&i| class_of[i] == c)
+                .collect(),
+            None => reference.order.clone(),
+        };
+        let share = members.len() as f64 / n;
+        let mut curve = Curve::new();
+        if members.is_empty() {
+            curve.push((0.0, 0.0, 0.0));
+            out.push((part, curve));
+            continue;
+        }
+        let subset_voxels: Vec<[u32; 3]> = {
+            let mut at = vec![usize::MAX; p.len()];
+            for (k, &i) in reference.order.iter().enumerate() {
+                at[i] = k;
+            }
+            members.iter().map(|&i| reference.voxels[at[i]]).collect()
+        };
+        let tiles = TileTable::cut(&subset_voxels, DEFAULT_TILE_ANCHORS);
+        let (ks, scale): (Vec<i32>, f64) = if half {
+            ((-16..=10).rev().collect(), 0.5)
+        } else {
+            ((-10..=8).rev().collect(), 1.0)
+        };
+        for k in ks {
+            let log2 = f64::from(k) * scale;
+            let step = base * log2.exp2();
+            let mse = target.mse(&quantized(
+                g,
+                p,
+                group,
+                class.map(|c| (c, class_of.as_slice())),
+                step,
+            ))?;
+            let bits = match group {
+                None => {
+                    let key = k as i64;
+                    let total = match octree_bits.get(&key) {
+                        Some(&b) => b,
+                        None => {
+                            let gr = grid(p, origin, step);
+                            let t = TileTable::cut(&gr.voxels, DEFAULT_TILE_ANCHORS);
+                            let mut bytes = 0usize;
+                            for i in 0..t.len() {
+                                let (level, cell) = t.cells[i];
+                                let local: Vec<[u32; 3]> = gr.voxels[t.range(i)]
+                                    .iter()
+                                    .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
+                                    .collect();
+                                bytes += salvq::geometry::encode(&local, level, tables)?.len();
+                            }
+                            let b = bytes as f64 * 8.0 / n;
+                            octree_bits.insert(key, b);
+                            b
+                        }
+                    };
+                    total * share
+                }
+                Some(gi) => {
+                    let d = p.dim(gi);
+                    let one = super::measurement_group(p, gi);
+                    let c = group_coordinates(&p.values[gi], &one, step as f32, &|_| 0, &members);
+                    group_bits(
+                        &c,
+                        d,
+                        &subset_voxels,
+                        reference.coord_bits,
+                        &tiles,
+                        &cost,
+                        variant,
+                    ) * share
+                }
+            };
+            curve.push((log2, mse, bits));
+            if mse < 1e-10 {
+                break;
+            }
+        }
+        out.push((part, curve));
+    }
+    Ok(out)
+}
+
+/// The plan whose summed render error is `target_mse` at the least total bits (Annex
+/// A.8.2): each part takes the point minimising `D + λ·R`, and λ is bisected.
+pub fn allocate(p: &PreparedGaussians, curves: &[(Part, Curve)], target_mse: f64) -> RatePlan {
+    let pick = |lambda: f64| -> Vec<(f64, f64, f64)> {
+        curves
+            .iter()
+            .map(|(_, c)| {
+                *c.iter()
+                    .min_by(|a, b| (a.1 + lambda * a.2).total_cmp(&(b.1 + lambda * b.2)))
+                    .expect("a curve has points")
+            })
+            .collect()
+    };
+    let (mut lo, mut hi) = (-20.0f64, 4.0f64);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        let d: f64 = pick(10f64.powf(mid)).iter().map(|x| x.1).sum();
+        if d > target_mse {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let chosen = pick(10f64.powf(lo));
+    let start = TrialSteps::default_for(p);
+    let mut position = [0f64; SIZE_CLASSES];
+    let mut scale = 0.0;
+    let mut group = vec![[0f64; SIZE_CLASSES]; p.kinds.len()];
+    for ((part, _), x) in curves.iter().zip(&chosen) {
+        match *part {
+            Part::Position(c) => position[usize::from(c)] = x.0,
+            Part::Scale => scale = x.0,
+            Part::Group(gi, c) => group[gi][usize::from(c)] = x.0,
+        }
+    }
+    // The coarse grid is the coarsest class's; the others refine it.
+    let coarsest = position.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let refine = position.map(|l| (coarsest - l).round().clamp(0.0, 23.0) as u8);
+    let mut steps = vec![start.groups[0] * scale.exp2()];
+    let mut shift = Vec::new();
+    for (gi, classes) in group.iter().enumerate().skip(1) {
+        let base = classes[0];
+        steps.push(start.groups[gi] * base.exp2());
+        shift.push(classes.map(|l| (l - base).round().clamp(-16.0, 16.0) as i8));
+    }
+    RatePlan {
+        voxel: start.position * coarsest.exp2(),
+        refine,
+        steps,
+        shift,
+    }
+}

@@ -1,0 +1,580 @@
+//! `salvq info`: what a stream holds, chunk by chunk, without decoding the payloads, and
+//! the split into model bytes and anchor bytes (spec §1.3, §1.4).
+
+pub mod explicit;
+
+use serde::Serialize;
+
+use crate::EncodeReport;
+use salvq::container::chunk::{ChunkReader, ChunkTag, CHUNK_OVERHEAD};
+use salvq::container::preflight::Preflight;
+use salvq::container::signature::{Signature, SIGNATURE_LEN};
+use salvq::error::Result;
+use salvq::limits::Limits;
+use salvq::model::Dims;
+
+/// What a chunk's bytes pay for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ByteClass {
+    /// Shared model: preflight, hash grid, MLPs, quantizers.
+    Model,
+    /// Per-anchor data: positions, masks, features, scalings, offsets.
+    Anchor,
+    /// Framing, end marker and ancillary chunks.
+    Other,
+}
+
+/// Which class a chunk type belongs to.
+pub fn byte_class(tag: ChunkTag) -> ByteClass {
+    match tag {
+        ChunkTag::HEAD | ChunkTag::MLPS | ChunkTag::QUAN | ChunkTag::GRID => ByteClass::Model,
+        ChunkTag::APOS | ChunkTag::AMSK | ChunkTag::AFEA | ChunkTag::ASCL | ChunkTag::AOFF => {
+            ByteClass::Anchor
+        }
+        _ => ByteClass::Other,
+    }
+}
+
+/// One chunk as `info` lists it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChunkInfo {
+    pub tag: String,
+    pub critical: bool,
+    pub class: ByteClass,
+    /// Offset of the chunk's length field.
+    pub offset: u64,
+    pub payload_bytes: u64,
+    /// Payload plus 12 bytes of framing.
+    pub total_bytes: u64,
+    pub crc32c: String,
+}
+
+/// The preflight as `info` shows it: the dimensions (§2.1) and the other `HEAD` fields.
+#[derive(Debug, Clone, Serialize)]
+pub struct HeadInfo {
+    #[serde(flatten)]
+    pub dims: Dims,
+    pub coord_bits: u8,
+    pub origin: [f32; 3],
+    pub voxel_size: f32,
+    pub decoded_bytes: u64,
+    pub coded_rates: Vec<u8>,
+}
+
+impl From<&Preflight> for HeadInfo {
+    fn from(p: &Preflight) -> Self {
+        HeadInfo {
+            dims: p.dims.clone(),
+            coord_bits: p.coord_bits,
+            origin: p.origin,
+            voxel_size: p.voxel_size,
+            decoded_bytes: p.decoded_bytes,
+            coded_rates: p.coded_rates(),
+        }
+    }
+}
+
+/// Bytes per class and per anchor.
+#[derive(Debug, Clone, Serialize)]
+pub struct Totals {
+    pub file_bytes: u64,
+    pub model_bytes: u64,
+    pub anchor_bytes: u64,
+    pub other_bytes: u64,
+    pub bits_per_anchor: f64,
+}
+
+/// Bytes of one stored tensor (or header) of the shared model (`salvq info --json`:
+/// `model_parts`; issue 10's accounting).
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelPart {
+    /// The tensor (Table 2-1 names where the stream stores one) or header.
+    pub part: String,
+    /// The group it belongs to, for the text report's subtotals (`mlp_grid`, `quant.feat`, …).
+    pub group: String,
+    pub chunk: String,
+    pub bytes: u64,
+}
+
+/// The model bytes per stored tensor, from the preflight's dimensions and the chunk sizes
+/// (spec §1.4, §1.6.1-§1.6.3).
+fn model_parts(
+    p: &Preflight,
+    chunk_bytes: impl Fn(ChunkTag) -> u64,
+    scaffold_value_bytes: u64,
+    context_weight_bytes: u64,
+) -> Vec<ModelPart> {
+    let d = &p.dims;
+    let (f, s, k) = (
+        u64::from(d.feat_dim),
+        u64::from(d.scaling_dim),
+        u64::from(d.offsets),
+    );
+    let (cin, h, cout) = (
+        d.context_input(),
+        u64::from(d.context_hidden),
+        d.context_output(),
+    );
+    let (si, hs) = (d.scaffold_input(), u64::from(d.scaffold_hidden));
+    let m = u64::from(d.rates);
+    let mut out = Vec::new();
+    let mut part = |part: &str, group: &str, chunk: ChunkTag, bytes: u64| {
+        out.push(ModelPart {
+            part: part.to_string(),
+            group: group.to_string(),
+            chunk: chunk.to_string(),
+            bytes,
+        })
+    };
+    part(
+        "HEAD",
+        "preflight",
+        ChunkTag::HEAD,
+        chunk_bytes(ChunkTag::HEAD),
+    );
+    // §5.3 Table 5-1: the integer context MLP.
+    let g = "mlp_grid (integer, §5.3)";
+    let (wb, wt) = (
+        context_weight_bytes,
+        if context_weight_bytes == 1 {
+            "i8"
+        } else {
+            "i16"
+        },
+    );
+    part(
+        "coding_method, context_precision, a0, shift0, a1",
+        g,
+        ChunkTag::MLPS,
+        4 + cout,
+    );
+    part(
+        &format!("mlp_grid.0.weight ({wt})"),
+        g,
+        ChunkTag::MLPS,
+        wb * h * cin,
+    );
+    part("mlp_grid.0.bias (i32)", g, ChunkTag::MLPS, 4 * h);
+    part(
+        &format!("mlp_grid.2.weight ({wt})"),
+        g,
+        ChunkTag::MLPS,
+        wb * cout * h,
+    );
+    part("mlp_grid.2.bias (i32)", g, ChunkTag::MLPS, 4 * cout);
+    part("scaffold_precision", "mlp_opacity", ChunkTag::MLPS, 1);
+    let b = scaffold_value_bytes;
+    for (name, o) in [("mlp_opacity", k), ("mlp_cov", 7 * k), ("mlp_color", 3 * k)] {
+        part(
+            &format!("{name}.0.weight"),
+            name,
+            ChunkTag::MLPS,
+            b * hs * si,
+        );
+        part(&format!("{name}.0.bias"), name, ChunkTag::MLPS, b * hs);
+        part(
+            &format!("{name}.2.weight"),
+            name,
+            ChunkTag::MLPS,
+            b * o * hs,
+        );
+        part(&format!("{name}.2.bias"), name, ChunkTag::MLPS, b * o);
+    }
+    part("coding_method", "quant", ChunkTag::QUAN, 1);
+    for (group, dim, general, regions) in [
+        (
+            "feat",
+            f,
+            d.feat_lattice.has_factors(),
+            u64::from(d.feat_regions),
+        ),
+        (
+            "scaling",
+            s,
+            d.scaling_lattice.has_factors(),
+            u64::from(d.scaling_regions),
+        ),
+        ("offsets", 3, false, 1),
+    ] {
+        let g = format!("quant.{group}");
+        part(&format!("{g}.step"), &g, ChunkTag::QUAN, 4);
+        part(&format!("{g}.gains"), &g, ChunkTag::QUAN, 4 * m);
+        if general {
+            // One basis per region (§7.6); region 0's is `basis_*`, the others `regions.*`.
+            if regions > 1 {
+                part(
+                    &format!("{g}.regions.start"),
+                    &g,
+                    ChunkTag::QUAN,
+                    4 * (regions - 1),
+                );
+            }
+            part(
+                &format!("{g}.basis_u (all regions)"),
+                &g,
+                ChunkTag::QUAN,
+                4 * regions * dim * dim,
+            );
+            part(
+                &format!("{g}.basis_s (all regions)"),
+                &g,
+                ChunkTag::QUAN,
+                4 * regions * dim,
+            );
+            part(
+                &format!("{g}.basis_v (all regions)"),
+                &g,
+                ChunkTag::QUAN,
+                4 * regions * dim * dim,
+            );
+        }
+    }
+    part(
+        "hyperprior.grid (touched entries, method byte)",
+        "hyperprior.grid",
+        ChunkTag::GRID,
+        chunk_bytes(ChunkTag::GRID),
+    );
+    out
+}
+
+/// The symbol bytes of one coded rate (`salvq info --json`: `layers`).
+#[derive(Debug, Clone, Serialize)]
+pub struct LayerInfo {
+    pub rate: u8,
+    /// `AFEA`, `ASCL`, `AOFF` of this layer, chunk overhead included.
+    pub feat_bytes: u64,
+    pub scaling_bytes: u64,
+    pub offsets_bytes: u64,
+    /// This layer's symbol bits per anchor.
+    pub symbol_bits_per_anchor: f64,
+    /// Bits per anchor of the single-rate stream of this rate (`salvq extract`): everything
+    /// but the other layers.
+    pub stream_bits_per_anchor: f64,
+}
+
+/// Everything `salvq info` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct StreamInfo {
+    pub format_version: String,
+    pub file_flags: u16,
+    pub head: Option<HeadInfo>,
+    pub chunks: Vec<ChunkInfo>,
+    pub totals: Totals,
+    /// Model bytes per part (framing and method bytes not included).
+    pub model_parts: Vec<ModelPart>,
+    /// The encoder's measurements, one per `ests` chunk (one per layer, §7.4), in stream order.
+    pub encoder: Vec<EncodeReport>,
+    /// The tile table (§10.1), summarised.
+    pub tiles: Option<TilesInfo>,
+    /// Symbol bytes per coded rate, rates ascending.
+    pub layers: Vec<LayerInfo>,
+}
+
+/// How a stream is cut into tiles (§10).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TilesInfo {
+    pub count: u64,
+    pub min_anchors: u32,
+    pub max_anchors: u32,
+}
+
+/// The per-group table of an encoder report.
+pub fn groups_text(r: &EncodeReport) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<8} {:>10} {:>8} {:>12} {:>14} {:>14} {:>9} {:>9}",
+        "group",
+        "symbols",
+        "escapes",
+        "coded bytes",
+        "ideal int (B)",
+        "ideal float (B)",
+        "coded/int",
+        "int/float"
+    );
+    for g in &r.groups {
+        let int_bytes = g.ideal_bits_integer / 8.0;
+        let float_bytes = g.ideal_bits_float / 8.0;
+        let _ = writeln!(
+            s,
+            "{:<8} {:>10} {:>8} {:>12} {:>14.0} {:>14.0} {:>9.4} {:>9.4}",
+            g.group,
+            g.symbols,
+            g.escapes,
+            g.coded_bytes,
+            int_bytes,
+            float_bytes,
+            g.coded_bytes as f64 / int_bytes.max(1e-9),
+            int_bytes / float_bytes.max(1e-9)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "masks: {} bits in {} bytes; hash grid: {} of {} entries stored (touched)",
+        r.mask_bits, r.mask_bytes, r.grid_entries_stored, r.grid_entries_total
+    );
+    s
+}
+
+/// Lists a stream's chunks (checking framing and CRCs) and its preflight.
+pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
+    let (sig, rest) = Signature::parse(data)?;
+    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
+    let mut chunks = Vec::new();
+    let mut head = None;
+    let mut preflight = None;
+    let mut encoder = Vec::new();
+    let mut tiles = None;
+    let mut scaffold_value_bytes = None;
+    let mut context_weight_bytes = 2;
+    let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
+    while let Some(c) = reader.next_chunk()? {
+        if c.tag == ChunkTag::HEAD && head.is_none() {
+            let p = Preflight::parse(c.payload, limits)?;
+            head = Some(HeadInfo::from(&p));
+            preflight = Some(p);
+        }
+        if c.tag == ChunkTag::ESTS {
+            encoder.extend(serde_json::from_slice::<EncodeReport>(c.payload).ok());
+        }
+        if let (ChunkTag::MLPS, Some(p)) = (c.tag, &preflight) {
+            // §1.6.2: `context_precision` follows the method byte; `scaffold_precision` the
+            // context MLP.
+            let context = match c.payload.get(1) {
+                Some(1) => salvq::container::payload::ContextPrecision::I8,
+                _ => salvq::container::payload::ContextPrecision::I16,
+            };
+            context_weight_bytes = context.bytes();
+            let at = 1 + salvq::container::payload::context_bytes(&p.dims, context);
+            scaffold_value_bytes = match c.payload.get(at as usize) {
+                Some(1) => Some(2),
+                _ => Some(4),
+            };
+        }
+        if let (ChunkTag::TILS, Some(p)) = (c.tag, &preflight) {
+            let t = salvq::tiles::TileTable::parse(c.payload, p.dims.anchors, p.coord_bits)?;
+            let counts = (0..t.len()).map(|i| t.count(i));
+            tiles = Some(TilesInfo {
+                count: t.len() as u64,
+                min_anchors: counts.clone().min().unwrap_or(0),
+                max_anchors: counts.max().unwrap_or(0),
+            });
+        }
+        let total = c.payload.len() as u64 + CHUNK_OVERHEAD;
+        let class = byte_class(c.tag);
+        match class {
+            ByteClass::Model => model += total,
+            ByteClass::Anchor => anchor += total,
+            ByteClass::Other => other += total,
+        }
+        chunks.push(ChunkInfo {
+            tag: c.tag.to_string(),
+            critical: c.tag.is_critical(),
+            class,
+            offset: c.offset,
+            payload_bytes: c.payload.len() as u64,
+            total_bytes: total,
+            crc32c: format!("{:08x}", c.crc),
+        });
+    }
+    let file_bytes = data.len() as u64;
+    let anchors = head.as_ref().map_or(0, |h| h.dims.anchors);
+    let bytes_of = |tag: ChunkTag| {
+        chunks
+            .iter()
+            .find(|c| c.tag == tag.to_string())
+            .map_or(0, |c| c.payload_bytes)
+    };
+    let model_parts = preflight
+        .as_ref()
+        .map(|p| {
+            model_parts(
+                p,
+                bytes_of,
+                scaffold_value_bytes.unwrap_or(4),
+                context_weight_bytes,
+            )
+        })
+        .unwrap_or_default();
+    // §7.4: the layer chunks repeat AFEA ASCL AOFF once per coded rate, rates ascending.
+    let rates = head.as_ref().map_or(Vec::new(), |h| h.coded_rates.clone());
+    let layer_chunks: Vec<&ChunkInfo> = chunks
+        .iter()
+        .filter(|c| ["AFEA", "ASCL", "AOFF"].contains(&c.tag.as_str()))
+        .collect();
+    let all_layers: u64 = layer_chunks.iter().map(|c| c.total_bytes).sum();
+    let per_anchor = |bytes: u64| {
+        if anchors == 0 {
+            0.0
+        } else {
+            bytes as f64 * 8.0 / f64::from(anchors)
+        }
+    };
+    let layers = rates
+        .iter()
+        .zip(layer_chunks.chunks(3))
+        .filter_map(|(&rate, c)| match c {
+            [fe, sc, of] => {
+                let own = fe.total_bytes + sc.total_bytes + of.total_bytes;
+                Some(LayerInfo {
+                    rate,
+                    feat_bytes: fe.total_bytes,
+                    scaling_bytes: sc.total_bytes,
+                    offsets_bytes: of.total_bytes,
+                    symbol_bits_per_anchor: per_anchor(own),
+                    stream_bits_per_anchor: per_anchor(file_bytes - all_layers + own),
+                })
+            }
+            _ => None,
+        })
+        .collect();
+    Ok(StreamInfo {
+        model_parts,
+        format_version: format!("{}.{}", sig.major, sig.minor),
+        file_flags: sig.flags,
+        head,
+        chunks,
+        encoder,
+        tiles,
+        layers,
+        totals: Totals {
+            file_bytes,
+            model_bytes: model,
+            anchor_bytes: anchor,
+            other_bytes: other,
+            bits_per_anchor: if anchors == 0 {
+                0.0
+            } else {
+                file_bytes as f64 * 8.0 / f64::from(anchors)
+            },
+        },
+    })
+}
+
+impl StreamInfo {
+    /// The human-readable report of `salvq info`.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(s, "SALVQ stream, format {}", self.format_version);
+        if let Some(h) = &self.head {
+            let d = &h.dims;
+            let _ = writeln!(
+                s,
+                "anchors {}  feat_dim {}  offsets {}  scaling_dim {}  rates {}  coord_bits {}",
+                d.anchors, d.feat_dim, d.offsets, d.scaling_dim, d.rates, h.coord_bits
+            );
+            let _ = writeln!(
+                s,
+                "origin ({}, {}, {})  voxel_size {}",
+                h.origin[0], h.origin[1], h.origin[2], h.voxel_size
+            );
+            let _ = writeln!(
+                s,
+                "hash grid: {} channels, 3D res {:?} (log2 {}), 2D res {:?} (log2 {})",
+                d.grid_channels, d.res_3d, d.log2_size_3d, d.res_2d, d.log2_size_2d
+            );
+            let _ = writeln!(
+                s,
+                "MLPs: context hidden {}, scaffold hidden {}, view dims {}",
+                d.context_hidden, d.scaffold_hidden, d.view_dims
+            );
+            if let Some(t) = &self.tiles {
+                let _ = writeln!(
+                    s,
+                    "tiles: {} ({} … {} anchors each)",
+                    t.count, t.min_anchors, t.max_anchors
+                );
+            }
+            let _ = writeln!(
+                s,
+                "quantizers: feature lattice {}, scaling lattice {}, offsets identity",
+                d.feat_lattice.name(),
+                d.scaling_lattice.name()
+            );
+            let _ = writeln!(
+                s,
+                "coded rates {:?}; decoded size {} bytes",
+                h.coded_rates, h.decoded_bytes
+            );
+        }
+        let _ = writeln!(
+            s,
+            "{:<6} {:>10} {:>12} {:>8}  crc32c",
+            "chunk", "offset", "payload", "class"
+        );
+        for c in &self.chunks {
+            let class = match c.class {
+                ByteClass::Model => "model",
+                ByteClass::Anchor => "anchor",
+                ByteClass::Other => "other",
+            };
+            let _ = writeln!(
+                s,
+                "{:<6} {:>10} {:>12} {:>8}  {}",
+                c.tag, c.offset, c.payload_bytes, class, c.crc32c
+            );
+        }
+        if !self.model_parts.is_empty() {
+            // Subtotals per group, in order (`--json` lists every tensor).
+            let _ = writeln!(s, "model bytes by part (salvq info --json: per tensor):");
+            let mut groups: Vec<(&str, &str, u64)> = Vec::new();
+            for p in &self.model_parts {
+                match groups.last_mut() {
+                    Some(g) if g.0 == p.group => g.2 += p.bytes,
+                    _ => groups.push((&p.group, &p.chunk, p.bytes)),
+                }
+            }
+            for (group, chunk, bytes) in groups {
+                let _ = writeln!(s, "  {group:<36} {chunk:<5} {bytes:>10}");
+            }
+        }
+        if !self.layers.is_empty() {
+            let _ = writeln!(
+                s,
+                "symbol bytes by rate:  feature  scaling  offsets  symbol bits/anchor  stream bits/anchor (this rate alone)"
+            );
+            for l in &self.layers {
+                let _ = writeln!(
+                    s,
+                    "  rate {:>2} {:>15} {:>8} {:>8} {:>19.2} {:>19.2}",
+                    l.rate,
+                    l.feat_bytes,
+                    l.scaling_bytes,
+                    l.offsets_bytes,
+                    l.symbol_bits_per_anchor,
+                    l.stream_bits_per_anchor
+                );
+            }
+        }
+        for r in &self.encoder {
+            let _ = writeln!(s, "encoder statistics (ests), rate {}:", r.rate);
+            s.push_str(&groups_text(r));
+        }
+        let t = &self.totals;
+        let _ = writeln!(
+            s,
+            "total {} bytes: model {} ({:.1}%), anchors {} ({:.1}%), other {}; {:.2} bits/anchor",
+            t.file_bytes,
+            t.model_bytes,
+            pct(t.model_bytes, t.file_bytes),
+            t.anchor_bytes,
+            pct(t.anchor_bytes, t.file_bytes),
+            t.other_bytes,
+            t.bits_per_anchor
+        );
+        s
+    }
+}
+
+fn pct(a: u64, b: u64) -> f64 {
+    if b == 0 {
+        0.0
+    } else {
+        100.0 * a as f64 / b as f64
+    }
+}

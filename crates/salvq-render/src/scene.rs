@@ -1,0 +1,70 @@
+//! What the renderer and the PLY export take as input: a scene model (from a SALVQ stream or
+//! a safetensors model file) or a set of standard Gaussians (from a 3DGS PLY file).
+
+use std::borrow::Cow;
+
+use super::camera::Bounds;
+use super::{neural, ply, Gaussians};
+use salvq::container::signature::MAGIC;
+use salvq::error::{Error, Result};
+use salvq::model::SceneModel;
+
+/// A renderable scene.
+#[derive(Debug, Clone)]
+pub enum Scene {
+    /// A Scaffold-GS scene model: its Gaussians depend on the camera (Annex C.1).
+    Model(Box<SceneModel>),
+    /// Standard 3DGS Gaussians.
+    Gaussians(Gaussians),
+}
+
+impl Scene {
+    /// Reads a scene by its content: a SALVQ stream (decoded at `rate`, default the lowest
+    /// coded rate), a PLY file (`ply` first), else a safetensors model (spec Annex A).
+    /// `rate` applies to streams only.
+    pub fn from_bytes(bytes: &[u8], rate: Option<u8>) -> Result<Scene> {
+        let stream = bytes.starts_with(&MAGIC);
+        if rate.is_some() && !stream {
+            return Err(Error::RenderSettingInvalid {
+                setting: "rate",
+                value: f64::from(rate.unwrap_or(0)),
+                rule: "a rate can be chosen only for a SALVQ stream",
+            });
+        }
+        if stream {
+            let options = salvq::DecodeOptions {
+                rate,
+                ..Default::default()
+            };
+            return Ok(match salvq::decoder::decode_any(bytes, &options)? {
+                salvq::decoder::Decoded::Anchors(m) => Scene::Model(m),
+                // An explicit-profile stream decodes to the Gaussians themselves (§3).
+                salvq::decoder::Decoded::Gaussians(d) => Scene::Gaussians(d.gaussians),
+            });
+        }
+        if bytes.starts_with(b"ply") {
+            return Ok(Scene::Gaussians(ply::read_ply(bytes)?));
+        }
+        Ok(Scene::Model(Box::new(
+            crate::interchange::model_from_safetensors(bytes)?,
+        )))
+    }
+
+    /// The bounds the camera ring is placed around (Annex C.2): of the anchor positions for
+    /// a model, of the means for Gaussians.
+    pub fn bounds(&self) -> Bounds {
+        match self {
+            Scene::Model(m) => Bounds::of_points(&neural::anchor_positions(m)),
+            Scene::Gaussians(g) => Bounds::of_points(&g.positions),
+        }
+    }
+
+    /// The Gaussians seen from a camera at `camera`: the neural Gaussians of a model, or
+    /// the Gaussians themselves.
+    pub fn gaussians(&self, camera: [f32; 3]) -> Result<Cow<'_, Gaussians>> {
+        match self {
+            Scene::Model(m) => Ok(Cow::Owned(neural::neural_gaussians(m, camera)?)),
+            Scene::Gaussians(g) => Ok(Cow::Borrowed(g)),
+        }
+    }
+}

@@ -1,0 +1,68 @@
+//! Data parallelism over tiles and anchors: rayon's when the `parallel` feature is on (the
+//! default), else the same calls run in order on the caller's thread, which is what a
+//! WebAssembly build without threads needs. Results do not depend on which: every parallel
+//! loop of the decoder writes its own outputs, and errors are reported by tile order (§10.3).
+
+#[cfg(feature = "parallel")]
+pub(crate) use rayon::prelude::*;
+#[cfg(feature = "parallel")]
+pub(crate) use rayon::{current_num_threads, join};
+
+#[cfg(not(feature = "parallel"))]
+pub(crate) use sequential::*;
+
+#[cfg(not(feature = "parallel"))]
+mod sequential {
+    /// `into_par_iter`: the plain iterator.
+    pub(crate) trait IntoParallelIterator: IntoIterator + Sized {
+        fn into_par_iter(self) -> Self::IntoIter {
+            self.into_iter()
+        }
+    }
+    impl<I: IntoIterator> IntoParallelIterator for I {}
+
+    /// The slice methods rayon adds, as the plain ones.
+    pub(crate) trait ParallelSlice<T> {
+        fn par_iter(&self) -> std::slice::Iter<'_, T>;
+        fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T>;
+        fn par_chunks(&self, n: usize) -> std::slice::Chunks<'_, T>;
+        fn par_chunks_mut(&mut self, n: usize) -> std::slice::ChunksMut<'_, T>;
+    }
+    impl<T> ParallelSlice<T> for [T] {
+        fn par_iter(&self) -> std::slice::Iter<'_, T> {
+            self.iter()
+        }
+        fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T> {
+            self.iter_mut()
+        }
+        fn par_chunks(&self, n: usize) -> std::slice::Chunks<'_, T> {
+            self.chunks(n)
+        }
+        fn par_chunks_mut(&mut self, n: usize) -> std::slice::ChunksMut<'_, T> {
+            self.chunks_mut(n)
+        }
+    }
+
+    /// The iterator methods rayon adds, as their sequential meaning.
+    pub(crate) trait ParallelIterator: Iterator + Sized {
+        fn for_each_init<S>(self, init: impl Fn() -> S, mut f: impl FnMut(&mut S, Self::Item)) {
+            let mut state = init();
+            self.for_each(|item| f(&mut state, item));
+        }
+        fn reduce_with(self, f: impl FnMut(Self::Item, Self::Item) -> Self::Item) -> Option<Self::Item> {
+            self.reduce(f)
+        }
+    }
+    impl<I: Iterator> ParallelIterator for I {}
+
+    /// Both closures, one after the other.
+    pub(crate) fn join<A, B>(a: impl FnOnce() -> A, b: impl FnOnce() -> B) -> (A, B) {
+        let ra = a();
+        (ra, b())
+    }
+
+    /// One thread: the caller's.
+    pub(crate) fn current_num_threads() -> usize {
+        1
+    }
+}
