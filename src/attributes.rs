@@ -2,7 +2,7 @@
 //! features, scalings and offsets (`AFEA`, `ASCL`, `AOFF`), decoded anchor by anchor against
 //! the integer prior (§5) and reconstructed in binary32 (§5.5).
 
-use rayon::prelude::*;
+use crate::par::*;
 
 use crate::container::bytes::PayloadReader;
 use crate::container::chunk::ChunkTag;
@@ -233,7 +233,7 @@ pub fn read_attributes(
     // priors. Symbols are still read in order, so errors are reported as §6.6.2 says.
     for (bi, block) in blocks.iter().enumerate() {
         let upcoming = blocks.get(bi + 1);
-        let (_, decoded) = rayon::join(
+        let (_, decoded) = join(
             || {
                 if let Some(vs) = upcoming {
                     let start = (bi + 1) * BLOCK * k;

@@ -3,7 +3,7 @@
 //! has been read (§6.6.2). It never panics on any input, sizes every allocation from a
 //! preflight that passed [`Limits`], and reports the first broken rule.
 
-use rayon::prelude::*;
+use crate::par::*;
 
 use crate::attributes::{
     layer_bodies, read_attributes, read_masks, Attributes, AttributesMut, Symbols,
@@ -116,6 +116,14 @@ pub fn decode_with_symbols(data: &[u8], options: &DecodeOptions) -> Result<(Scen
         .map(|(m, sy)| (m, sy.unwrap_or_default()))
 }
 
+/// Runs `f` on a pool of `options.threads` threads (rayon's global pool when `None`);
+/// without the `parallel` feature, on the caller's thread whatever `threads` says.
+#[cfg(not(feature = "parallel"))]
+fn in_pool<T: Send>(_options: &DecodeOptions, f: impl FnOnce() -> T + Send) -> T {
+    f()
+}
+
+#[cfg(feature = "parallel")]
 fn in_pool<T: Send>(options: &DecodeOptions, f: impl FnOnce() -> T + Send) -> T {
     match options.threads {
         Some(n) => match rayon::ThreadPoolBuilder::new()

@@ -66,6 +66,7 @@ pub mod geometry;
 pub mod hyperprior;
 pub mod limits;
 pub mod model;
+mod par;
 pub mod quantizer;
 pub mod tiles;
 

@@ -49,7 +49,10 @@ mod sequential {
             let mut state = init();
             self.for_each(|item| f(&mut state, item));
         }
-        fn reduce_with(self, f: impl FnMut(Self::Item, Self::Item) -> Self::Item) -> Option<Self::Item> {
+        fn reduce_with(
+            self,
+            f: impl FnMut(Self::Item, Self::Item) -> Self::Item,
+        ) -> Option<Self::Item> {
             self.reduce(f)
         }
     }

@@ -3,8 +3,8 @@
 //! selection.
 
 use crate::container::bytes::{PayloadReader, PayloadWriter};
-use crate::container::chunk::ChunkTag;
-use crate::container::payload::{body, expect_len, METHOD_RAW};
+use crate::container::method::{body, expect_len, METHOD_RAW};
+use crate::container::tag::ChunkTag;
 use crate::error::{Error, Field, Result};
 use crate::model::morton3;
 

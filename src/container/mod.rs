@@ -2,11 +2,13 @@
 
 pub mod bytes;
 pub mod chunk;
+pub mod method;
 pub mod mlps;
 pub mod payload;
 pub mod preflight;
 pub mod signature;
 pub mod surgery;
+pub mod tag;
 
 pub use chunk::{Chunk, ChunkReader, ChunkTag};
 pub use preflight::Preflight;

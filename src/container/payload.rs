@@ -4,7 +4,7 @@
 
 use crate::container::bytes::{pack_bits, packed_len, unpack_bits, PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
-use rayon::prelude::*;
+use crate::par::*;
 
 use crate::entropy::GaussianTables;
 use crate::error::Field;
@@ -13,38 +13,7 @@ use crate::model::validate::{check_finite, check_positive, check_rate_steps};
 use crate::model::{names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Region, SceneModel};
 use crate::tiles::{join_bodies, split_bodies, TileTable};
 
-/// `coding_method` 0: raw little-endian values (§1.6).
-pub const METHOD_RAW: u8 = 0;
-/// `coding_method` 1: the chunk type's coded form (§1.6, §6.6).
-pub const METHOD_CODED: u8 = 1;
-
-/// Splits off the method byte and checks it is the method this chunk type uses (§1.6 steps 1-2).
-pub fn body(tag: ChunkTag, payload: &[u8], method: u8) -> Result<&[u8]> {
-    match payload {
-        [m, rest @ ..] if *m == method => Ok(rest),
-        [method, ..] => Err(Error::UnknownCodingMethod {
-            tag,
-            method: *method,
-        }),
-        [] => Err(Error::ChunkSizeMismatch {
-            tag,
-            expected: 1,
-            found: 0,
-        }),
-    }
-}
-
-/// Checks the body length before anything is allocated from it (§1.6 step 3).
-pub fn expect_len(tag: ChunkTag, body: &[u8], expected: u64) -> Result<()> {
-    if body.len() as u64 != expected {
-        return Err(Error::ChunkSizeMismatch {
-            tag,
-            expected: expected + 1,
-            found: body.len() as u64 + 1,
-        });
-    }
-    Ok(())
-}
+pub use super::method::{body, expect_len, METHOD_CODED, METHOD_RAW};
 
 pub fn f32s(bytes: &[u8]) -> Vec<f32> {
     bytes

@@ -10,13 +10,9 @@ use super::ans::{
 };
 use super::scale::SCALE_COUNT;
 use super::tables::GaussianTables;
+pub use super::tables::{ESCAPE_MAX_PREFIX, ESCAPE_MAX_W};
 use crate::container::chunk::ChunkTag;
 use crate::error::{AnsFault, Error, Result};
-
-/// Longest Exp-Golomb prefix (leading zeros) an escape may have (§6.4).
-pub const ESCAPE_MAX_PREFIX: u32 = 30;
-/// Largest w = |u| − R_k an escape can carry: 2^31 − 1 (§6.4).
-pub const ESCAPE_MAX_W: u64 = (1 << (ESCAPE_MAX_PREFIX + 1)) - 1;
 
 /// Checks a computed scale index (§6.3.1): returns it as `u8` when it selects a table, else
 /// `ScaleIndexOutOfRange` naming the chunk and the symbol's index.

@@ -8,6 +8,11 @@ use super::ans::ScaleModel;
 use super::ans::{COARSE_BITS, MAX_PRECISION, MIN_PRECISION};
 use super::scale::{SCALE_COUNT, SIGMA_Q16, THRESHOLD_Q16};
 
+/// Longest Exp-Golomb prefix (leading zeros) an escape may have (§6.4).
+pub const ESCAPE_MAX_PREFIX: u32 = 30;
+/// Largest w = |u| − R_k an escape can carry: 2^31 − 1 (§6.4).
+pub const ESCAPE_MAX_W: u64 = (1 << (ESCAPE_MAX_PREFIX + 1)) - 1;
+
 /// The precision P of the format's tables (§6.5): frequencies sum to 2^P.
 pub const PRECISION: u32 = 16;
 /// TAIL in units of 1/16 (§6.3.2): R_k = min(⌈TAIL · σ_k⌉, R_MAX). TAIL = 5.
@@ -225,7 +230,7 @@ impl GaussianTables {
             return p - f64::from(f).log2();
         }
         let w = mag - r; // = v + 1 of §6.4
-        if w > super::symbols::ESCAPE_MAX_W {
+        if w > ESCAPE_MAX_W {
             return f64::INFINITY;
         }
         let prefix = 63 - w.leading_zeros(); // L = floor(log2(w))

@@ -7,7 +7,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
-use crate::container::chunk::ChunkTag;
+use crate::container::tag::ChunkTag;
 use crate::limits::LimitKind;
 use crate::model::Dtype;
 

@@ -1,7 +1,7 @@
 //! Decoding an explicit-profile stream (spec §3.7): the chunk order, the selected layer, and
 //! the tiles of its `GATT` decoded in parallel.
 
-use rayon::prelude::*;
+use crate::par::*;
 
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::payload::{body, read_apos, METHOD_CODED};

@@ -1,7 +1,7 @@
 //! Hash-grid interpolation in integer arithmetic (spec §5.1) and the set of grid entries that
 //! some anchor touches (§5.2).
 
-use rayon::prelude::*;
+use crate::par::*;
 
 use crate::model::{level_entries, Dims, HashGrid};
 
@@ -236,10 +236,7 @@ impl GridLayout {
             t
         };
         // One part per thread (each part costs a set of flags), but small inputs stay whole.
-        let part = voxels
-            .len()
-            .div_ceil(rayon::current_num_threads())
-            .max(16_384);
+        let part = voxels.len().div_ceil(current_num_threads()).max(16_384);
         voxels
             .par_chunks(part.max(1))
             .map(mark)

@@ -46,14 +46,14 @@ pub fn round_shift(acc: i32, s: u8) -> i32 {
 /// Wrapping dot product of i16 vectors in i32 (spec §5.3: sums are modulo 2^32, so the
 /// order of the terms does not matter). On x86-64 it is SSE2's multiply-add
 /// ([`super::simd::dot`], the crate's one isolated `unsafe`); elsewhere the plain fold.
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(feature = "simd", target_arch = "x86_64"))]
 #[inline]
 fn dot(w: &[i16], x: &[i16]) -> i32 {
     super::simd::dot(w, x)
 }
 
 /// See the x86-64 version.
-#[cfg(not(target_arch = "x86_64"))]
+#[cfg(not(all(feature = "simd", target_arch = "x86_64")))]
 #[inline]
 fn dot(w: &[i16], x: &[i16]) -> i32 {
     w.iter().zip(x).fold(0i32, |a, (&w, &x)| {

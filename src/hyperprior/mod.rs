@@ -6,6 +6,7 @@
 pub mod grid;
 pub mod mlp;
 pub mod prior;
+#[cfg(feature = "simd")]
 mod simd;
 pub mod step;
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use super::grid::GridLayout;
 use super::mlp::IntMlp;
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(feature = "simd", target_arch = "x86_64"))]
 use super::simd::avx2::Avx2Mlp;
 use super::step::{factor_index, BaseStep, STEP_FACTOR, THRESHOLDS};
 use crate::entropy::scale::THRESHOLD_Q16;
@@ -44,7 +44,7 @@ pub struct Prior {
     pub layout: GridLayout,
     pub mlp: IntMlp,
     /// The same MLP in the AVX2 kernel's layout, where the CPU has AVX2 (bit-identical).
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(all(feature = "simd", target_arch = "x86_64"))]
     fast: Option<Avx2Mlp>,
     pub steps: [BaseStep; 3],
     /// Output offsets of (mean, scale) per group, and of the three adjustments.
@@ -97,7 +97,7 @@ impl Prior {
             }
         }
         let layout = GridLayout::new(dims, coord_bits);
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(all(feature = "simd", target_arch = "x86_64"))]
         let fast = if layout.features() == mlp.cin {
             Avx2Mlp::new(&mlp)
         } else {
@@ -105,7 +105,7 @@ impl Prior {
         };
         Prior {
             layout,
-            #[cfg(target_arch = "x86_64")]
+            #[cfg(all(feature = "simd", target_arch = "x86_64"))]
             fast,
             frac,
             emax,
@@ -120,11 +120,12 @@ impl Prior {
 
     pub fn context(&self) -> AnchorContext {
         // The kernel reads zero-padded inputs and writes padded hidden scratch.
-        let (mut x_len, mut h_len) = (self.layout.features(), self.mlp.hidden);
-        #[cfg(target_arch = "x86_64")]
-        if let Some(k) = &self.fast {
-            (x_len, h_len) = (x_len.max(k.input_len()), h_len.max(k.hidden_len()));
-        }
+        let (x_len, h_len) = (self.layout.features(), self.mlp.hidden);
+        #[cfg(all(feature = "simd", target_arch = "x86_64"))]
+        let (x_len, h_len) = match &self.fast {
+            Some(k) => (x_len.max(k.input_len()), h_len.max(k.hidden_len())),
+            None => (x_len, h_len),
+        };
         AnchorContext {
             x: vec![0; x_len],
             h: vec![0; h_len],
@@ -153,7 +154,7 @@ impl Prior {
     ) {
         let n = self.layout.features();
         self.layout.interpolate(grid, v, &mut x[..n]);
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(all(feature = "simd", target_arch = "x86_64"))]
         if let Some(k) = &self.fast {
             k.eval(x, h, y);
             return;
@@ -253,7 +254,7 @@ mod tests {
         let quant = [&scene.quant; 3];
         let fast = Prior::new(&scene.dims, scene.coord_bits, mlp, quant, 0);
         let mut portable = fast.clone();
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(all(feature = "simd", target_arch = "x86_64"))]
         {
             let avx2 = std::arch::is_x86_feature_detected!("avx2");
             assert_eq!(

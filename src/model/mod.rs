@@ -5,11 +5,12 @@
 //! (Annex A, written by the encoder crate) and the preflight's `decoded_bytes` (§1.4) are both derived
 //! from that one table.
 
+pub mod lattice_kind;
 pub mod validate;
 
 use std::fmt;
 
-pub use crate::quantizer::LatticeKind;
+pub use lattice_kind::LatticeKind;
 
 /// Element type of a tensor (spec §0.2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -3,9 +3,8 @@
 //! text or JSON (issues 10 and 12).
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
 use salvq::Error;
@@ -13,6 +12,7 @@ use salvq_encoder::auto::{self, AutoChoice};
 use salvq_encoder::parsimony::LevelTrial;
 use salvq_render::interchange::read_model;
 
+use super::progress::Progress;
 use super::secs;
 
 #[derive(clap::Args)]
@@ -119,55 +119,14 @@ struct PrunedLevel {
     mse_without: f64,
 }
 
-/// Human messages: to stderr, through the progress bar so they do not tear it; nothing with
-/// `--quiet`.
-pub(crate) struct Progress {
-    bar: ProgressBar,
-    quiet: bool,
-}
-
-impl Progress {
-    pub(crate) fn new(quiet: bool) -> Self {
-        // indicatif draws only on a terminal; in pipes and CI the bar is hidden and only the
-        // messages below are printed.
-        let bar = if quiet {
-            ProgressBar::hidden()
-        } else {
-            ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr())
-        };
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} [{elapsed}] {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-        );
-        bar.enable_steady_tick(Duration::from_millis(120));
-        Progress { bar, quiet }
-    }
-
-    pub(crate) fn stage(&self, msg: impl Into<std::borrow::Cow<'static, str>>) {
-        self.bar.set_message(msg);
-    }
-
-    pub(crate) fn say(&self, line: &str) {
-        if !self.quiet {
-            self.bar.suspend(|| eprintln!("{line}"));
-        }
-    }
-
-    pub(crate) fn done(&self) {
-        self.bar.finish_and_clear();
-    }
-}
-
-pub fn run(a: EncodeArgs) -> Result<(), Error> {
-    let t = Instant::now();
-    let progress = Progress::new(a.quiet);
-    progress.stage(format!("reading {}", a.input.display()));
-    let bytes = salvq_render::io::read_file(&a.input)?;
-    if salvq_encoder::explicit::input::input_kind(&bytes)?
-        == salvq_encoder::explicit::input::InputKind::Ply
-    {
-        return super::encode_ply::run(a, &bytes, t, &progress);
-    }
+/// Encodes a scene model (spec Annex A); `bytes` is the input file, already read, and `t`
+/// when the command started.
+pub fn run_model(
+    a: EncodeArgs,
+    bytes: Vec<u8>,
+    t: Instant,
+    progress: &Progress,
+) -> Result<(), Error> {
     if a.psnr.is_some() {
         return Err(Error::UnsupportedInput {
             found: "a model file with --psnr",

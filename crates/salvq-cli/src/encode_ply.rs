@@ -13,7 +13,8 @@ use salvq_encoder::explicit::ratios::{FIT_HEIGHT, FIT_VIEWS, FIT_WIDTH};
 use salvq_encoder::explicit::{self, ExplicitOptions, RateControl};
 use salvq_render::compare::RingTarget;
 
-use super::encode::{EncodeArgs, Progress};
+use super::encode::EncodeArgs;
+use super::progress::Progress;
 use super::secs;
 
 /// One layer of the `--json` summary and the text report.

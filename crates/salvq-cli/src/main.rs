@@ -11,6 +11,7 @@ use std::time::Instant;
 mod demo;
 mod encode;
 mod encode_ply;
+mod progress;
 mod render;
 mod tools;
 
@@ -311,7 +312,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 sha256_hex(&bytes)
             );
         }
-        Command::Encode(args) => encode::run(args)?,
+        Command::Encode(args) => encode(args)?,
         Command::Extract {
             input,
             rate,
@@ -566,4 +567,19 @@ fn decode_explicit(
         secs(t)
     );
     Ok(())
+}
+
+/// `salvq encode`: a PLY scene takes the explicit profile (spec §3), anything else is read as
+/// a scene model (Annex A).
+fn encode(a: encode::EncodeArgs) -> Result<(), Error> {
+    let t = Instant::now();
+    let progress = progress::Progress::new(a.quiet);
+    progress.stage(format!("reading {}", a.input.display()));
+    let bytes = salvq_render::io::read_file(&a.input)?;
+    if salvq_encoder::explicit::input::input_kind(&bytes)?
+        == salvq_encoder::explicit::input::InputKind::Ply
+    {
+        return encode_ply::run(a, &bytes, t, &progress);
+    }
+    encode::run_model(a, bytes, t, &progress)
 }
