@@ -26,9 +26,12 @@ pub fn decode(data: &[u8]) -> Result<SceneModel> {
     decode_with_limits(data, &Limits::default())
 }
 
-/// What to decode and under which limits.
+/// What to decode and under which limits. [`crate::Decoder::builder`] sets them for a
+/// decoder used many times; these setters for one call.
 #[derive(Debug, Clone, Default)]
+#[non_exhaustive]
 pub struct DecodeOptions {
+    /// What the decoder may allocate (§9.1).
     pub limits: Limits,
     /// The rate whose symbol layer to decode (§7.4); `None`: the lowest coded rate.
     pub rate: Option<u8>,
@@ -39,12 +42,54 @@ pub struct DecodeOptions {
     /// y, z; §10.3); `None`: every tile.
     pub region: Option<[f64; 6]>,
     /// A deliberate decoder bug, for proving that the conformance vectors catch it (§11);
-    /// never set outside tests.
+    /// only with the `test-hooks` feature, never set outside tests.
+    #[cfg(feature = "test-hooks")]
     #[doc(hidden)]
     pub fault: Option<Fault>,
 }
 
+impl DecodeOptions {
+    /// These options with `limits`.
+    #[must_use]
+    pub fn with_limits(mut self, limits: Limits) -> Self {
+        self.limits = limits;
+        self
+    }
+
+    /// These options decoding `rate` (`None`: the lowest coded rate).
+    #[must_use]
+    pub fn with_rate(mut self, rate: Option<u8>) -> Self {
+        self.rate = rate;
+        self
+    }
+
+    /// These options on a pool of `threads` threads built for each call (`None`: rayon's
+    /// global pool); a [`crate::Decoder`] builds its pool once.
+    #[must_use]
+    pub fn with_threads(mut self, threads: Option<usize>) -> Self {
+        self.threads = threads;
+        self
+    }
+
+    /// These options keeping only the tiles that meet `region` (§10.3; `None`: all).
+    #[must_use]
+    pub fn with_region(mut self, region: Option<[f64; 6]>) -> Self {
+        self.region = region;
+        self
+    }
+
+    /// These options with a deliberate decoder bug (`test-hooks` feature only).
+    #[cfg(feature = "test-hooks")]
+    #[doc(hidden)]
+    #[must_use]
+    pub fn with_fault(mut self, fault: Option<Fault>) -> Self {
+        self.fault = fault;
+        self
+    }
+}
+
 /// Deliberate decoder bugs ([`DecodeOptions::fault`]).
+#[cfg(feature = "test-hooks")]
 #[doc(hidden)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Fault {
@@ -150,7 +195,9 @@ fn decode_stream(
     let mut p = Partial::default();
     // Layers in the stream and the index of the selected one, known once HEAD is read.
     let (mut layers, mut selected) = (0usize, 0usize);
+    #[cfg(feature = "test-hooks")]
     let faulty;
+    #[cfg(feature = "test-hooks")]
     let tables = match options.fault {
         Some(Fault::FrequencyTable { scale }) => {
             faulty = GaussianTables::standard().with_one_wrong_entry(scale);
@@ -158,6 +205,8 @@ fn decode_stream(
         }
         None => GaussianTables::standard(),
     };
+    #[cfg(not(feature = "test-hooks"))]
+    let tables = GaussianTables::standard();
     loop {
         // §1.5 rule 4: the stream ends only with SEND.
         let chunk = reader.next_before_send()?;

@@ -54,25 +54,42 @@
 // No unsafe code, except the one measured hot path that is isolated and justified in
 // `hyperprior::simd` (the context MLP's i16 dot products with SSE2 and AVX2).
 #![deny(unsafe_code)]
+#![warn(missing_docs)]
 
-pub mod attributes;
-pub mod container;
+mod builder;
 pub mod decoder;
-pub mod entropy;
 pub mod error;
 pub mod explicit;
 pub mod extract;
-pub mod geometry;
-pub mod hyperprior;
 pub mod limits;
 pub mod model;
 mod par;
+pub mod stream;
+
+// The stream's layers, public for the workspace's encoder, conformance and tools crates
+// (they write and inspect streams) but not part of the decoder's API: no stability promise.
+#[doc(hidden)]
+pub mod attributes;
+#[doc(hidden)]
+pub mod container;
+#[doc(hidden)]
+pub mod entropy;
+#[doc(hidden)]
+pub mod geometry;
+#[doc(hidden)]
+pub mod hyperprior;
+#[doc(hidden)]
 pub mod quantizer;
+#[doc(hidden)]
 pub mod tiles;
 
-pub use decoder::{decode, decode_with_limits, decode_with_options, DecodeOptions};
+pub use builder::{Decoder, DecoderBuilder, Header};
+pub use decoder::{
+    decode, decode_any, decode_with_limits, decode_with_options, DecodeOptions, Decoded,
+};
 pub use error::{Error, Result};
 pub use extract::extract_rate;
 pub use limits::Limits;
+pub use model::LatticeKind;
 pub use model::SceneModel;
-pub use quantizer::LatticeKind;
+pub use stream::StreamDecoder;

@@ -18,11 +18,9 @@ const CHILD: &str = "SALVQ_ALLOCATION_CHILD";
 fn child(spec: &str) {
     let (path, rate) = spec.rsplit_once(':').expect("PATH:RATE");
     let stream = std::fs::read(path).expect("stream");
-    let options = salvq::DecodeOptions {
-        rate: Some(rate.parse().expect("rate")),
-        threads: Some(2),
-        ..Default::default()
-    };
+    let options = salvq::DecodeOptions::default()
+        .with_rate(Some(rate.parse().expect("rate")))
+        .with_threads(Some(2));
     let before = ALLOCATOR.allocated();
     let decoded = salvq::decoder::decode_any(&stream, &options).expect("valid vector");
     let peak = ALLOCATOR.max_allocated() - before;

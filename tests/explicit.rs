@@ -154,10 +154,7 @@ fn one_and_two_threads_decode_the_same() {
     )
     .unwrap();
     let with = |threads| {
-        let o = DecodeOptions {
-            threads: Some(threads),
-            ..Default::default()
-        };
+        let o = DecodeOptions::default().with_threads(Some(threads));
         match decode_any(&e.stream, &o).unwrap() {
             Decoded::Gaussians(d) => d.gaussians,
             Decoded::Anchors(_) => panic!("an explicit stream"),
@@ -180,10 +177,7 @@ fn a_region_decodes_only_the_tiles_it_meets() {
     )
     .unwrap();
     let all = decode(&e.stream, 0).gaussians;
-    let o = DecodeOptions {
-        region: Some([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]),
-        ..Default::default()
-    };
+    let o = DecodeOptions::default().with_region(Some([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]));
     let Decoded::Gaussians(part) = decode_any(&e.stream, &o).unwrap() else {
         panic!("an explicit stream")
     };

@@ -25,11 +25,9 @@ fn options(rates: &[u8], lattice: Option<LatticeKind>, search: Search) -> Encode
 fn decode_rate(stream: &[u8], rate: u8) -> salvq::Result<salvq::SceneModel> {
     decode_with_options(
         stream,
-        &DecodeOptions {
-            limits: Limits::default(),
-            rate: Some(rate),
-            ..Default::default()
-        },
+        &DecodeOptions::default()
+            .with_limits(Limits::default())
+            .with_rate(Some(rate)),
     )
 }
 

@@ -73,14 +73,8 @@ fn regions_survive_extraction_and_the_interchange_file() {
         extract_rate(&all.stream, 1, &Limits::default()).unwrap(),
         alone.stream
     );
-    let d1 = decode_with_options(
-        &all.stream,
-        &DecodeOptions {
-            rate: Some(1),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let d1 =
+        decode_with_options(&all.stream, &DecodeOptions::default().with_rate(Some(1))).unwrap();
     assert_eq!(d1, all.layers[1].expected);
     let bytes = salvq_render::interchange::model_to_safetensors(&d1);
     let back = salvq_render::interchange::model_from_safetensors(&bytes).unwrap();

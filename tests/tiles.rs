@@ -32,11 +32,9 @@ fn tiled(m: &salvq::SceneModel, per_tile: u32) -> salvq_encoder::Encoded {
 }
 
 fn with(threads: Option<usize>, region: Option<[f64; 6]>) -> DecodeOptions {
-    DecodeOptions {
-        threads,
-        region,
-        ..Default::default()
-    }
+    DecodeOptions::default()
+        .with_threads(threads)
+        .with_region(region)
 }
 
 #[test]

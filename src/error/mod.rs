@@ -38,49 +38,93 @@ impl fmt::Display for Structure {
 /// A header or model dimension whose value a rule constrains (spec §1.4, Table 1-4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Field {
+    /// `file_flags`.
     FileFlags,
+    /// `head_flags`.
     HeadFlags,
+    /// `anchor_count`.
     AnchorCount,
+    /// `feat_dim`.
     FeatDim,
+    /// `offset_count`.
     OffsetCount,
+    /// `scaling_dim`.
     ScalingDim,
+    /// `rate_count`.
     RateCount,
+    /// `coord_bits`.
     CoordBits,
+    /// `voxel_size`.
     VoxelSize,
+    /// `origin`.
     Origin,
+    /// `grid_channels`.
     GridChannels,
+    /// `levels_3d`.
     Levels3d,
+    /// `levels_2d`.
     Levels2d,
+    /// `log2_size_3d`.
     Log2Size3d,
+    /// `log2_size_2d`.
     Log2Size2d,
+    /// `resolution_3d`.
     Resolution3d,
+    /// `resolution_2d`.
     Resolution2d,
+    /// `context_input_dim`.
     ContextInputDim,
+    /// `context_hidden`.
     ContextHidden,
+    /// `scaffold_hidden`.
     ScaffoldHidden,
+    /// `view_dims`.
     ViewDims,
+    /// `rate`.
     CodedRate,
+    /// `rate_mask`.
     RateMask,
+    /// `feat_lattice`.
     FeatLattice,
+    /// `scaling_lattice`.
     ScalingLattice,
+    /// `feat_regions`.
     FeatRegions,
+    /// `scaling_regions`.
     ScalingRegions,
+    /// `region_start`.
     RegionStart,
+    /// `tile_count`.
     TileCount,
+    /// `tile_anchors`.
     TileAnchors,
+    /// `cell_level`.
     TileCellLevel,
+    /// `cell`.
     TileCell,
+    /// `w0_frac_bits`.
     W0FracBits,
+    /// `shift0`.
     Shift0,
+    /// `w1_frac_bits`.
     W1FracBits,
+    /// `scaffold_precision`.
     ScaffoldPrecision,
+    /// `context_precision`.
     ContextPrecision,
+    /// `gaussian_count`.
     GaussianCount,
+    /// `sh_degree`.
     ShDegree,
+    /// `pred_level`.
     PredLevel,
+    /// `scale_table`.
     ScaleTable,
+    /// `rotation_freq`.
     RotationFreq,
+    /// `predict`.
     PredictFlag,
+    /// `refine`.
     Refine,
 }
 
@@ -166,9 +210,13 @@ impl AnsFault {
 /// What a file operation was doing when it failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum IoOp {
+    /// Reading a file.
     Read,
+    /// Writing the output.
     Write,
+    /// Creating the temporary file an output is written to.
     CreateTemp,
+    /// Renaming the temporary file over the output.
     Rename,
 }
 
@@ -178,235 +226,411 @@ pub enum IoOp {
 pub enum Error {
     // ---- container (§1) ----
     /// The first 8 bytes are not the SALVQ magic.
-    SignatureMismatch { found: [u8; 8] },
+    SignatureMismatch {
+        /// The first 8 bytes (fewer, zero-padded, for a shorter stream).
+        found: [u8; 8],
+    },
     /// The stream ended inside a fixed-size structure, or before the `SEND` chunk.
     Truncated {
+        /// The structure the stream ended in.
         structure: Structure,
+        /// Bytes the structure needs.
         needed: u64,
+        /// Bytes that are left.
         available: u64,
     },
     /// The stream's major version is not one this decoder implements.
-    UnsupportedMajorVersion { found: u8, supported: u8 },
+    UnsupportedMajorVersion {
+        /// The stream's major version.
+        found: u8,
+        /// The version this decoder implements.
+        supported: u8,
+    },
     /// A draft (major 0) stream whose minor version differs from the implemented one.
-    UnsupportedMinorVersion { major: u8, found: u8, supported: u8 },
+    UnsupportedMinorVersion {
+        /// The stream's major version.
+        major: u8,
+        /// The stream's minor version.
+        found: u8,
+        /// The minor version this decoder implements.
+        supported: u8,
+    },
     /// A bit that the spec reserves is set.
-    ReservedBitsSet { field: Field, value: u32 },
+    ReservedBitsSet {
+        /// The field holding the bits.
+        field: Field,
+        /// Its value.
+        value: u32,
+    },
     /// A chunk's declared length runs past the end of the stream.
     ChunkLengthPastEnd {
+        /// The chunk.
         tag: ChunkTag,
+        /// The declared payload length.
         length: u64,
+        /// Bytes that are left.
         available: u64,
     },
     /// The CRC-32C stored after a chunk does not match its tag and payload.
     ChunkCrcMismatch {
+        /// The chunk.
         tag: ChunkTag,
+        /// The CRC stored after the chunk.
         stored: u32,
+        /// The value computed from the stream.
         computed: u32,
     },
     /// A chunk tag byte is outside the allowed characters.
-    ChunkTagInvalid { tag: [u8; 4] },
+    ChunkTagInvalid {
+        /// The tag's bytes.
+        tag: [u8; 4],
+    },
     /// A critical chunk this decoder does not know.
-    UnknownCriticalChunk { tag: ChunkTag },
+    UnknownCriticalChunk {
+        /// The chunk.
+        tag: ChunkTag,
+    },
     /// A critical chunk appeared where the chunk order rules require another.
-    ChunkOrder { found: ChunkTag, expected: ChunkTag },
+    ChunkOrder {
+        /// The chunk found.
+        found: ChunkTag,
+        /// The chunk the order rules require there.
+        expected: ChunkTag,
+    },
     /// Bytes follow the `SEND` chunk.
-    TrailingData { bytes: u64 },
+    TrailingData {
+        /// How many bytes follow.
+        bytes: u64,
+    },
     /// A payload's length differs from the length the header implies.
     ChunkSizeMismatch {
+        /// The chunk.
         tag: ChunkTag,
+        /// The payload length the header implies.
         expected: u64,
+        /// The payload's length.
         found: u64,
     },
     /// A payload's coding-method byte names no method of this version.
-    UnknownCodingMethod { tag: ChunkTag, method: u8 },
+    UnknownCodingMethod {
+        /// The chunk.
+        tag: ChunkTag,
+        /// The method byte.
+        method: u8,
+    },
     /// A header field or model dimension is outside its allowed range.
     FieldOutOfRange {
+        /// The field.
         field: Field,
+        /// Its value.
         value: u64,
+        /// The smallest allowed value.
         min: u64,
+        /// The largest allowed value.
         max: u64,
     },
     /// The preflight's stated decoded size differs from the size its dimensions imply.
-    DecodedSizeMismatch { stated: u64, computed: u64 },
+    DecodedSizeMismatch {
+        /// The value the stream states.
+        stated: u64,
+        /// The value computed from the stream.
+        computed: u64,
+    },
     /// A decoder limit would be exceeded (checked before allocating).
     LimitExceeded {
+        /// Which limit.
         limit: LimitKind,
+        /// What the stream asks for.
         requested: u64,
+        /// What the limit allows.
         allowed: u64,
     },
     /// Padding bits at the end of a bit-packed payload are not zero.
-    PaddingBitsSet { tag: ChunkTag },
+    PaddingBitsSet {
+        /// The chunk.
+        tag: ChunkTag,
+    },
     /// An anchor voxel coordinate does not fit in `coord_bits` bits.
     CoordinateOutOfRange {
+        /// The anchor, in canonical order.
         anchor: u64,
+        /// The axis, 0 … 2 (x, y, z).
         axis: u8,
+        /// Its value.
         value: i64,
+        /// The coordinate width in bits.
         coord_bits: u8,
     },
 
     // ---- entropy coding (§6) ----
     /// The ANS-coded words of a chunk are malformed.
-    AnsStreamInvalid { tag: ChunkTag, fault: AnsFault },
+    AnsStreamInvalid {
+        /// The chunk.
+        tag: ChunkTag,
+        /// How the coded words broke the coder's rules.
+        fault: AnsFault,
+    },
     /// An escaped symbol's Exp-Golomb prefix is longer than the spec allows.
     EscapeOverflow {
+        /// The chunk.
         tag: ChunkTag,
+        /// The symbol's index within the chunk's tile body.
         symbol: u64,
+        /// The prefix length read.
         prefix_bits: u32,
     },
     /// A computed scale index lies outside the frequency tables.
     ScaleIndexOutOfRange {
+        /// The chunk.
         tag: ChunkTag,
+        /// The symbol's index within the chunk's tile body.
         symbol: u64,
+        /// The computed index.
         scale_index: i64,
+        /// The largest table index.
         max: u64,
     },
 
     /// A group's lattice does not fit its dimension (§7.1: E8 products need a multiple of
     /// 8, D_n at least 2).
     LatticeDimension {
+        /// The group's lattice field.
         field: Field,
+        /// The lattice's name.
         lattice: &'static str,
+        /// The group's dimension.
         dim: u64,
+        /// The rule broken.
         rule: &'static str,
     },
     /// The rate asked for has no symbol layer in the stream (§7.4).
-    RateNotCoded { rate: u8, rate_mask: u64 },
+    RateNotCoded {
+        /// The rate asked for.
+        rate: u8,
+        /// The stream's mask of coded rates (bit r: rate r).
+        rate_mask: u64,
+    },
     /// The encoder's lattice search could not quantize a group (encoder only).
     LatticeSearchFailed {
+        /// The tensor.
         tensor: &'static str,
+        /// The anchor, when one is to blame.
         anchor: Option<u64>,
+        /// Why.
         reason: String,
     },
     /// A tile's first voxel does not come after the previous tile's last in Morton order
     /// (§10.1).
-    TileOrder { tile: u32 },
+    TileOrder {
+        /// The tile.
+        tile: u32,
+    },
     /// A tile's stated bounding box is not its anchors' (§10.1).
     TileBoxMismatch {
+        /// The tile.
         tile: u32,
+        /// The box `TILS` states (min x, y, z, max x, y, z).
         stated: [u32; 6],
+        /// The box of its anchors.
         actual: [u32; 6],
     },
     /// The anchor octree breaks a rule of §8: more cells at a depth than anchors, or voxel
     /// counts that do not add up to the anchor count.
     OctreeInvalid {
+        /// The rule broken.
         rule: &'static str,
+        /// The octree depth.
         depth: u8,
+        /// The count at that depth.
         count: u64,
+        /// The anchors in the tile.
         anchors: u32,
     },
     /// The encoder's fit of a basis or of scale rows to the model's anchors (Annex A.5)
     /// failed (encoder only).
     FitFailed {
+        /// The tensor.
         tensor: &'static str,
+        /// Why.
         reason: String,
     },
 
     // ---- tensor values (§2, decoder and encoder alike) ----
     /// A float value is NaN or infinite.
     NonFiniteValue {
+        /// The tensor.
         tensor: &'static str,
+        /// The element's index, outermost dimension first.
         index: Vec<u64>,
     },
     /// A value that must be positive (step, gain, voxel size) is not.
     ValueNotPositive {
+        /// The tensor.
         tensor: &'static str,
+        /// The element's index, outermost dimension first.
         index: Vec<u64>,
+        /// Its value.
         value: f32,
     },
     /// An integer tensor holds a value outside its allowed set.
     ValueInvalid {
+        /// The tensor.
         tensor: &'static str,
+        /// The element's index, outermost dimension first.
         index: Vec<u64>,
+        /// Its value.
         value: i64,
+        /// The values allowed.
         allowed: &'static str,
     },
 
     // ---- model interchange and validation (Annex A, §2) ----
     /// The model file is not a valid safetensors file.
-    InterchangeFormat { detail: String },
+    InterchangeFormat {
+        /// What the safetensors reader reported.
+        detail: String,
+    },
     /// A required tensor is absent.
-    TensorMissing { tensor: &'static str },
+    TensorMissing {
+        /// The tensor.
+        tensor: &'static str,
+    },
     /// The model holds a tensor the schema does not define.
-    TensorUnexpected { name: String },
+    TensorUnexpected {
+        /// The tensor's name.
+        name: String,
+    },
     /// A tensor has the wrong dtype.
     TensorDtype {
+        /// The tensor.
         tensor: &'static str,
+        /// The dtype the schema requires.
         expected: Dtype,
+        /// The dtype found.
         found: String,
     },
     /// A tensor has the wrong number of dimensions.
     TensorRank {
+        /// The tensor.
         tensor: &'static str,
+        /// The rank the schema requires.
         expected: u8,
+        /// The rank found.
         found: u8,
     },
     /// A tensor has the wrong shape.
     TensorShape {
+        /// The tensor.
         tensor: &'static str,
+        /// The shape the schema requires.
         expected: Vec<u64>,
+        /// The shape found.
         found: Vec<u64>,
     },
     /// A lattice basis has a zero singular value.
-    BasisSingular { tensor: &'static str, index: u64 },
+    BasisSingular {
+        /// The tensor.
+        tensor: &'static str,
+        /// The index of the zero singular value.
+        index: u64,
+    },
     /// A lattice basis' condition number max|s| / min|s| exceeds the limit.
     BasisIllConditioned {
+        /// The tensor.
         tensor: &'static str,
+        /// The basis' condition number.
         condition: f64,
+        /// The largest condition number allowed.
         max: f64,
     },
     /// A lattice basis factor U or V is not orthogonal within tolerance.
     BasisNotOrthogonal {
+        /// The tensor.
         tensor: &'static str,
+        /// The entry of UᵀU (or VᵀV) furthest from the identity.
         index: [u64; 2],
+        /// The largest deviation from orthogonality.
         deviation: f64,
+        /// The tolerance.
         tolerance: f64,
     },
 
     // ---- renderable output (Annex C, informative) ----
     /// A standard 3DGS PLY file's header breaks a rule of the layout (Annex C.3); `line`
     /// counts from 1, 0 when the rule concerns the header as a whole.
-    PlyHeaderInvalid { line: u32, rule: &'static str },
+    PlyHeaderInvalid {
+        /// The header line, from 1.
+        line: u32,
+        /// The rule broken.
+        rule: &'static str,
+    },
     /// A PLY vertex property that a 3DGS Gaussian needs is absent (Annex C.3).
-    PlyPropertyMissing { property: &'static str },
+    PlyPropertyMissing {
+        /// The property.
+        property: &'static str,
+    },
     /// The `f_rest_*` properties are not `f_rest_0 … f_rest_{n−1}` with n = 0, 9, 24 or 45
     /// (SH degree 0 … 3; Annex C.3).
-    PlyShCoefficients { count: u32 },
+    PlyShCoefficients {
+        /// The number of `f_rest_*` properties.
+        count: u32,
+    },
     /// The PLY body is shorter than its element counts times their record sizes (Annex C.3).
     PlyTruncated {
+        /// The PLY element.
         element: String,
+        /// The element's record count.
         count: u64,
+        /// Bytes per record.
         stride: u64,
+        /// Bytes that are left.
         available: u64,
     },
     /// A PLY vertex value that a Gaussian uses is NaN, or infinite other than the opacity
     /// logit (Annex C.3).
-    PlyValueNotFinite { vertex: u64, property: String },
+    PlyValueNotFinite {
+        /// The vertex's index.
+        vertex: u64,
+        /// The property.
+        property: String,
+    },
     /// The model's shape has no Scaffold-GS neural Gaussians (Annex C.1): the scaling must
     /// have 6 dimensions, the view inputs 3 or 4.
     NeuralGaussiansUnsupported {
+        /// The dimension.
         field: Field,
+        /// Its value.
         value: u64,
+        /// The rule broken.
         rule: &'static str,
     },
     /// A render setting (image size, view index, field of view, elevation) is outside its
     /// range (Annex C.2).
     RenderSettingInvalid {
+        /// The setting.
         setting: &'static str,
+        /// Its value.
         value: f64,
+        /// The rule broken.
         rule: &'static str,
     },
 
     /// An encoder input is a file of a kind the encoder does not read (Annex A.8.1).
     UnsupportedInput {
+        /// What the input is.
         found: &'static str,
+        /// How to convert it.
         hint: &'static str,
     },
 
     // ---- files ----
     /// A file operation failed.
     Io {
+        /// What was being done.
         op: IoOp,
+        /// The file.
         path: PathBuf,
+        /// The operating system's error kind.
         kind: std::io::ErrorKind,
     },
 }

@@ -18,7 +18,12 @@ pub const REFINE_FREQ: u32 = 1 << 15;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BitEvent {
     /// Bit `bit` (most significant first) of the position refinement of axis `axis`.
-    Refine { axis: usize, bit: u8 },
+    Refine {
+        /// The axis, 0 … 2 (x, y, z).
+        axis: usize,
+        /// The bit, counted from the most significant refinement bit.
+        bit: u8,
+    },
     /// The high bit of the rotation's largest-component index.
     RotationHigh,
     /// Its low bit.

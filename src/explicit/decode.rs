@@ -21,10 +21,13 @@ use crate::tiles::{split_bodies, TileTable};
 /// results conformance compares (§11).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DecodedGaussians {
+    /// The preflight (§3.2).
     pub header: GaussianHeader,
+    /// The attribute groups (§3.3).
     pub groups: Vec<Group>,
     /// The decoded rate.
     pub rate: u8,
+    /// The decoded layer's grid and prior (§3.4).
     pub layer: Layer,
     /// Voxel of every Gaussian decoded (all, or the selected tiles'), in stream order.
     pub voxels: Vec<[u32; 3]>,
@@ -77,6 +80,22 @@ impl Events for Reader<'_> {
     }
 }
 
+/// §3.5: decodes one tile's body of `GATT`; `voxels` are the tile's.
+pub(crate) fn decode_tile(
+    layer: &Layer,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    body: &[u8],
+    tables: &GaussianTables,
+) -> Result<TileSymbols> {
+    let mut reader = Reader {
+        symbols: SymbolReader::new(ChunkTag::GATT, body, tables)?,
+    };
+    let symbols = walk(layer, groups, voxels, &mut reader)?;
+    reader.symbols.finish()?;
+    Ok(symbols)
+}
+
 /// §3.5: decodes `GATT` of a layer whose geometry is `voxels` cut by `tiles`.
 pub fn read_gatt(
     payload: &[u8],
@@ -97,12 +116,7 @@ pub fn read_gatt(
             if !selected.get(t).copied().unwrap_or(true) {
                 return Ok(None);
             }
-            let mut reader = Reader {
-                symbols: SymbolReader::new(tag, b, tables)?,
-            };
-            let symbols = walk(layer, groups, &voxels[tiles.range(t)], &mut reader)?;
-            reader.symbols.finish()?;
-            Ok(Some(symbols))
+            decode_tile(layer, groups, &voxels[tiles.range(t)], b, tables).map(Some)
         })
         .collect();
     // §10.3: the lowest tile's error is reported.
@@ -126,131 +140,249 @@ pub fn decode_gaussians_in(
     rate: Option<u8>,
     region: Option<[f64; 6]>,
 ) -> Result<DecodedGaussians> {
-    let tables = GaussianTables::standard();
     let (_sig, rest) = Signature::parse(data)?;
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
-    let mut next = 0usize;
-    let mut header: Option<GaussianHeader> = None;
-    let mut groups: Option<Vec<Group>> = None;
-    let (mut selected, mut layers, mut rate_chosen) = (0usize, 0usize, 0u8);
-    let mut layer: Option<Layer> = None;
-    let mut tiles: Option<TileTable> = None;
-    let mut voxels: Option<Vec<[u32; 3]>> = None;
-    let mut symbols: Option<Vec<Option<TileSymbols>>> = None;
-    let missing = |tag| Error::ChunkOrder {
-        found: ChunkTag::SEND,
-        expected: tag,
-    };
+    let mut state = ExplicitDecoder::new(limits, rate, region);
     loop {
         // §1.5 rule 4: the stream ends only with SEND.
         let chunk = reader.next_before_send()?;
-        let tag = chunk.tag;
+        if state.chunk(chunk.tag, chunk.payload, reader.remaining())? {
+            break;
+        }
+    }
+    state.finish()
+}
+
+/// What the critical chunk at the current position does (§3.7): which check failed, or
+/// whether it is decoded or skipped (another layer's).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Due {
+    /// An ancillary chunk after `GHED`: ignored.
+    Ancillary,
+    /// A layer chunk of a layer that is not decoded.
+    Skipped,
+    /// A chunk to decode.
+    Decoded,
+}
+
+/// The explicit profile's decoding process (§3.7) driven one chunk at a time, so that the
+/// whole-buffer decoder and the streaming one ([`crate::stream`]) apply the same rules in the
+/// same order. Chunks arrive framed and CRC-checked (§1.3).
+pub(crate) struct ExplicitDecoder {
+    limits: Limits,
+    rate: Option<u8>,
+    region: Option<[f64; 6]>,
+    /// Position of the next critical chunk (0 = `GHED`).
+    next: usize,
+    header: Option<GaussianHeader>,
+    groups: Option<Vec<Group>>,
+    selected_layer: usize,
+    layers: usize,
+    rate_chosen: u8,
+    layer: Option<Layer>,
+    tiles: Option<TileTable>,
+    voxels: Option<Vec<[u32; 3]>>,
+    /// Which tiles the region keeps (set with the selected layer's `GATT`).
+    selected: Vec<bool>,
+    /// Every tile's symbols once `GATT` is decoded (`None`: not selected).
+    per_tile: Option<Vec<Option<TileSymbols>>>,
+}
+
+fn missing(tag: ChunkTag) -> Error {
+    Error::ChunkOrder {
+        found: ChunkTag::SEND,
+        expected: tag,
+    }
+}
+
+impl ExplicitDecoder {
+    pub(crate) fn new(limits: &Limits, rate: Option<u8>, region: Option<[f64; 6]>) -> Self {
+        ExplicitDecoder {
+            limits: *limits,
+            rate,
+            region,
+            next: 0,
+            header: None,
+            groups: None,
+            selected_layer: 0,
+            layers: 0,
+            rate_chosen: 0,
+            layer: None,
+            tiles: None,
+            voxels: None,
+            selected: Vec::new(),
+            per_tile: None,
+        }
+    }
+
+    /// §1.5, §3.7: whether a chunk tagged `tag` may come next, and what is done with it.
+    pub(crate) fn due(&self, tag: ChunkTag) -> Result<Due> {
         if !tag.is_critical() {
-            if header.is_none() {
+            if self.header.is_none() {
                 return Err(Error::ChunkOrder {
                     found: tag,
                     expected: ChunkTag::GHED,
                 });
             }
-            continue;
+            return Ok(Due::Ancillary);
         }
         if !CRITICAL_CHUNKS.contains(&tag) {
             return Err(Error::UnknownCriticalChunk { tag });
         }
-        let expected = expected_critical(next, layers);
+        let expected = expected_critical(self.next, self.layers);
         if tag != expected {
             return Err(Error::ChunkOrder {
                 found: tag,
                 expected,
             });
         }
-        let position = next;
-        next += 1;
-        let bytes = chunk.payload;
         // The layer a layer chunk belongs to.
-        let in_layer = position.checked_sub(2).map(|p| p / 4);
-        if matches!(in_layer, Some(l) if l < layers && l != selected) {
-            continue;
+        let in_layer = self.next.checked_sub(2).map(|p| p / 4);
+        Ok(match in_layer {
+            Some(l) if l < self.layers && l != self.selected_layer => Due::Skipped,
+            _ => Due::Decoded,
+        })
+    }
+
+    /// Decodes one chunk; `rest` is what follows it in the stream. Returns whether it was
+    /// `SEND`.
+    pub(crate) fn chunk(&mut self, tag: ChunkTag, bytes: &[u8], rest: &[u8]) -> Result<bool> {
+        let due = self.due(tag)?;
+        if due == Due::Ancillary {
+            return Ok(false);
         }
+        self.next += 1;
+        if due == Due::Skipped {
+            return Ok(false);
+        }
+        let tables = GaussianTables::standard();
         match tag {
             ChunkTag::GHED => {
-                let h = GaussianHeader::parse(bytes, limits)?;
-                (rate_chosen, selected, layers) = h.select_layer(rate)?;
-                header = Some(h);
+                let h = GaussianHeader::parse(bytes, &self.limits)?;
+                (self.rate_chosen, self.selected_layer, self.layers) = h.select_layer(self.rate)?;
+                self.header = Some(h);
             }
             ChunkTag::GQUA => {
-                let h = header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-                groups = Some(read_gqua(bytes, h.sh_degree, h.rate_count)?);
+                let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+                self.groups = Some(read_gqua(bytes, h.sh_degree, h.rate_count)?);
             }
             ChunkTag::GLAY => {
-                let g = groups.as_ref().ok_or(missing(ChunkTag::GQUA))?;
+                let g = self.groups.as_ref().ok_or(missing(ChunkTag::GQUA))?;
                 let values = g.iter().map(|g| g.dim).sum();
-                layer = Some(Layer::parse(bytes, g.len(), values)?);
+                self.layer = Some(Layer::parse(bytes, g.len(), values)?);
             }
             ChunkTag::TILS => {
-                let h = header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-                let l = layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
-                tiles = Some(TileTable::parse(bytes, h.count, l.coord_bits)?);
+                let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+                let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
+                self.tiles = Some(TileTable::parse(bytes, h.count, l.coord_bits)?);
             }
             ChunkTag::APOS => {
-                let t = tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-                voxels = Some(read_apos(bytes, t, tables)?);
+                let t = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+                self.voxels = Some(read_apos(bytes, t, tables)?);
             }
             ChunkTag::GATT => {
-                let (l, g) = (
-                    layer.as_ref().ok_or(missing(ChunkTag::GLAY))?,
-                    groups.as_ref().ok_or(missing(ChunkTag::GQUA))?,
-                );
-                let t = tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-                let v = voxels.as_ref().ok_or(missing(ChunkTag::APOS))?;
-                let h = header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-                let selected = t.select(h.origin, l.voxel_size, region);
-                symbols = Some(read_gatt(bytes, l, g, t, v, &selected, tables)?);
+                self.select_tiles()?;
+                let (l, g, t, v) = self.tile_inputs()?;
+                let per_tile = read_gatt(bytes, l, g, t, v, &self.selected, tables)?;
+                self.per_tile = Some(per_tile);
             }
             _ => {
                 // SEND: empty, last, nothing after it.
-                crate::container::chunk::check_send(bytes, reader.remaining())?;
-                break;
+                crate::container::chunk::check_send(bytes, rest)?;
+                return Ok(true);
             }
         }
+        Ok(false)
     }
-    let header = header.ok_or(missing(ChunkTag::GHED))?;
-    let groups = groups.ok_or(missing(ChunkTag::GQUA))?;
-    let layer = layer.ok_or(missing(ChunkTag::GLAY))?;
-    let tiles = tiles.ok_or(missing(ChunkTag::TILS))?;
-    let voxels = voxels.ok_or(missing(ChunkTag::APOS))?;
-    let per_tile = symbols.ok_or(missing(ChunkTag::GATT))?;
-    let mut gaussians = Gaussians {
-        sh_degree: header.sh_degree,
-        ..Gaussians::default()
-    };
-    let mut all = TileSymbols::default();
-    let mut kept = Vec::new();
-    for (t, s) in per_tile.iter().enumerate() {
-        let Some(s) = s else { continue };
-        kept.extend_from_slice(&voxels[tiles.range(t)]);
-        reconstruct_tile(
-            header.origin,
-            &layer,
-            &groups,
-            rate_chosen,
-            &voxels[tiles.range(t)],
-            s,
-            &mut gaussians,
-        );
-        all.coords.extend_from_slice(&s.coords);
-        all.rotation_index.extend_from_slice(&s.rotation_index);
-        all.size_class.extend_from_slice(&s.size_class);
-        all.refinement.extend_from_slice(&s.refinement);
+
+    /// The tiles the region keeps, fixed when the selected layer's `GATT` begins (§10.3).
+    pub(crate) fn select_tiles(&mut self) -> Result<&[bool]> {
+        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+        let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
+        let t = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+        self.selected = t.select(h.origin, l.voxel_size, self.region);
+        Ok(&self.selected)
     }
-    Ok(DecodedGaussians {
-        header,
-        groups,
-        rate: rate_chosen,
-        layer,
-        voxels: kept,
-        symbols: all,
-        tiles,
-        gaussians,
-    })
+
+    /// What decoding a tile of `GATT` reads: the layer, groups, tile table and voxels.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn tile_inputs(&self) -> Result<(&Layer, &[Group], &TileTable, &[[u32; 3]])> {
+        Ok((
+            self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?,
+            self.groups.as_deref().ok_or(missing(ChunkTag::GQUA))?,
+            self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?,
+            self.voxels.as_deref().ok_or(missing(ChunkTag::APOS))?,
+        ))
+    }
+
+    /// Whether the region keeps tile `t` ([`Self::select_tiles`] first).
+    pub(crate) fn is_selected(&self, t: usize) -> bool {
+        self.selected.get(t).copied().unwrap_or(false)
+    }
+
+    /// Every tile's symbols, once `GATT` is decoded.
+    pub(crate) fn decoded_tiles(&self) -> Option<&[Option<TileSymbols>]> {
+        self.per_tile.as_deref()
+    }
+
+    /// The stream's preflight, once `GHED` is decoded.
+    pub(crate) fn header(&self) -> Option<&GaussianHeader> {
+        self.header.as_ref()
+    }
+
+    /// §3.6: the Gaussians of tile `t` from its symbols, appended to `out`.
+    pub(crate) fn reconstruct(&self, t: usize, s: &TileSymbols, out: &mut Gaussians) -> Result<()> {
+        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+        let (l, g, tiles, v) = self.tile_inputs()?;
+        reconstruct_tile(h.origin, l, g, self.rate_chosen, &v[tiles.range(t)], s, out);
+        Ok(())
+    }
+
+    /// Records the selected layer's `GATT` as decoded elsewhere (tile by tile, as its bytes
+    /// arrived): its position is taken and its symbols kept.
+    pub(crate) fn gatt_decoded(&mut self, per_tile: Vec<Option<TileSymbols>>) {
+        self.next += 1;
+        self.per_tile = Some(per_tile);
+    }
+
+    /// §3.6, after `SEND`: the Gaussians of every decoded tile, in stream order.
+    pub(crate) fn finish(self) -> Result<DecodedGaussians> {
+        self.finish_with(None)
+    }
+
+    /// [`Self::finish`] with the Gaussians already reconstructed tile by tile, in order
+    /// (`None`: reconstruct them now).
+    pub(crate) fn finish_with(self, reconstructed: Option<Gaussians>) -> Result<DecodedGaussians> {
+        let per_tile = self.per_tile.as_ref().ok_or(missing(ChunkTag::GATT))?;
+        let done = reconstructed.is_some();
+        let mut gaussians = reconstructed.unwrap_or_else(|| Gaussians {
+            sh_degree: self.header.as_ref().map_or(0, |h| h.sh_degree),
+            ..Gaussians::default()
+        });
+        let mut all = TileSymbols::default();
+        let mut kept = Vec::new();
+        let (_, _, tiles, voxels) = self.tile_inputs()?;
+        for (t, s) in per_tile.iter().enumerate() {
+            let Some(s) = s else { continue };
+            kept.extend_from_slice(&voxels[tiles.range(t)]);
+            if !done {
+                self.reconstruct(t, s, &mut gaussians)?;
+            }
+            all.coords.extend_from_slice(&s.coords);
+            all.rotation_index.extend_from_slice(&s.rotation_index);
+            all.size_class.extend_from_slice(&s.size_class);
+            all.refinement.extend_from_slice(&s.refinement);
+        }
+        let missing_part = |tag| missing(tag);
+        Ok(DecodedGaussians {
+            header: self.header.ok_or(missing_part(ChunkTag::GHED))?,
+            groups: self.groups.ok_or(missing_part(ChunkTag::GQUA))?,
+            rate: self.rate_chosen,
+            layer: self.layer.ok_or(missing_part(ChunkTag::GLAY))?,
+            voxels: kept,
+            symbols: all,
+            tiles: self.tiles.ok_or(missing_part(ChunkTag::TILS))?,
+            gaussians,
+        })
+    }
 }

@@ -46,6 +46,7 @@ impl GroupKind {
         }
     }
 
+    /// The group's name in Table 3-3 and in reports.
     pub fn name(self) -> &'static str {
         match self {
             GroupKind::Opacity => "opacity",
@@ -73,6 +74,7 @@ pub const LATTICE_SCALED_ORTHOGONAL: u8 = 4;
 /// One group's quantizer (§3.3).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Group {
+    /// Which attributes the group holds.
     pub kind: GroupKind,
     /// Values per Gaussian.
     pub dim: usize,

@@ -44,6 +44,7 @@ impl GaussianHeader {
             .collect()
     }
 
+    /// The `GHED` payload (§3.2), as the encoder writes it.
     pub fn to_payload(&self) -> Vec<u8> {
         let mut w = PayloadWriter::default();
         w.u32(self.count);

@@ -62,6 +62,7 @@ pub fn glay_len(groups: usize, values: usize) -> u64 {
 }
 
 impl Layer {
+    /// The `GLAY` payload (§3.4), as the encoder writes it.
     pub fn to_payload(&self) -> Vec<u8> {
         let mut w = PayloadWriter::default();
         w.u8(METHOD_RAW);

@@ -21,6 +21,7 @@ pub enum LatticeKind {
 }
 
 impl LatticeKind {
+    /// Every kind, in code order.
     pub const ALL: [LatticeKind; 4] = [
         LatticeKind::Identity,
         LatticeKind::Dn,
@@ -38,6 +39,7 @@ impl LatticeKind {
         }
     }
 
+    /// The kind of a `HEAD` code (Table 7-1), `None` for an unassigned code.
     pub fn from_code(code: u8) -> Option<LatticeKind> {
         LatticeKind::ALL.into_iter().find(|k| k.code() == code)
     }
@@ -52,6 +54,7 @@ impl LatticeKind {
         }
     }
 
+    /// The kind of a [`Self::name`].
     pub fn from_name(name: &str) -> Option<LatticeKind> {
         LatticeKind::ALL.into_iter().find(|k| k.name() == name)
     }

@@ -15,9 +15,13 @@ pub use lattice_kind::LatticeKind;
 /// Element type of a tensor (spec §0.2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dtype {
+    /// IEEE 754 binary32, little-endian.
     F32,
+    /// Two's-complement 32-bit integer, little-endian.
     I32,
+    /// Unsigned byte.
     U8,
+    /// Signed byte.
     I8,
 }
 
@@ -125,38 +129,56 @@ impl Dims {
 
 /// Tensor names of the schema (spec Table 2-1), as constants so code and spec share one spelling.
 pub mod names {
+    /// Tensor name of Table 2-1.
     pub const ORIGIN: &str = "geometry.origin";
+    /// Tensor name of Table 2-1.
     pub const VOXEL_SIZE: &str = "geometry.voxel_size";
+    /// Tensor name of Table 2-1.
     pub const VOXEL: &str = "anchor.voxel";
+    /// Tensor name of Table 2-1.
     pub const MASK: &str = "anchor.mask";
+    /// Tensor name of Table 2-1.
     pub const FEAT: &str = "anchor.feat";
+    /// Tensor name of Table 2-1.
     pub const SCALING: &str = "anchor.scaling";
+    /// Tensor name of Table 2-1.
     pub const OFFSETS: &str = "anchor.offsets";
+    /// Tensor name of Table 2-1.
     pub const RES_3D: &str = "hyperprior.resolutions_3d";
+    /// Tensor name of Table 2-1.
     pub const RES_2D: &str = "hyperprior.resolutions_2d";
+    /// Tensor name of Table 2-1.
     pub const LOG2_SIZE: &str = "hyperprior.log2_size";
+    /// Tensor name of Table 2-1.
     pub const GRID_3D: &str = "hyperprior.grid_3d";
+    /// Tensor name of Table 2-1.
     pub const GRID_XY: &str = "hyperprior.grid_xy";
+    /// Tensor name of Table 2-1.
     pub const GRID_XZ: &str = "hyperprior.grid_xz";
+    /// Tensor name of Table 2-1.
     pub const GRID_YZ: &str = "hyperprior.grid_yz";
+    /// Tensor names of Table 2-1.
     pub const MLP_GRID: [&str; 4] = [
         "mlp_grid.0.weight",
         "mlp_grid.0.bias",
         "mlp_grid.2.weight",
         "mlp_grid.2.bias",
     ];
+    /// Tensor names of Table 2-1.
     pub const MLP_OPACITY: [&str; 4] = [
         "mlp_opacity.0.weight",
         "mlp_opacity.0.bias",
         "mlp_opacity.2.weight",
         "mlp_opacity.2.bias",
     ];
+    /// Tensor names of Table 2-1.
     pub const MLP_COV: [&str; 4] = [
         "mlp_cov.0.weight",
         "mlp_cov.0.bias",
         "mlp_cov.2.weight",
         "mlp_cov.2.bias",
     ];
+    /// Tensor names of Table 2-1.
     pub const MLP_COLOR: [&str; 4] = [
         "mlp_color.0.weight",
         "mlp_color.0.bias",
@@ -185,6 +207,7 @@ pub mod names {
         "quant.scaling.regions.basis_s",
         "quant.scaling.regions.basis_v",
     ];
+    /// Tensor names of Table 2-1.
     pub const QUANT_SCALING: [&str; 5] = [
         "quant.scaling.step",
         "quant.scaling.gains",
@@ -192,14 +215,18 @@ pub mod names {
         "quant.scaling.basis_s",
         "quant.scaling.basis_v",
     ];
+    /// Tensor names of Table 2-1.
     pub const QUANT_OFFSETS: [&str; 2] = ["quant.offsets.step", "quant.offsets.gains"];
 }
 
 /// One row of spec Table 2-1.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TensorEntry {
+    /// The tensor's name (Table 2-1).
     pub name: &'static str,
+    /// Its element type.
     pub dtype: Dtype,
+    /// Its shape, outermost dimension first.
     pub shape: Vec<u64>,
 }
 
@@ -310,24 +337,33 @@ pub fn decoded_bytes(d: &Dims) -> u64 {
 /// weights row-major `[out, in]` as PyTorch stores them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mlp {
+    /// Layer 0 weights `[hidden, in]`.
     pub w0: Vec<f32>,
+    /// Layer 0 biases `[hidden]`.
     pub b0: Vec<f32>,
+    /// Layer 1 weights `[out, hidden]`.
     pub w1: Vec<f32>,
+    /// Layer 1 biases `[out]`.
     pub b1: Vec<f32>,
 }
 
 /// Lattice basis B = U diag(s) V^T of one attribute group (spec §2.6), U and V row-major.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Basis {
+    /// U, `[d, d]` row-major.
     pub u: Vec<f32>,
+    /// The diagonal s, `[d]`, every entry positive.
     pub s: Vec<f32>,
+    /// V, `[d, d]` row-major.
     pub v: Vec<f32>,
 }
 
 /// Quantizer of one attribute group: base step, per-rate gains, optional general basis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GroupQuantizer {
+    /// The base step Δ (§7.3), positive.
     pub step: f32,
+    /// One gain per rate (§7.4): rate r quantizes with step Δ·`gains[r]`.
     pub gains: Vec<f32>,
     /// The factors of a general lattice basis (`Some` exactly when the group's
     /// [`LatticeKind`] in [`Dims`] is `General`); with regions, region 0's.
@@ -341,7 +377,9 @@ pub struct GroupQuantizer {
 /// `start` … (the next region's start − 1), in canonical order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Region {
+    /// The region's first anchor, in canonical order.
     pub start: u32,
+    /// The region's basis factors.
     pub basis: Basis,
 }
 
@@ -374,9 +412,13 @@ impl GroupQuantizer {
 /// The binary hash grid (spec §2.4): values are -1 or +1, row-major `[entries, C]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HashGrid {
+    /// The 3D levels' entries, level after level.
     pub grid_3d: Vec<i8>,
+    /// The xy plane's 2D levels' entries.
     pub grid_xy: Vec<i8>,
+    /// The xz plane's 2D levels' entries.
     pub grid_xz: Vec<i8>,
+    /// The yz plane's 2D levels' entries.
     pub grid_yz: Vec<i8>,
 }
 
@@ -398,17 +440,29 @@ pub struct Anchors {
 /// A complete scene model: the encoder's input and the decoder's output.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneModel {
+    /// The scene's dimensions (Table 1-4).
     pub dims: Dims,
+    /// World position of voxel (0, 0, 0)'s corner (§2.2).
     pub origin: [f32; 3],
+    /// Edge length of a voxel in world units (§2.2).
     pub voxel_size: f32,
+    /// The anchors, in canonical (Morton) order (§2.2).
     pub anchors: Anchors,
+    /// The hyperprior's binary hash grid (§2.4).
     pub grid: HashGrid,
+    /// The hyperprior's context MLP (§2.5, §5.3).
     pub mlp_grid: Mlp,
+    /// Scaffold-GS opacity MLP (§2.5, Annex C.1).
     pub mlp_opacity: Mlp,
+    /// Scaffold-GS covariance MLP: scales and rotations (§2.5, Annex C.1).
     pub mlp_cov: Mlp,
+    /// Scaffold-GS colour MLP (§2.5, Annex C.1).
     pub mlp_color: Mlp,
+    /// The feature group's quantizer (§7).
     pub quant_feat: GroupQuantizer,
+    /// The scaling group's quantizer (§7).
     pub quant_scaling: GroupQuantizer,
+    /// The offset group's quantizer (§7; always the identity lattice).
     pub quant_offsets: GroupQuantizer,
 }
 

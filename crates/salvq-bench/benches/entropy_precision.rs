@@ -111,7 +111,7 @@ fn measure(work: &Workload, precision: u32, tail_q4: u32, r_max: u32, runs: usiz
 }
 
 fn tail_label(tail_q4: u32) -> String {
-    if tail_q4 % 16 == 0 {
+    if tail_q4.is_multiple_of(16) {
         format!("{}", tail_q4 / 16)
     } else {
         format!("{:.2}", f64::from(tail_q4) / 16.0)

@@ -340,13 +340,11 @@ fn run(cli: Cli) -> Result<(), Error> {
         } => {
             let t = Instant::now();
             let stream = salvq_render::io::read_file(&input)?;
-            let options = salvq::DecodeOptions {
-                limits: Limits::default(),
-                rate,
-                threads: threads.map(|n| n as usize),
-                region,
-                fault: inject_fault,
-            };
+            let options = salvq::DecodeOptions::default()
+                .with_rate(rate)
+                .with_threads(threads.map(|n| n as usize))
+                .with_region(region)
+                .with_fault(inject_fault);
             if salvq::decoder::is_explicit(&stream) {
                 return decode_explicit(&stream, &options, &output, canonical, measure, t);
             }

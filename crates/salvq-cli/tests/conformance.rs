@@ -111,11 +111,9 @@ fn every_table_fault_is_caught() -> Result<(), Failed> {
         .into_par_iter()
         .filter(|&k| {
             !decodes.iter().any(|(_, stream, rate, hash)| {
-                let options = DecodeOptions {
-                    rate: Some(*rate),
-                    fault: Some(Fault::FrequencyTable { scale: k }),
-                    ..Default::default()
-                };
+                let options = DecodeOptions::default()
+                    .with_rate(Some(*rate))
+                    .with_fault(Some(Fault::FrequencyTable { scale: k }));
                 match decode_with_symbols(stream, &options) {
                     Err(_) => true,
                     Ok((m, sy)) => &integer_hash(&canonical_tensors(&m, &sy)) != hash,

@@ -107,19 +107,32 @@ pub fn decode_input_metered(data: &[u8], meter: &dyn AllocationMeter) {
 }
 
 /// Whole-stream decode: never panics; allocates at most [`allocation_bound`] of what the
-/// preflight allows; a decoded model stays within the limits; a decoded stream whose model
+/// preflight allows; an explicit-profile stream fed in pieces decodes to the same result; a decoded model stays within the limits; a decoded stream whose model
 /// the encoder accepts re-encodes to a stream that decodes.
 pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
     let limits = fuzz_limits();
-    let options = DecodeOptions {
-        limits,
-        rate: data.last().map(|b| b % 4),
-        ..Default::default()
-    };
+    let options = DecodeOptions::default()
+        .with_limits(limits)
+        .with_rate(data.last().map(|b| b % 4));
     let allowed = stated_decoded_bytes(data, &limits).min(limits.max_alloc_bytes);
     meter.cap(Some(allocation_bound(allowed, data.len() as u64)));
     let decoded = salvq::decoder::decode_any(data, &options);
     meter.cap(None);
+    if salvq::decoder::is_explicit(data) {
+        // Fed in pieces, the stream decodes to the same result or the same error.
+        let piece = 1 + usize::from(data.first().copied().unwrap_or(0)) * 7;
+        let mut streaming = salvq::stream::StreamDecoder::new(options.clone());
+        for p in data.chunks(piece) {
+            if streaming.feed(p).is_err() {
+                break;
+            }
+        }
+        assert_eq!(
+            streaming.finish(),
+            decoded,
+            "streamed in pieces of {piece} bytes"
+        );
+    }
     let model = match decoded {
         Ok(salvq::decoder::Decoded::Anchors(model)) => model,
         Ok(salvq::decoder::Decoded::Gaussians(d)) => {
@@ -296,11 +309,9 @@ pub fn extract_input(data: &[u8]) {
     assert_eq!(again, single, "extraction is not idempotent");
     let _ = decode_with_options(
         &single,
-        &DecodeOptions {
-            limits,
-            rate: Some(rate),
-            ..Default::default()
-        },
+        &DecodeOptions::default()
+            .with_limits(limits)
+            .with_rate(Some(rate)),
     );
 }
 
@@ -405,10 +416,7 @@ pub fn round_trip(p: RoundTrip) {
     for layer in &e.layers {
         let d = decode_with_options(
             &e.stream,
-            &DecodeOptions {
-                rate: Some(layer.rate),
-                ..Default::default()
-            },
+            &DecodeOptions::default().with_rate(Some(layer.rate)),
         )
         .expect("an encoded stream decodes");
         assert_eq!(d, layer.expected, "rate {}", layer.rate);

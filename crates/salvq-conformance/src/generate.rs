@@ -100,10 +100,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         let file = format!("{}.salvq", v.name);
         let mut decodes = Vec::new();
         for (i, &rate) in v.rates.iter().enumerate() {
-            let options = DecodeOptions {
-                rate: Some(rate),
-                ..Default::default()
-            };
+            let options = DecodeOptions::default().with_rate(Some(rate));
             let (model, symbols) = decode_with_symbols(&v.stream, &options)
                 .map_err(|e| format!("{} rate {rate}: the reference decoder fails: {e}", v.name))?;
             if v.oracle.get(i) != Some(&model) {
@@ -160,10 +157,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         .into_iter()
         .chain(explicit_must_fail_vectors())
     {
-        let options = DecodeOptions {
-            rate: Some(v.rate),
-            ..Default::default()
-        };
+        let options = DecodeOptions::default().with_rate(Some(v.rate));
         match salvq::decoder::decode_any(&v.stream, &options) {
             Err(e) if e.class() == v.class => {}
             other => {

@@ -326,10 +326,7 @@ mod tests {
     const UNREACHABLE: [&str; 1] = ["ScaleIndexOutOfRange"];
 
     fn decode_vector(v: &MustFailVector) -> Error {
-        let options = DecodeOptions {
-            rate: Some(v.rate),
-            ..Default::default()
-        };
+        let options = DecodeOptions::default().with_rate(Some(v.rate));
         match decode_with_options(&v.stream, &options) {
             Ok(_) => panic!("{}: decoded", v.name),
             Err(e) => e,

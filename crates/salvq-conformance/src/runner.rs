@@ -288,7 +288,7 @@ fn check_must_fail(
 /// Runs `template` on every vector of `dir` whose name contains `filter` (all when `None`).
 pub fn run(dir: &Path, template: &str, filter: Option<&str>) -> Result<(Manifest, Report), String> {
     run_selected(dir, template, &|v| {
-        filter.map_or(true, |f| v.name.contains(f))
+        filter.is_none_or(|f| v.name.contains(f))
     })
 }
 

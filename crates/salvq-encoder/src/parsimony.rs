@@ -252,7 +252,7 @@ pub fn prune_grid_levels_sampled(
                 continue;
             };
             let fits = e <= mse_limit;
-            if fits && b < bytes && best.as_ref().map_or(true, |(_, t)| b < t.bytes_without) {
+            if fits && b < bytes && best.as_ref().is_none_or(|(_, t)| b < t.bytes_without) {
                 best = Some((
                     candidate,
                     LevelTrial {

@@ -248,7 +248,7 @@ fn read_ply_with(bytes: &[u8], strict: bool) -> Result<Gaussians> {
         })?;
         let needed = e.count.checked_mul(stride);
         let available = (body.len() as u64).saturating_sub(offset);
-        if needed.map_or(true, |n| n > available) {
+        if needed.is_none_or(|n| n > available) {
             return Err(Error::PlyTruncated {
                 element: e.name.clone(),
                 count: e.count,

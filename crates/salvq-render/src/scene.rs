@@ -32,10 +32,7 @@ impl Scene {
             });
         }
         if stream {
-            let options = salvq::DecodeOptions {
-                rate,
-                ..Default::default()
-            };
+            let options = salvq::DecodeOptions::default().with_rate(rate);
             return Ok(match salvq::decoder::decode_any(bytes, &options)? {
                 salvq::decoder::Decoded::Anchors(m) => Scene::Model(m),
                 // An explicit-profile stream decodes to the Gaussians themselves (§3).

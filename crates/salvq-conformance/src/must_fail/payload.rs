@@ -339,7 +339,7 @@ fn padding_stream() -> Vec<u8> {
                 .iter()
                 .map(|t| t.iter().filter(|&&u| u).count())
                 .sum();
-            entries * usize::from(m.dims.grid_channels) % 8 != 0
+            !(entries * usize::from(m.dims.grid_channels)).is_multiple_of(8)
         })
         .expect("a small scene with padding bits");
     let s = encode(&m, &EncodeOptions::default());

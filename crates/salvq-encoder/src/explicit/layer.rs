@@ -368,7 +368,7 @@ pub fn encode_layer(
             total += if pr { on } else { off };
             at += g.dim;
         }
-        if best.as_ref().map_or(true, |b| total < b.0) {
+        if best.as_ref().is_none_or(|b| total < b.0) {
             best = Some((total, level, predict));
         }
     }

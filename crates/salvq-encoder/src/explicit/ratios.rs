@@ -30,7 +30,7 @@ fn quantized(
 ) -> Gaussians {
     let mut out = g.clone();
     let q = |x: f64| (step * (x / step).round()) as f32;
-    let chosen = |i: usize| class.map_or(true, |(c, classes)| classes[i] == c);
+    let chosen = |i: usize| class.is_none_or(|(c, classes)| classes[i] == c);
     let Some(gi) = group else {
         for (i, pos) in out.positions.iter_mut().enumerate() {
             if !chosen(i) {

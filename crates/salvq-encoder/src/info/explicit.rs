@@ -104,7 +104,7 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
             .groups
             .iter()
             .enumerate()
-            .flat_map(|(gi, g)| std::iter::repeat(gi).take(g.dim))
+            .flat_map(|(gi, g)| std::iter::repeat_n(gi, g.dim))
             .collect();
         let rotation_group = d
             .groups

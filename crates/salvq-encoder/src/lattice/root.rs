@@ -101,7 +101,7 @@ pub fn closest_e8_product(y: &[f64]) -> Result<RootPoint, LatticeError> {
     if y.is_empty() {
         return Err(LatticeError::EmptyDimension);
     }
-    if y.len() % 8 != 0 {
+    if !y.len().is_multiple_of(8) {
         return Err(LatticeError::DimensionMismatch {
             expected: y.len().div_ceil(8) * 8,
             got: y.len(),

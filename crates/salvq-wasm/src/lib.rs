@@ -1,0 +1,201 @@
+//! The SALVQ decoder for the web (issue 20): a stream of either profile decoded into typed
+//! arrays of standard 3DGS Gaussians, laid out as the Inria PLY stores them (log-scales,
+//! opacity logits, quaternions w x y z, SH channel-major), whole ([`decode`]) or as its
+//! bytes arrive ([`Stream`]).
+//!
+//! An explicit-profile stream (spec §3) decodes to its Gaussians; its tiles come out of
+//! [`Stream::take`] as their bytes arrive. An anchors-profile stream decodes to a scene
+//! model whose Gaussians depend on the camera (Scaffold-GS, Annex C.1); they are computed
+//! for ring camera 0 of Annex C.2, as `salvq export-ply` does, once the stream is complete.
+//!
+//! Decoding runs on the calling thread (a Web Worker, say) without SIMD; the output is the
+//! same bits as the native decoder's (§10.3).
+
+use wasm_bindgen::prelude::*;
+
+use salvq::explicit::Gaussians;
+use salvq::stream::StreamDecoder;
+use salvq::{DecodeOptions, Decoded};
+use salvq_render::camera::{Bounds, Ring};
+use salvq_render::neural;
+
+/// A batch of Gaussians as typed arrays (copied out on each getter call).
+#[wasm_bindgen]
+pub struct Batch {
+    gaussians: Gaussians,
+    /// Tiles in the batch (explicit profile; 0 for an anchors-profile stream).
+    tiles: usize,
+}
+
+#[wasm_bindgen]
+impl Batch {
+    /// Number of Gaussians.
+    #[wasm_bindgen(getter)]
+    pub fn count(&self) -> usize {
+        self.gaussians.len()
+    }
+
+    /// Tiles the batch completes (explicit profile).
+    #[wasm_bindgen(getter)]
+    pub fn tiles(&self) -> usize {
+        self.tiles
+    }
+
+    /// SH degree, 0 … 3.
+    #[wasm_bindgen(getter, js_name = shDegree)]
+    pub fn sh_degree(&self) -> u8 {
+        self.gaussians.sh_degree
+    }
+
+    /// Means, `x y z` per Gaussian.
+    #[wasm_bindgen(getter)]
+    pub fn positions(&self) -> Vec<f32> {
+        self.gaussians.positions.iter().flatten().copied().collect()
+    }
+
+    /// Natural logarithms of the three axis scales per Gaussian.
+    #[wasm_bindgen(getter, js_name = logScales)]
+    pub fn log_scales(&self) -> Vec<f32> {
+        self.gaussians
+            .log_scales
+            .iter()
+            .flatten()
+            .copied()
+            .collect()
+    }
+
+    /// Rotation quaternions `w x y z` per Gaussian.
+    #[wasm_bindgen(getter)]
+    pub fn rotations(&self) -> Vec<f32> {
+        self.gaussians.rotations.iter().flatten().copied().collect()
+    }
+
+    /// Opacity logits, one per Gaussian.
+    #[wasm_bindgen(getter, js_name = opacityLogits)]
+    pub fn opacity_logits(&self) -> Vec<f32> {
+        self.gaussians.opacity_logit.clone()
+    }
+
+    /// SH band 0, three colour channels per Gaussian (`f_dc_0..2`).
+    #[wasm_bindgen(getter, js_name = shDc)]
+    pub fn sh_dc(&self) -> Vec<f32> {
+        self.gaussians.f_dc.iter().flatten().copied().collect()
+    }
+
+    /// The higher SH coefficients, `3·B` per Gaussian channel-major (`f_rest_*`).
+    #[wasm_bindgen(getter, js_name = shRest)]
+    pub fn sh_rest(&self) -> Vec<f32> {
+        self.gaussians.f_rest.clone()
+    }
+}
+
+fn options(rate: Option<u8>) -> DecodeOptions {
+    DecodeOptions::default().with_rate(rate)
+}
+
+fn to_js(e: salvq::Error) -> JsError {
+    JsError::new(&e.to_string())
+}
+
+/// The Gaussians of a decoded stream: an explicit stream's own, or an anchors-profile
+/// model's neural Gaussians seen from ring camera 0 (Annex C.1, C.2).
+fn gaussians_of(decoded: Decoded) -> Result<Gaussians, JsError> {
+    match decoded {
+        Decoded::Gaussians(d) => Ok(d.gaussians),
+        Decoded::Anchors(m) => {
+            let bounds = Bounds::of_points(&neural::anchor_positions(&m));
+            let camera = Ring::default().camera(&bounds, 0, 64, 48).map_err(to_js)?;
+            neural::neural_gaussians(&m, camera.position).map_err(to_js)
+        }
+    }
+}
+
+/// Decodes a whole stream at `rate` (default: the lowest coded rate).
+#[wasm_bindgen]
+pub fn decode(bytes: &[u8], rate: Option<u8>) -> Result<Batch, JsError> {
+    let decoded = salvq::decode_any(bytes, &options(rate)).map_err(to_js)?;
+    Ok(Batch {
+        gaussians: gaussians_of(decoded)?,
+        tiles: 0,
+    })
+}
+
+/// A stream decoded as its bytes arrive: [`Stream::feed`] each piece, [`Stream::take`] the
+/// Gaussians of the tiles completed so far, [`Stream::finish`] at the end.
+#[wasm_bindgen]
+pub struct Stream {
+    inner: Option<StreamDecoder>,
+    /// Gaussians already handed out by `take`.
+    taken: usize,
+    tiles_taken: usize,
+}
+
+#[wasm_bindgen]
+impl Stream {
+    /// A decoder for `rate` (default: the lowest coded rate).
+    #[wasm_bindgen(constructor)]
+    pub fn new(rate: Option<u8>) -> Stream {
+        Stream {
+            inner: Some(StreamDecoder::new(options(rate))),
+            taken: 0,
+            tiles_taken: 0,
+        }
+    }
+
+    /// Takes the next bytes; an error means the stream is broken whatever follows.
+    pub fn feed(&mut self, bytes: &[u8]) -> Result<(), JsError> {
+        let inner = self.inner.as_mut().ok_or_else(finished)?;
+        inner.feed(bytes).map_err(to_js)
+    }
+
+    /// The Gaussians of the tiles completed since the last call (provisional until
+    /// [`Stream::finish`] confirms the stream).
+    pub fn take(&mut self) -> Result<Batch, JsError> {
+        let inner = self.inner.as_mut().ok_or_else(finished)?;
+        let tiles = inner.tiles().len() - self.tiles_taken;
+        self.tiles_taken = inner.tiles().len();
+        let all = inner.gaussians();
+        let from = self.taken;
+        self.taken = all.len();
+        Ok(Batch {
+            gaussians: slice(all, from),
+            tiles,
+        })
+    }
+
+    /// Bytes received so far.
+    pub fn received(&self) -> usize {
+        self.inner.as_ref().map_or(0, StreamDecoder::received)
+    }
+
+    /// Ends the stream: the Gaussians not yet taken (for an anchors-profile stream, all of
+    /// them), or the error the whole-buffer decoder reports for these bytes.
+    pub fn finish(&mut self) -> Result<Batch, JsError> {
+        let inner = self.inner.take().ok_or_else(finished)?;
+        let decoded = inner.finish().map_err(to_js)?;
+        let all = gaussians_of(decoded)?;
+        let from = self.taken.min(all.len());
+        Ok(Batch {
+            gaussians: slice(&all, from),
+            tiles: 0,
+        })
+    }
+}
+
+fn finished() -> JsError {
+    JsError::new("the stream was finished")
+}
+
+/// Gaussians `from..` of `g`.
+fn slice(g: &Gaussians, from: usize) -> Gaussians {
+    let b = 3 * g.rest_per_channel();
+    Gaussians {
+        positions: g.positions[from..].to_vec(),
+        sh_degree: g.sh_degree,
+        f_dc: g.f_dc[from..].to_vec(),
+        f_rest: g.f_rest[from * b..].to_vec(),
+        opacity_logit: g.opacity_logit[from..].to_vec(),
+        log_scales: g.log_scales[from..].to_vec(),
+        rotations: g.rotations[from..].to_vec(),
+    }
+}

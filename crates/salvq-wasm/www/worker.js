@@ -1,0 +1,68 @@
+// Decodes a .salvq stream in a Web Worker as its bytes arrive (salvq-wasm's Stream) and posts
+// the Gaussians of each batch of completed tiles to the page as transferable typed arrays.
+import init, { Stream } from './pkg/salvq_wasm.js';
+
+const arrays = (b) => ({
+  count: b.count, tiles: b.tiles, shDegree: b.shDegree,
+  positions: b.positions, logScales: b.logScales, rotations: b.rotations,
+  opacityLogits: b.opacityLogits, shDc: b.shDc, shRest: b.shRest,
+});
+const transfer = (a) => [a.positions, a.logScales, a.rotations, a.opacityLogits, a.shDc, a.shRest].map((x) => x.buffer);
+
+self.onmessage = async (ev) => {
+  const { url, rate, slice } = ev.data;
+  const t0 = performance.now();
+  try {
+    await init();
+    const tInit = performance.now();
+    const response = await fetch(url);
+    if (!response.ok) throw new Error(`fetch ${url}: ${response.status}`);
+    const reader = response.body.getReader();
+    const stream = new Stream(rate ?? undefined);
+    let decodeMs = 0, received = 0, firstTile = null, pieces = 0;
+    const post = (b, kind) => {
+      const a = arrays(b);
+      b.free();
+      if (a.count === 0 && kind === 'tiles') return;
+      if (firstTile === null && a.count > 0) firstTile = { ms: performance.now() - t0, bytes: received };
+      self.postMessage({ kind, batch: a, received }, transfer(a));
+    };
+    for (;;) {
+      const { done, value } = await reader.read();
+      if (done) break;
+      // `slice` feeds what arrived in smaller pieces, as a slow link would deliver it.
+      const step = slice > 0 ? slice : value.length;
+      for (let at = 0; at < value.length; at += step) {
+        const piece = value.subarray(at, Math.min(value.length, at + step));
+        received += piece.length;
+        pieces++;
+        const t = performance.now();
+        stream.feed(piece);
+        const batch = stream.take();
+        decodeMs += performance.now() - t;
+        post(batch, 'tiles');
+      }
+    }
+    const t = performance.now();
+    const last = stream.finish();
+    decodeMs += performance.now() - t;
+    post(last, 'tiles');
+    stream.free();
+    // The same bytes decoded whole, for the decode time without the network in between.
+    const bytes = new Uint8Array(await (await fetch(url)).arrayBuffer());
+    const { decode } = await import('./pkg/salvq_wasm.js');
+    const runs = [];
+    for (let i = 0; i < 5; i++) {
+      const s = performance.now();
+      decode(bytes, rate ?? undefined).free();
+      runs.push(performance.now() - s);
+    }
+    runs.sort((x, y) => x - y);
+    self.postMessage({
+      kind: 'done', received, pieces, decodeMs, firstTile,
+      initMs: tInit - t0, totalMs: performance.now() - t0, wholeDecodeMs: runs,
+    });
+  } catch (e) {
+    self.postMessage({ kind: 'error', error: String(e && e.message || e) });
+  }
+};

@@ -1,0 +1,412 @@
+//! Decoding as the bytes arrive (spec §1.5, §3.7, §10.2): a viewer feeds the stream in pieces
+//! and draws each tile of an explicit-profile stream as soon as its `GATT` body is complete.
+//!
+//! The result, and the error of a broken stream, are those of the whole-buffer decoder
+//! ([`crate::decoder::decode_any`]) on the same bytes:
+//! - a chunk is decoded once it is complete and its CRC checked, in stream order, so an error
+//!   found in it is the one the whole-buffer decoder reports (everything before it passed);
+//! - the selected layer's `GATT` is the exception: its tiles are decoded as their bodies
+//!   arrive, before the chunk's CRC can be checked, so the tiles handed out are provisional
+//!   until the chunk is complete. A fault in a tile is held until then; a CRC mismatch (which
+//!   the whole-buffer decoder checks first) takes precedence. Anything unusual in the chunk
+//!   (a length table that does not add up, say) is left to the whole-chunk decoder once the
+//!   chunk is complete, so the error is the same;
+//! - a truncated stream is reported by [`StreamDecoder::finish`], which is the only place
+//!   that knows no more bytes are coming.
+//!
+//! The anchors profile cannot show a tile early: a tile's attributes are spread over `AMSK`,
+//! `AFEA`, `ASCL` and `AOFF`, which come one after another (§6.6), so its stream is decoded
+//! whole when [`StreamDecoder::finish`] is called.
+
+use std::ops::Range;
+
+use crate::container::chunk::{ChunkReader, ChunkTag};
+use crate::container::method::METHOD_CODED;
+use crate::container::signature::{Signature, SIGNATURE_LEN};
+use crate::decoder::{decode_any, DecodeOptions, Decoded};
+use crate::entropy::GaussianTables;
+use crate::error::{Error, Result};
+use crate::explicit::attributes::TileSymbols;
+use crate::explicit::decode::{decode_tile, Due, ExplicitDecoder};
+use crate::explicit::Gaussians;
+use crate::limits::LimitKind;
+
+/// Bytes of a chunk's length and tag fields (§1.3).
+const CHUNK_HEADER: usize = 8;
+/// Bytes of a chunk's CRC (§1.3).
+const CHUNK_CRC: usize = 4;
+
+/// A decoder fed a stream in pieces ([`Self::feed`]); [`Self::finish`] gives what the
+/// whole-buffer decoder gives for the same bytes.
+///
+/// ```
+/// use salvq::stream::StreamDecoder;
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/conformance/vectors/g-sh3-rates.salvq");
+/// let stream = std::fs::read(path).expect("a conformance vector");
+/// let mut decoder = StreamDecoder::new(Default::default());
+/// for piece in stream.chunks(1000) {
+///     decoder.feed(piece)?;
+///     for tile in decoder.new_tiles() {
+///         let _drawable = &decoder.gaussians().positions[tile.gaussians.clone()];
+///     }
+/// }
+/// let decoded = decoder.finish()?;
+/// assert_eq!(decoded, salvq::decoder::decode_any(&stream, &Default::default())?);
+/// # Ok::<(), salvq::Error>(())
+/// ```
+pub struct StreamDecoder {
+    options: DecodeOptions,
+    buf: Vec<u8>,
+    /// Offset of the next chunk not yet decoded (0 until the signature is read).
+    at: usize,
+    profile: Profile,
+    /// The Gaussians of the tiles decoded so far, in stream order (explicit profile).
+    gaussians: Gaussians,
+    tiles: Vec<DecodedTile>,
+    /// Tiles already returned by [`Self::new_tiles`].
+    handed_out: usize,
+    /// The error reported, kept so that later calls report it again.
+    error: Option<Error>,
+    /// Offset just past `SEND`, once it is decoded.
+    end: Option<usize>,
+}
+
+/// A tile whose Gaussians are ready (§10): its index in the layer's tile table and the range
+/// it occupies in [`StreamDecoder::gaussians`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DecodedTile {
+    /// The tile's index in `TILS` (§10.1).
+    pub index: usize,
+    /// Its Gaussians in [`StreamDecoder::gaussians`].
+    pub gaussians: Range<usize>,
+}
+
+enum Profile {
+    /// The first chunk is not complete yet.
+    Unknown,
+    /// Decoded whole by `finish`.
+    Anchors,
+    Explicit(Box<Explicit>),
+}
+
+struct Explicit {
+    decoder: ExplicitDecoder,
+    gatt: Option<Gatt>,
+}
+
+/// The selected layer's `GATT` while its bytes arrive.
+struct Gatt {
+    /// Offset of the payload in the stream and its length.
+    payload_at: usize,
+    len: usize,
+    /// The tile bodies' lengths, once the table has arrived and adds up.
+    lens: Option<Vec<usize>>,
+    /// Offset of the next tile's body.
+    body_at: usize,
+    next_tile: usize,
+    per_tile: Vec<Option<TileSymbols>>,
+    /// The tiles could not all be decoded as they arrived: the whole chunk is decoded once
+    /// complete (which reports the error, if there is one).
+    whole: bool,
+}
+
+impl StreamDecoder {
+    /// A decoder with these options (`threads` does not apply: pieces are decoded on the
+    /// caller's thread).
+    pub fn new(options: DecodeOptions) -> Self {
+        StreamDecoder {
+            options,
+            buf: Vec::new(),
+            at: 0,
+            profile: Profile::Unknown,
+            gaussians: Gaussians::default(),
+            tiles: Vec::new(),
+            handed_out: 0,
+            error: None,
+            end: None,
+        }
+    }
+
+    /// Takes the next bytes of the stream and decodes what they complete. An error is final
+    /// (the stream is broken whatever follows) and is reported again by every later call.
+    pub fn feed(&mut self, bytes: &[u8]) -> Result<()> {
+        if let Some(e) = &self.error {
+            return Err(e.clone());
+        }
+        self.buf.extend_from_slice(bytes);
+        let advanced = self.advance();
+        if let Err(e) = &advanced {
+            self.error = Some(e.clone());
+        }
+        advanced
+    }
+
+    /// The tiles completed since the last call.
+    pub fn new_tiles(&mut self) -> Vec<DecodedTile> {
+        let from = self.handed_out;
+        self.handed_out = self.tiles.len();
+        self.tiles[from..].to_vec()
+    }
+
+    /// Every tile completed so far, in stream order.
+    pub fn tiles(&self) -> &[DecodedTile] {
+        &self.tiles
+    }
+
+    /// The Gaussians of every tile completed so far (explicit profile; empty otherwise).
+    pub fn gaussians(&self) -> &Gaussians {
+        &self.gaussians
+    }
+
+    /// The explicit profile's preflight (§3.2), once its chunk is decoded.
+    pub fn gaussian_header(&self) -> Option<&crate::explicit::GaussianHeader> {
+        match &self.profile {
+            Profile::Explicit(e) => e.decoder.header(),
+            _ => None,
+        }
+    }
+
+    /// Bytes received so far.
+    pub fn received(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// Ends the stream: what [`decode_any`] gives for the bytes fed.
+    pub fn finish(self) -> Result<Decoded> {
+        if let Some(e) = self.error {
+            return Err(e);
+        }
+        let (Profile::Explicit(explicit), Some(end)) = (self.profile, self.end) else {
+            // Not decoded to SEND: the whole-buffer decoder reports what is missing (or
+            // decodes an anchors-profile stream).
+            return decode_any(&self.buf, &self.options);
+        };
+        if self.buf.len() > end {
+            return Err(Error::TrailingData {
+                bytes: (self.buf.len() - end) as u64,
+            });
+        }
+        let gaussians = self.gaussians;
+        explicit
+            .decoder
+            .finish_with(Some(gaussians))
+            .map(|d| Decoded::Gaussians(Box::new(d)))
+    }
+
+    fn advance(&mut self) -> Result<()> {
+        if self.at == 0 {
+            if self.buf.len() < SIGNATURE_LEN {
+                return Ok(());
+            }
+            Signature::parse(&self.buf)?;
+            self.at = SIGNATURE_LEN;
+        }
+        while self.end.is_none() {
+            let rest = &self.buf[self.at..];
+            let [l0, l1, l2, l3, t0, t1, t2, t3, ..] = *rest else {
+                return Ok(());
+            };
+            let (tag, len) = (
+                ChunkTag([t0, t1, t2, t3]),
+                u32::from_le_bytes([l0, l1, l2, l3]),
+            );
+            match self.profile {
+                // Until the first chunk is decoded, the profile is unknown, and so is which
+                // decoder reports a fault: `finish` leaves it to the whole-buffer one.
+                Profile::Anchors => return Ok(()),
+                Profile::Unknown => {
+                    if !tag.is_valid()
+                        || self
+                            .options
+                            .limits
+                            .check(LimitKind::ChunkBytes, len.into())
+                            .is_err()
+                    {
+                        self.profile = Profile::Anchors;
+                        return Ok(());
+                    }
+                }
+                // §1.3: the tag and the length are checked before the payload is read.
+                Profile::Explicit(_) => {
+                    if !tag.is_valid() {
+                        return Err(Error::ChunkTagInvalid { tag: tag.0 });
+                    }
+                    self.options
+                        .limits
+                        .check(LimitKind::ChunkBytes, len.into())?;
+                }
+            }
+            let len = len as usize;
+            if let Profile::Explicit(e) = &mut self.profile {
+                if tag == ChunkTag::GATT && matches!(e.decoder.due(tag), Ok(Due::Decoded)) {
+                    let at = self.at;
+                    if !self.gatt_progress(at, len)? {
+                        return Ok(());
+                    }
+                    continue;
+                }
+            }
+            let complete = CHUNK_HEADER + len + CHUNK_CRC;
+            if rest.len() < complete {
+                return Ok(());
+            }
+            let mut reader =
+                ChunkReader::new(&rest[..complete], self.at as u64, &self.options.limits);
+            if matches!(self.profile, Profile::Unknown) {
+                // §3: the first chunk fixes the profile: a framed, CRC-checked `GHED` is the
+                // explicit one (as `decoder::is_explicit` decides).
+                let first = reader.next_chunk();
+                if !matches!(first, Ok(Some(ref c)) if c.tag == ChunkTag::GHED) {
+                    self.profile = Profile::Anchors;
+                    return Ok(());
+                }
+                self.profile = Profile::Explicit(Box::new(Explicit {
+                    decoder: ExplicitDecoder::new(
+                        &self.options.limits,
+                        self.options.rate,
+                        self.options.region,
+                    ),
+                    gatt: None,
+                }));
+                reader = ChunkReader::new(&rest[..complete], self.at as u64, &self.options.limits);
+            }
+            let Some(chunk) = reader.next_chunk()? else {
+                return Ok(());
+            };
+            let Profile::Explicit(e) = &mut self.profile else {
+                return Ok(());
+            };
+            // What follows SEND is checked by `finish`, once no more bytes can come.
+            if e.decoder.chunk(chunk.tag, chunk.payload, &[])? {
+                self.end = Some(self.at + complete);
+            }
+            self.at += complete;
+        }
+        Ok(())
+    }
+
+    /// Decodes the tiles of the selected layer's `GATT` (at `at`, payload `len` bytes) whose
+    /// bodies have arrived; returns whether the whole chunk has been decoded.
+    fn gatt_progress(&mut self, at: usize, len: usize) -> Result<bool> {
+        let Profile::Explicit(e) = &mut self.profile else {
+            return Ok(false);
+        };
+        let tables = GaussianTables::standard();
+        if e.gatt.is_none() {
+            let tile_count = match e.decoder.select_tiles() {
+                Ok(s) => s.len(),
+                Err(_) => 0,
+            };
+            self.gaussians.sh_degree = e.decoder.header().map_or(0, |h| h.sh_degree);
+            e.gatt = Some(Gatt {
+                payload_at: at + CHUNK_HEADER,
+                len,
+                lens: None,
+                body_at: 0,
+                next_tile: 0,
+                per_tile: vec![None; tile_count],
+                // Without the layer's parts, the whole-chunk decoder reports what is missing.
+                whole: tile_count == 0,
+            });
+        }
+        let Some(g) = e.gatt.as_mut() else {
+            return Ok(false);
+        };
+        let arrived = self.buf.len().min(g.payload_at + g.len);
+        let payload = &self.buf[g.payload_at..arrived];
+        let tile_count = g.per_tile.len();
+        // The method byte and the T body lengths (§10.2).
+        let table_end = 1 + 4 * tile_count;
+        if g.len < table_end {
+            g.whole = true;
+        } else if !g.whole && g.lens.is_none() && payload.len() >= table_end {
+            // §10.2: the method byte, then T body lengths that must add up to the payload.
+            let lens: Vec<usize> = payload[1..table_end]
+                .chunks_exact(4)
+                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]) as usize)
+                .collect();
+            let total = lens.iter().try_fold(0usize, |a, &l| a.checked_add(l));
+            if payload[0] != METHOD_CODED || total != Some(g.len - table_end) {
+                g.whole = true;
+            } else {
+                g.body_at = g.payload_at + table_end;
+                g.lens = Some(lens);
+            }
+        }
+        if let (false, Some(lens)) = (g.whole, &g.lens) {
+            while g.next_tile < tile_count && g.body_at + lens[g.next_tile] <= arrived {
+                let t = g.next_tile;
+                let body = &self.buf[g.body_at..g.body_at + lens[t]];
+                g.body_at += lens[t];
+                g.next_tile += 1;
+                let (selected, inputs) = (e.decoder.is_selected(t), e.decoder.tile_inputs());
+                if !selected {
+                    continue;
+                }
+                let Ok((layer, groups, tiles, voxels)) = inputs else {
+                    g.whole = true;
+                    break;
+                };
+                match decode_tile(layer, groups, &voxels[tiles.range(t)], body, tables) {
+                    Ok(symbols) => {
+                        let from = self.gaussians.len();
+                        if e.decoder
+                            .reconstruct(t, &symbols, &mut self.gaussians)
+                            .is_err()
+                        {
+                            g.whole = true;
+                            break;
+                        }
+                        self.tiles.push(DecodedTile {
+                            index: t,
+                            gaussians: from..self.gaussians.len(),
+                        });
+                        g.per_tile[t] = Some(symbols);
+                    }
+                    Err(_) => {
+                        g.whole = true;
+                        break;
+                    }
+                }
+            }
+        }
+        let complete = CHUNK_HEADER + g.len + CHUNK_CRC;
+        if self.buf.len() < at + complete {
+            return Ok(false);
+        }
+        // The chunk is complete: its framing and CRC first (§1.3), as the whole-buffer
+        // decoder checks them.
+        let mut reader = ChunkReader::new(
+            &self.buf[at..at + complete],
+            at as u64,
+            &self.options.limits,
+        );
+        let Some(chunk) = reader.next_chunk()? else {
+            return Ok(false);
+        };
+        let Some(g) = e.gatt.take() else {
+            return Ok(false);
+        };
+        if g.whole || g.next_tile < tile_count {
+            // The whole-chunk decoder gives the error, or (if the tiles could not be taken
+            // one by one for another reason) the symbols; tiles not yet reconstructed are.
+            e.decoder.chunk(chunk.tag, chunk.payload, &[])?;
+            let done: Vec<usize> = self.tiles.iter().map(|t| t.index).collect();
+            let per_tile = e.decoder.decoded_tiles().unwrap_or_default().to_vec();
+            for (t, s) in per_tile.iter().enumerate() {
+                if let (Some(s), false) = (s, done.contains(&t)) {
+                    let from = self.gaussians.len();
+                    e.decoder.reconstruct(t, s, &mut self.gaussians)?;
+                    self.tiles.push(DecodedTile {
+                        index: t,
+                        gaussians: from..self.gaussians.len(),
+                    });
+                }
+            }
+        } else {
+            e.decoder.gatt_decoded(g.per_tile);
+        }
+        self.at = at + complete;
+        Ok(true)
+    }
+}
