@@ -44,7 +44,7 @@
 //! // and masks are lossless, attributes lie within half a quantization step.
 //! assert_eq!(&decoded, encoded.expected());
 //! assert_eq!(decoded.anchors.mask, model.anchors.mask);
-//! # Ok::<(), salvq::Error>(())
+//! # Ok::<(), salvq_encoder::Error>(())
 //! ```
 //!
 //! The decoder never panics on any input: every failure is an [`Error`] variant that names

@@ -82,7 +82,12 @@ fn weights_too_large_for_i8_stay_i16() {
         },
     );
     assert!(
-        matches!(forced, Err(salvq::Error::ValueInvalid { .. })),
+        matches!(
+            forced,
+            Err(salvq_encoder::Error::Stream(
+                salvq::Error::ValueInvalid { .. }
+            ))
+        ),
         "{forced:?}"
     );
 }

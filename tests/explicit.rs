@@ -15,6 +15,7 @@ use salvq_encoder::explicit::{
 use salvq_gen::gaussians::{generate_gaussians, GaussianParams};
 use salvq_render::compare::RingTarget;
 use salvq_render::ply::{ply_bytes, read_ply};
+use salvq_render::Error as R;
 
 fn plan(voxel: f64, groups: usize) -> RatePlan {
     RatePlan {
@@ -226,7 +227,7 @@ fn the_encoder_names_inputs_it_does_not_read() {
         let err = input_kind(bytes).unwrap_err();
         let text = err.to_string();
         assert!(
-            matches!(err, Error::UnsupportedInput { .. }),
+            matches!(err, salvq_encoder::Error::UnsupportedInput { .. }),
             "{what}: {err}"
         );
         assert!(
@@ -250,7 +251,7 @@ fn a_nan_is_named_by_property_and_gaussian() {
     g.f_rest[7 * 9 + 4] = f32::NAN;
     let err = PreparedGaussians::new(&g).unwrap_err();
     assert!(
-        matches!(&err, Error::PlyValueNotFinite { vertex: 7, property } if property == "f_rest_4"),
+        matches!(&err, salvq_encoder::Error::Files(R::PlyValueNotFinite { vertex: 7, property }) if property == "f_rest_4"),
         "{err}"
     );
     // Through the PLY reader as well, with the vertex's index.
@@ -258,7 +259,7 @@ fn a_nan_is_named_by_property_and_gaussian() {
     g.log_scales[13][2] = f32::INFINITY;
     let err = read_ply(&ply_bytes(&g).unwrap()).unwrap_err();
     assert!(
-        matches!(&err, Error::PlyValueNotFinite { vertex: 13, property } if property == "scale_2"),
+        matches!(&err, R::PlyValueNotFinite { vertex: 13, property } if property == "scale_2"),
         "{err}"
     );
 }
@@ -269,7 +270,7 @@ fn degenerate_scenes_encode_or_fail_with_a_typed_error() {
     let empty = salvq_render::Gaussians::default();
     assert!(matches!(
         PreparedGaussians::new(&empty),
-        Err(Error::FitFailed { .. })
+        Err(salvq_encoder::Error::FitFailed { .. })
     ));
     // One Gaussian; every Gaussian at one point (zero-size box).
     for params in [
@@ -294,10 +295,7 @@ fn truncated_and_malformed_ply_files_are_typed_errors() {
     for cut in [3usize, 20, 200, bytes.len() - 1] {
         let err = read_ply(&bytes[..cut]).unwrap_err();
         assert!(
-            matches!(
-                err,
-                Error::PlyHeaderInvalid { .. } | Error::PlyTruncated { .. }
-            ),
+            matches!(err, R::PlyHeaderInvalid { .. } | R::PlyTruncated { .. }),
             "cut at {cut}: {err}"
         );
     }

@@ -4,7 +4,7 @@
 //! streams decode to what the encoder predicted; conflicting options are typed errors.
 
 use salvq::quantizer::GroupLattices;
-use salvq::{decode, Error, LatticeKind, SceneModel};
+use salvq::{decode, LatticeKind, SceneModel};
 use salvq_encoder::fit::{fit_feature_scales, fit_klt_basis};
 use salvq_encoder::{encode_full, EncodeOptions};
 use salvq_gen::{generate, GenParams};
@@ -121,5 +121,5 @@ fn a_fitted_basis_with_another_lattice_is_a_typed_error() {
         },
     )
     .unwrap_err();
-    assert!(matches!(e, Error::FitFailed { .. }), "{e}");
+    assert!(matches!(e, salvq_encoder::Error::FitFailed { .. }), "{e}");
 }

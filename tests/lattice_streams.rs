@@ -169,11 +169,11 @@ fn rates_that_are_not_there() {
     // The encoder refuses a rate past M.
     assert!(matches!(
         encode_full(&m, &options(&[2], None, Search::Auto)).unwrap_err(),
-        Error::FieldOutOfRange {
+        salvq_encoder::Error::Stream(Error::FieldOutOfRange {
             field: Field::CodedRate,
             value: 2,
             ..
-        }
+        })
     ));
 }
 

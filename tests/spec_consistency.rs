@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use salvq::container::chunk::ChunkTag;
-use salvq::error::{Field, IoOp, Structure};
+use salvq::error::{Field, Structure};
 use salvq::limits::LimitKind;
 use salvq::model::Dtype;
 use salvq::Error;
@@ -127,11 +127,6 @@ fn every_error() -> Vec<Error> {
             rate: 1,
             rate_mask: 1,
         },
-        Error::LatticeSearchFailed {
-            tensor: "quant.feat.step",
-            anchor: Some(0),
-            reason: "r".into(),
-        },
         Error::NonFiniteValue {
             tensor: "x",
             index: vec![0],
@@ -147,7 +142,6 @@ fn every_error() -> Vec<Error> {
             value: 2,
             allowed: "0 or 1",
         },
-        Error::InterchangeFormat { detail: "x".into() },
         Error::TensorMissing { tensor: "x" },
         Error::TensorUnexpected { name: "x".into() },
         Error::TensorDtype {
@@ -191,42 +185,6 @@ fn every_error() -> Vec<Error> {
             depth: 1,
             count: 2,
             anchors: 1,
-        },
-        Error::FitFailed {
-            tensor: "x",
-            reason: "y".into(),
-        },
-        Error::PlyHeaderInvalid { line: 1, rule: "x" },
-        Error::PlyPropertyMissing { property: "x" },
-        Error::PlyShCoefficients { count: 1 },
-        Error::PlyTruncated {
-            element: "vertex".into(),
-            count: 1,
-            stride: 4,
-            available: 0,
-        },
-        Error::PlyValueNotFinite {
-            vertex: 0,
-            property: "x".into(),
-        },
-        Error::NeuralGaussiansUnsupported {
-            field: Field::ViewDims,
-            value: 5,
-            rule: "x",
-        },
-        Error::RenderSettingInvalid {
-            setting: "x",
-            value: 0.0,
-            rule: "x",
-        },
-        Error::UnsupportedInput {
-            found: "x",
-            hint: "y",
-        },
-        Error::Io {
-            op: IoOp::Read,
-            path: "x".into(),
-            kind: std::io::ErrorKind::NotFound,
         },
     ]
 }
@@ -384,4 +342,76 @@ fn explicit_profile_tables_match_the_code() {
         assert_eq!(stated, dim, "{name}");
     }
     assert_eq!(GroupKind::present(0).len(), 4);
+}
+
+/// One value of every class of the reference tools' own errors (encoder, model files, PLY,
+/// renderer, files).
+fn every_tool_error() -> Vec<salvq_encoder::Error> {
+    use salvq_render::error::IoOp;
+    use salvq_render::Error as R;
+    let files = |e: R| salvq_encoder::Error::from(e);
+    vec![
+        salvq_encoder::Error::UnsupportedInput {
+            found: "x",
+            hint: "y",
+        },
+        salvq_encoder::Error::LatticeSearchFailed {
+            tensor: "x",
+            anchor: Some(1),
+            reason: "y".into(),
+        },
+        salvq_encoder::Error::FitFailed {
+            tensor: "x",
+            reason: "y".into(),
+        },
+        files(R::InterchangeFormat { detail: "x".into() }),
+        files(R::PlyHeaderInvalid { line: 1, rule: "x" }),
+        files(R::PlyPropertyMissing { property: "x" }),
+        files(R::PlyShCoefficients { count: 1 }),
+        files(R::PlyTruncated {
+            element: "vertex".into(),
+            count: 1,
+            stride: 4,
+            available: 0,
+        }),
+        files(R::PlyValueNotFinite {
+            vertex: 0,
+            property: "x".into(),
+        }),
+        files(R::NeuralGaussiansUnsupported {
+            field: Field::ViewDims,
+            value: 5,
+            rule: "x",
+        }),
+        files(R::RenderSettingInvalid {
+            setting: "x",
+            value: 0.0,
+            rule: "x",
+        }),
+        salvq_encoder::Error::io(
+            IoOp::Read,
+            std::path::Path::new("x"),
+            std::io::Error::from(std::io::ErrorKind::NotFound),
+        ),
+    ]
+}
+
+#[test]
+fn tool_error_classes_match_tables_a_9_and_c_6() {
+    let mut spec_classes = table_names(&spec("annex-a-interchange.md"), "Table A-9:");
+    spec_classes.extend(table_names(&spec("annex-c-rendering.md"), "Table C-6:"));
+    let mut code: Vec<String> = every_tool_error()
+        .iter()
+        .map(|e| e.class().to_string())
+        .collect();
+    spec_classes.sort();
+    code.sort();
+    assert_eq!(spec_classes, code);
+    // No tool class is also a stream class (Table 9-1 keeps what a decoder can report).
+    let stream = table_names(&spec("09-limits-errors.md"), "Table 9-1:");
+    assert!(code.iter().all(|c| !stream.contains(c)), "{code:?}");
+    for e in every_tool_error() {
+        let msg = e.to_string();
+        assert!(msg.ends_with(&format!("[{}]", e.spec_section())), "{msg}");
+    }
 }

@@ -37,10 +37,9 @@ wrong=$(( (VIEW + 4) % 8 ))
 "$SALVQ" render "$WORK/www/data/scene.salvq" --rate 0 --view "$wrong" --width 512 --height 384 -o "$WORK/out/salvq_render_wrong.png"
 cam=$(python3 "$WORK/www/ring_camera.py" "$WORK/out/scene.ply" "$VIEW")
 
-echo "-- native single-thread decode of the same stream (5 runs)"
-for i in 1 2 3 4 5; do
-  "$SALVQ" decode "$WORK/www/data/scene.salvq" --rate 0 --threads 1 --measure -o "$WORK/out/unused.ply"
-done | tee "$WORK/out/native.txt"
+echo "-- native decode of the same stream, in process (cargo bench --bench first_tile)"
+(cd "$REPO" && SALVQ_BENCH_STREAM="$WORK/www/data/scene.salvq" cargo bench -q --bench first_tile) \
+  | tee "$WORK/out/native.txt"
 
 (cd "$WORK/www" && python3 -m http.server "$PORT" --bind 127.0.0.1 > "$WORK/out/http.log" 2>&1) &
 server=$!
@@ -56,13 +55,14 @@ python3 - "$WORK/out/compare.txt" "$WORK/out/browser.log" "$WORK/out/native.txt"
 import json, re, statistics, sys
 right, wrong = [float(x) for x in re.findall(r'PSNR ([\d.]+) dB', open(sys.argv[1]).read())]
 result = json.loads(open(sys.argv[2]).read().split('RESULT ', 1)[1].splitlines()[0])
-native = [float(x) for x in re.findall(r'decode_secs=([\d.e-]+)', open(sys.argv[3]).read())]
+native = float(re.search(r'whole decode: ([\d.]+) s on 1 thread', open(sys.argv[3]).read()).group(1))
 w = result['worker']
 print(f"browser screenshot vs salvq render: {right:.2f} dB (same camera), {wrong:.2f} dB (opposite camera)")
 print(f"streamed: {result['gaussians']} Gaussians in {result['batches']} batches; first tiles after "
       f"{w['firstTile']['bytes']} of {w['received']} bytes ({w['firstTile']['ms']:.0f} ms after the page asked)")
-print(f"whole decode in the browser (median of 5): {statistics.median(w['wholeDecodeMs']):.1f} ms; "
-      f"native single thread, salvq decode --measure (median of 5): {1000 * statistics.median(native):.1f} ms")
+browser = statistics.median(w['wholeDecodeMs'])
+print(f"whole decode in the browser (median of 5): {browser:.1f} ms; native, one thread (best of 3): "
+      f"{1000 * native:.1f} ms; browser / native {browser / (1000 * native):.2f}")
 if right < 22 or right < wrong + 5:
     sys.exit("the browser's picture does not match salvq render of the same camera")
 if result['batches'] < 2 or w['firstTile']['bytes'] >= w['received']:

@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use super::{Error, IoOp};
+use super::Error;
 
 /// Writes a multi-dimensional index as `[i, j, k]`.
 struct Index<'a>(&'a [u64]);
@@ -156,15 +156,6 @@ impl fmt::Display for Error {
                 "{}: lattice '{lattice}' on a group of dimension {dim}: {rule}",
                 field.spec_name()
             )?,
-            LatticeSearchFailed {
-                tensor,
-                anchor,
-                reason,
-            } => match anchor {
-                Some(a) => write!(f, "{tensor}: anchor {a}: {reason}")?,
-                None => write!(f, "{tensor}: {reason}")?,
-            },
-            FitFailed { tensor, reason } => write!(f, "{tensor}: fit failed: {reason}")?,
             TileOrder { tile } => write!(
                 f,
                 "TILS/APOS: tile {tile}'s first voxel does not follow the previous tile's last in Morton order"
@@ -208,9 +199,6 @@ impl fmt::Display for Error {
                 "{tensor}{}: value {value} is not allowed (allowed: {allowed})",
                 Index(index)
             )?,
-            InterchangeFormat { detail } => {
-                write!(f, "model file: not a valid safetensors file ({detail})")?
-            }
             TensorMissing { tensor } => write!(f, "{tensor}: required tensor is missing")?,
             TensorUnexpected { name } => {
                 write!(f, "{name}: tensor is not part of the model schema")?
@@ -257,53 +245,6 @@ impl fmt::Display for Error {
                 "{tensor}: not orthogonal, (M^T M - I)[{}, {}] = {deviation:.3e} exceeds {tolerance:.0e}",
                 index[0], index[1]
             )?,
-            PlyHeaderInvalid { line: 0, rule } => write!(f, "PLY header: {rule}")?,
-            PlyHeaderInvalid { line, rule } => write!(f, "PLY header, line {line}: {rule}")?,
-            PlyPropertyMissing { property } => write!(
-                f,
-                "PLY vertex element: property '{property}' is missing (a 3DGS Gaussian needs it)"
-            )?,
-            PlyShCoefficients { count } => write!(
-                f,
-                "PLY vertex element: {count} f_rest properties; SH needs f_rest_0 … f_rest_(n-1) with n = 0, 9, 24 or 45"
-            )?,
-            PlyTruncated {
-                element,
-                count,
-                stride,
-                available,
-            } => write!(
-                f,
-                "PLY element '{element}': {count} records of {stride} bytes need {} bytes, {available} available",
-                u128::from(*count) * u128::from(*stride)
-            )?,
-            PlyValueNotFinite { vertex, property } => write!(
-                f,
-                "PLY vertex {vertex}: property '{property}' is not finite"
-            )?,
-            UnsupportedInput { found, hint } => write!(
-                f,
-                "the input is {found}, which the encoder does not read: {hint}"
-            )?,
-            NeuralGaussiansUnsupported { field, value, rule } => write!(
-                f,
-                "{} = {value}: no Scaffold-GS neural Gaussians: {rule}",
-                field.spec_name()
-            )?,
-            RenderSettingInvalid {
-                setting,
-                value,
-                rule,
-            } => write!(f, "render setting {setting} = {value}: {rule}")?,
-            Io { op, path, kind } => {
-                let verb = match op {
-                    IoOp::Read => "cannot read",
-                    IoOp::Write => "cannot write",
-                    IoOp::CreateTemp => "cannot create a temporary file beside",
-                    IoOp::Rename => "cannot move the finished file to",
-                };
-                write!(f, "{verb} {}: {kind}", path.display())?
-            }
         }
         write!(f, " [{}]", self.spec_section())
     }

@@ -5,7 +5,6 @@
 //! `chunk AFEA: CRC-32C mismatch (stored 0x1234abcd, computed 0x0badf00d) [§1.3]`.
 
 use std::fmt;
-use std::path::PathBuf;
 
 use crate::container::tag::ChunkTag;
 use crate::limits::LimitKind;
@@ -207,20 +206,8 @@ impl AnsFault {
     }
 }
 
-/// What a file operation was doing when it failed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum IoOp {
-    /// Reading a file.
-    Read,
-    /// Writing the output.
-    Write,
-    /// Creating the temporary file an output is written to.
-    CreateTemp,
-    /// Renaming the temporary file over the output.
-    Rename,
-}
-
-/// Every error of the library: stream decoding, model validation and file I/O.
+/// Every error of the decoder (spec §9, Table 9-1): a stream that breaks a rule, or a model
+/// that fails validation (§2). Tools built on the decoder wrap it in their own errors.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum Error {
@@ -410,15 +397,6 @@ pub enum Error {
         /// The stream's mask of coded rates (bit r: rate r).
         rate_mask: u64,
     },
-    /// The encoder's lattice search could not quantize a group (encoder only).
-    LatticeSearchFailed {
-        /// The tensor.
-        tensor: &'static str,
-        /// The anchor, when one is to blame.
-        anchor: Option<u64>,
-        /// Why.
-        reason: String,
-    },
     /// A tile's first voxel does not come after the previous tile's last in Morton order
     /// (§10.1).
     TileOrder {
@@ -445,14 +423,6 @@ pub enum Error {
         count: u64,
         /// The anchors in the tile.
         anchors: u32,
-    },
-    /// The encoder's fit of a basis or of scale rows to the model's anchors (Annex A.5)
-    /// failed (encoder only).
-    FitFailed {
-        /// The tensor.
-        tensor: &'static str,
-        /// Why.
-        reason: String,
     },
 
     // ---- tensor values (§2, decoder and encoder alike) ----
@@ -485,11 +455,6 @@ pub enum Error {
     },
 
     // ---- model interchange and validation (Annex A, §2) ----
-    /// The model file is not a valid safetensors file.
-    InterchangeFormat {
-        /// What the safetensors reader reported.
-        detail: String,
-    },
     /// A required tensor is absent.
     TensorMissing {
         /// The tensor.
@@ -554,85 +519,7 @@ pub enum Error {
         /// The tolerance.
         tolerance: f64,
     },
-
-    // ---- renderable output (Annex C, informative) ----
-    /// A standard 3DGS PLY file's header breaks a rule of the layout (Annex C.3); `line`
-    /// counts from 1, 0 when the rule concerns the header as a whole.
-    PlyHeaderInvalid {
-        /// The header line, from 1.
-        line: u32,
-        /// The rule broken.
-        rule: &'static str,
-    },
-    /// A PLY vertex property that a 3DGS Gaussian needs is absent (Annex C.3).
-    PlyPropertyMissing {
-        /// The property.
-        property: &'static str,
-    },
-    /// The `f_rest_*` properties are not `f_rest_0 … f_rest_{n−1}` with n = 0, 9, 24 or 45
-    /// (SH degree 0 … 3; Annex C.3).
-    PlyShCoefficients {
-        /// The number of `f_rest_*` properties.
-        count: u32,
-    },
-    /// The PLY body is shorter than its element counts times their record sizes (Annex C.3).
-    PlyTruncated {
-        /// The PLY element.
-        element: String,
-        /// The element's record count.
-        count: u64,
-        /// Bytes per record.
-        stride: u64,
-        /// Bytes that are left.
-        available: u64,
-    },
-    /// A PLY vertex value that a Gaussian uses is NaN, or infinite other than the opacity
-    /// logit (Annex C.3).
-    PlyValueNotFinite {
-        /// The vertex's index.
-        vertex: u64,
-        /// The property.
-        property: String,
-    },
-    /// The model's shape has no Scaffold-GS neural Gaussians (Annex C.1): the scaling must
-    /// have 6 dimensions, the view inputs 3 or 4.
-    NeuralGaussiansUnsupported {
-        /// The dimension.
-        field: Field,
-        /// Its value.
-        value: u64,
-        /// The rule broken.
-        rule: &'static str,
-    },
-    /// A render setting (image size, view index, field of view, elevation) is outside its
-    /// range (Annex C.2).
-    RenderSettingInvalid {
-        /// The setting.
-        setting: &'static str,
-        /// Its value.
-        value: f64,
-        /// The rule broken.
-        rule: &'static str,
-    },
-
-    /// An encoder input is a file of a kind the encoder does not read (Annex A.8.1).
-    UnsupportedInput {
-        /// What the input is.
-        found: &'static str,
-        /// How to convert it.
-        hint: &'static str,
-    },
-
     // ---- files ----
-    /// A file operation failed.
-    Io {
-        /// What was being done.
-        op: IoOp,
-        /// The file.
-        path: PathBuf,
-        /// The operating system's error kind.
-        kind: std::io::ErrorKind,
-    },
 }
 
 /// The section of §3 that defines an explicit-profile chunk.
@@ -717,27 +604,15 @@ impl Error {
             ScaleIndexOutOfRange { .. } => "§6.3",
             LatticeDimension { .. } => "§7.1",
             RateNotCoded { .. } => "§7.4",
-            LatticeSearchFailed { .. } => "§7.3",
-            FitFailed { .. } => "Annex A.5",
             OctreeInvalid { .. } => "§8",
             TileBoxMismatch { .. } | TileOrder { .. } => "§10.1",
             NonFiniteValue { .. } | ValueNotPositive { .. } | ValueInvalid { .. } => "§2.3",
             BasisSingular { .. } | BasisIllConditioned { .. } | BasisNotOrthogonal { .. } => "§2.6",
-            InterchangeFormat { .. }
-            | TensorMissing { .. }
+            TensorMissing { .. }
             | TensorUnexpected { .. }
             | TensorDtype { .. }
             | TensorRank { .. }
             | TensorShape { .. } => "§A.1",
-            NeuralGaussiansUnsupported { .. } => "§C.1",
-            RenderSettingInvalid { .. } => "§C.2",
-            PlyHeaderInvalid { .. }
-            | PlyPropertyMissing { .. }
-            | PlyShCoefficients { .. }
-            | PlyTruncated { .. }
-            | PlyValueNotFinite { .. } => "§C.3",
-            UnsupportedInput { .. } => "Annex A.8.1",
-            Io { .. } => "§9.2",
         }
     }
 
@@ -768,15 +643,12 @@ impl Error {
             ScaleIndexOutOfRange { .. } => "ScaleIndexOutOfRange",
             LatticeDimension { .. } => "LatticeDimension",
             RateNotCoded { .. } => "RateNotCoded",
-            LatticeSearchFailed { .. } => "LatticeSearchFailed",
-            FitFailed { .. } => "FitFailed",
             OctreeInvalid { .. } => "OctreeInvalid",
             TileBoxMismatch { .. } => "TileBoxMismatch",
             TileOrder { .. } => "TileOrder",
             NonFiniteValue { .. } => "NonFiniteValue",
             ValueNotPositive { .. } => "ValueNotPositive",
             ValueInvalid { .. } => "ValueInvalid",
-            InterchangeFormat { .. } => "InterchangeFormat",
             TensorMissing { .. } => "TensorMissing",
             TensorUnexpected { .. } => "TensorUnexpected",
             TensorDtype { .. } => "TensorDtype",
@@ -785,24 +657,6 @@ impl Error {
             BasisSingular { .. } => "BasisSingular",
             BasisIllConditioned { .. } => "BasisIllConditioned",
             BasisNotOrthogonal { .. } => "BasisNotOrthogonal",
-            PlyHeaderInvalid { .. } => "PlyHeaderInvalid",
-            PlyPropertyMissing { .. } => "PlyPropertyMissing",
-            PlyShCoefficients { .. } => "PlyShCoefficients",
-            PlyTruncated { .. } => "PlyTruncated",
-            PlyValueNotFinite { .. } => "PlyValueNotFinite",
-            UnsupportedInput { .. } => "UnsupportedInput",
-            NeuralGaussiansUnsupported { .. } => "NeuralGaussiansUnsupported",
-            RenderSettingInvalid { .. } => "RenderSettingInvalid",
-            Io { .. } => "Io",
-        }
-    }
-
-    /// An I/O error on `path` during `op`.
-    pub fn io(op: IoOp, path: &std::path::Path, err: &std::io::Error) -> Error {
-        Error::Io {
-            op,
-            path: path.to_path_buf(),
-            kind: err.kind(),
         }
     }
 }

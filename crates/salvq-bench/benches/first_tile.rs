@@ -107,7 +107,7 @@ fn measure(stream: &[u8]) {
     );
     let (bytes, secs, count) = first.expect("a tile before the end");
     println!(
-        "whole decode: {:.3} s on 1 thread, {:.3} s on {} threads",
+        "whole decode: {:.4} s on 1 thread, {:.4} s on {} threads",
         one,
         pool,
         rayon::current_num_threads()

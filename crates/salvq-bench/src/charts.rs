@@ -5,7 +5,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::Point;
-use salvq::error::{Error, IoOp, Result};
+use salvq_encoder::{Error, Result};
+use salvq_render::error::IoOp;
 
 /// The charts' line colours (the Okabe–Ito palette's, black first), in order.
 pub(super) const COLORS: [RGBColor; 8] = [
@@ -70,11 +71,7 @@ where
 }
 
 fn err(path: &Path) -> impl Fn(String) -> Error + '_ {
-    move |_| Error::Io {
-        op: IoOp::Write,
-        path: path.to_path_buf(),
-        kind: std::io::ErrorKind::Other,
-    }
+    move |why| Error::io(IoOp::Write, path, std::io::Error::other(why))
 }
 
 fn range(v: impl Iterator<Item = f64> + Clone, pad: f64) -> (f64, f64) {
@@ -269,11 +266,12 @@ pub(super) fn write_report(
     draw: impl FnOnce(&Path) -> std::result::Result<(), Box<dyn std::error::Error>>,
     csv: &str,
     text: &str,
-) -> salvq::error::Result<()> {
+) -> Result<()> {
     let svg = out.join(format!("{stem}.svg"));
     draw(&svg).map_err(|e| err(&svg)(e.to_string()))?;
     salvq_render::io::write_bytes_atomic(&out.join(format!("{stem}.csv")), csv.as_bytes())?;
-    salvq_render::io::write_bytes_atomic(&out.join(format!("{stem}.txt")), text.as_bytes())
+    salvq_render::io::write_bytes_atomic(&out.join(format!("{stem}.txt")), text.as_bytes())?;
+    Ok(())
 }
 
 /// The x range of a log-scale chart over scene sizes, with a margin on both sides.

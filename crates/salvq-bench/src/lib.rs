@@ -22,12 +22,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::bdrate::{bd_rate, Curve, Interpolation};
-use salvq::error::{Error, IoOp, Result};
 use salvq::model::{Basis, LatticeKind, SceneModel};
 use salvq_encoder::{encode_full, EncodeOptions, Search};
+use salvq_encoder::{Error, Result};
 use salvq_gen::linalg::orthogonal;
 use salvq_gen::rng::Stream;
 use salvq_gen::{generate, GenParams};
+use salvq_render::error::IoOp;
 
 /// Feature base-step factors giving the rate points (7 per curve).
 pub const STEP_FACTORS: [f32; 7] = [0.35, 0.5, 0.71, 1.0, 1.41, 2.0, 2.83];
@@ -292,17 +293,13 @@ fn with_condition(m: &SceneModel, cond: f64, seed: u64) -> SceneModel {
 }
 
 fn write(path: &Path, text: &str) -> Result<()> {
-    salvq_render::io::write_bytes_atomic(path, text.as_bytes())
+    Ok(salvq_render::io::write_bytes_atomic(path, text.as_bytes())?)
 }
 
 /// Runs every measurement, writes `rd.svg`, `search_speed.svg`, `stability.svg`, `rd.csv`
 /// and `summary.txt` under `out`, and returns the summary text.
 pub fn run(p: &RdOptions) -> Result<String> {
-    std::fs::create_dir_all(&p.out).map_err(|e| Error::Io {
-        op: IoOp::Write,
-        path: p.out.clone(),
-        kind: e.kind(),
-    })?;
+    std::fs::create_dir_all(&p.out).map_err(|e| Error::io(IoOp::Write, &p.out, e))?;
     let mut text = String::new();
     let mut csv = String::from(
         "part,series,x,bits_per_anchor,feature_bits_per_anchor,mse,snr_db,escapes,secs,render_psnr_db,render_ssim\n",

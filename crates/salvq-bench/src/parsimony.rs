@@ -9,12 +9,13 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use salvq::container::payload::{ContextPrecision, ScaffoldPrecision};
-use salvq::error::{Error, IoOp, Result};
 use salvq::limits::Limits;
 use salvq_encoder::info::{inspect, ByteClass};
 use salvq_encoder::parsimony::prune_grid_levels;
 use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_encoder::{Error, Result};
 use salvq_gen::{generate, GenParams};
+use salvq_render::error::IoOp;
 
 /// Scene sizes, smallest first.
 const SIZES: [u32; 5] = [1_000, 10_000, 100_000, 1_000_000, 2_000_000];
@@ -57,11 +58,7 @@ fn point(stream: &[u8]) -> Result<Point> {
 
 /// Runs the measurement on generated scenes of up to `max` anchors.
 pub fn run(out: &Path, max: u32) -> Result<String> {
-    std::fs::create_dir_all(out).map_err(|e| Error::Io {
-        op: IoOp::Write,
-        path: out.to_path_buf(),
-        kind: e.kind(),
-    })?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(IoOp::Write, out, e))?;
     let mut rows = Vec::new();
     for &n in SIZES.iter().filter(|&&n| n <= max) {
         let m = generate(&GenParams {

@@ -19,11 +19,11 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use salvq::container::payload::{ContextPrecision, ScaffoldPrecision};
-use salvq::error::Result;
 use salvq::limits::Limits;
 use salvq::model::{Mlp, SceneModel};
 use salvq_encoder::info::{inspect, ByteClass};
 use salvq_encoder::precision::{choose, PrecisionChoice};
+use salvq_encoder::Result;
 use salvq_encoder::{encode_full, values_mse as mse, EncodeOptions};
 
 use super::render_psnr::{RenderReference, HEIGHT, VIEWS, WIDTH};

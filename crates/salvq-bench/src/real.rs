@@ -12,14 +12,15 @@ use std::time::Instant;
 
 use plotters::prelude::*;
 
-use salvq::error::{Error, IoOp, Result};
 use salvq::explicit::decode_gaussians;
 use salvq::limits::Limits;
 use salvq_encoder::explicit::{
     encode_prepared, rate_plans, EncodedGaussians, ExplicitOptions, PreparedGaussians, RateControl,
     Variant,
 };
+use salvq_encoder::{Error, Result};
 use salvq_render::compare::RingTarget;
+use salvq_render::error::IoOp;
 use salvq_render::ply::read_ply;
 
 /// What to measure.
@@ -68,7 +69,7 @@ pub struct Row {
     pub decode_s: f64,
 }
 
-fn io_err(path: &Path, e: &std::io::Error) -> Error {
+fn io_err(path: &Path, e: std::io::Error) -> Error {
     Error::io(IoOp::Write, path, e)
 }
 
@@ -138,7 +139,7 @@ fn peer_row(
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::null())
             .status()
-            .map_err(|e| io_err(Path::new(program), &e))?;
+            .map_err(|e| io_err(Path::new(program), e))?;
         Ok((status.success(), t.elapsed().as_secs_f64()))
     };
     let mut enc_args: Vec<&std::ffi::OsStr> = vec!["-q".as_ref(), "-w".as_ref()];
@@ -162,7 +163,7 @@ fn peer_row(
         return Ok(None);
     }
     let bytes = std::fs::metadata(&encoded)
-        .map_err(|e| Error::io(IoOp::Read, &encoded, &e))?
+        .map_err(|e| Error::io(IoOp::Read, &encoded, e))?
         .len();
     let g = read_ply(&salvq_render::io::read_file(&decoded)?)?;
     let (p, s) = reference.psnr_ssim(&g)?;
@@ -227,9 +228,9 @@ fn variants() -> Vec<(&'static str, Variant, Option<bool>)> {
 
 /// Runs the bench; returns the text summary (also written to `real.txt`).
 pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
-    std::fs::create_dir_all(&o.out).map_err(|e| io_err(&o.out, &e))?;
+    std::fs::create_dir_all(&o.out).map_err(|e| io_err(&o.out, e))?;
     // The peers' files are only measured: they go to a temporary folder.
-    let scratch = tempfile::tempdir().map_err(|e| io_err(&o.out, &e))?;
+    let scratch = tempfile::tempdir().map_err(|e| io_err(&o.out, e))?;
     let work = scratch.path().to_path_buf();
     let mut rows: Vec<Row> = Vec::new();
     let mut groups_text = String::new();
@@ -328,7 +329,7 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
     write_csv(&o.out.join("real.csv"), &rows)?;
     chart(&o.out.join("real.svg"), o, &rows)?;
     let text = summary(o, &rows, &groups_text, &multi_text);
-    std::fs::write(o.out.join("real.txt"), &text).map_err(|e| io_err(&o.out, &e))?;
+    std::fs::write(o.out.join("real.txt"), &text).map_err(|e| io_err(&o.out, e))?;
     Ok(text)
 }
 
@@ -337,10 +338,13 @@ pub fn replot(dir: &Path, o: &RealOptions) -> Result<()> {
     let path = dir.join("real.csv");
     let text = String::from_utf8_lossy(&salvq_render::io::read_file(&path)?).into_owned();
     // A line that is not a row of `write_csv`'s.
-    let bad = |_line: usize| Error::Io {
-        op: IoOp::Read,
-        path: path.clone(),
-        kind: std::io::ErrorKind::InvalidData,
+    let bad = |line: usize| {
+        let why = format!("line {} is not a row of this bench", line + 1);
+        Error::io(
+            IoOp::Read,
+            &path,
+            std::io::Error::new(std::io::ErrorKind::InvalidData, why),
+        )
     };
     let mut rows = Vec::new();
     let mut scenes: Vec<String> = Vec::new();
@@ -391,7 +395,7 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
             r.decode_s
         ));
     }
-    std::fs::write(path, s).map_err(|e| io_err(path, &e))
+    std::fs::write(path, s).map_err(|e| io_err(path, e))
 }
 
 fn points(rows: &[Row], scene: &str, codec: &str) -> Vec<(f64, f64)> {
@@ -470,11 +474,8 @@ fn summary(o: &RealOptions, rows: &[Row], groups: &str, multi: &str) -> String {
 use super::charts::COLORS;
 
 fn chart(path: &Path, o: &RealOptions, rows: &[Row]) -> Result<()> {
-    draw(path, o, rows).map_err(|_| Error::Io {
-        op: IoOp::Write,
-        path: path.to_path_buf(),
-        kind: std::io::ErrorKind::Other,
-    })
+    draw(path, o, rows)
+        .map_err(|e| Error::io(IoOp::Write, path, std::io::Error::other(e.to_string())))
 }
 
 fn draw(

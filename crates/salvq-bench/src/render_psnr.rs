@@ -5,8 +5,8 @@
 
 use std::borrow::Cow;
 
-use salvq::error::Result;
 use salvq::model::SceneModel;
+use salvq_encoder::Result;
 use salvq_render::camera::Bounds;
 use salvq_render::compare::{psnr_of, RingTarget};
 use salvq_render::neural::{anchor_positions, neural_gaussians};

@@ -7,9 +7,10 @@ use std::process::Command;
 
 use plotters::prelude::*;
 
-use salvq::error::{Error, IoOp, Result};
 use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_encoder::{Error, Result};
 use salvq_gen::{generate, GenParams};
+use salvq_render::error::IoOp;
 
 /// Scene sizes measured (up to the `max` asked for).
 pub const SIZES: [u32; 8] = [
@@ -37,17 +38,13 @@ struct Measured {
     decoded_bytes: u64,
 }
 
-fn io_err(path: &Path, e: &std::io::Error) -> Error {
-    Error::Io {
-        op: IoOp::Write,
-        path: path.to_path_buf(),
-        kind: e.kind(),
-    }
+fn io_err(path: &Path, e: std::io::Error) -> Error {
+    Error::io(IoOp::Write, path, e)
 }
 
 /// Runs `salvq decode STREAM --measure` with `args`, `RUNS` times.
 fn decode_child(stream: &Path, args: &[String]) -> Result<Measured> {
-    let exe = std::env::current_exe().map_err(|e| io_err(stream, &e))?;
+    let exe = std::env::current_exe().map_err(|e| io_err(stream, e))?;
     let mut runs = Vec::with_capacity(RUNS);
     for _ in 0..RUNS {
         let out = Command::new(&exe)
@@ -56,7 +53,7 @@ fn decode_child(stream: &Path, args: &[String]) -> Result<Measured> {
             .args(["-o", "unused.safetensors", "--measure"])
             .args(args)
             .output()
-            .map_err(|e| io_err(&exe, &e))?;
+            .map_err(|e| io_err(&exe, e))?;
         let text = String::from_utf8_lossy(&out.stdout);
         if std::env::var_os("SALVQ_DEBUG").is_some() {
             eprintln!(
@@ -68,10 +65,13 @@ fn decode_child(stream: &Path, args: &[String]) -> Result<Measured> {
         let line = text
             .lines()
             .find(|l| l.starts_with("measure "))
-            .ok_or(Error::Io {
-                op: IoOp::Read,
-                path: exe.clone(),
-                kind: std::io::ErrorKind::InvalidData,
+            .ok_or_else(|| {
+                let why = "no 'measure' line in the decoder's output";
+                Error::io(
+                    IoOp::Read,
+                    &exe,
+                    std::io::Error::new(std::io::ErrorKind::InvalidData, why),
+                )
             })?;
         let field = |name: &str| -> f64 {
             line.split_whitespace()
@@ -118,8 +118,8 @@ struct Row {
 
 /// Runs the measurements and writes `scale.svg`, `scale.csv`, `scale.txt` under `out`.
 pub fn run(out: &Path, max: u32) -> Result<String> {
-    std::fs::create_dir_all(out).map_err(|e| io_err(out, &e))?;
-    let dir = tempfile::tempdir().map_err(|e| io_err(out, &e))?;
+    std::fs::create_dir_all(out).map_err(|e| io_err(out, e))?;
+    let dir = tempfile::tempdir().map_err(|e| io_err(out, e))?;
     let mut rows = Vec::new();
     for &n in SIZES.iter().filter(|&&n| n <= max) {
         let m = generate(&GenParams {
@@ -128,7 +128,7 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
         });
         let e = encode_full(&m, &EncodeOptions::default())?;
         let path = dir.path().join(format!("s{n}.salvq"));
-        std::fs::write(&path, &e.stream).map_err(|err| io_err(&path, &err))?;
+        std::fs::write(&path, &e.stream).map_err(|err| io_err(&path, err))?;
         // An eighth of the scene by volume: the lower half, on every axis, of the box of all
         // anchors.
         let (o, vs) = (m.origin.map(f64::from), f64::from(m.voxel_size));

@@ -3,9 +3,11 @@
 use std::path::Path;
 use std::time::Instant;
 
-use salvq::{Error, Limits};
+use salvq::Limits;
 use salvq_encoder::info::{inspect, ByteClass};
+use salvq_encoder::Error;
 use salvq_gen::{generate, GenParams};
+use salvq_render::error::IoOp;
 use salvq_render::interchange::write_model;
 
 use super::secs;
@@ -15,19 +17,12 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
     let tmp;
     let dir = match out {
         Some(d) => {
-            std::fs::create_dir_all(d).map_err(|e| Error::Io {
-                op: salvq::error::IoOp::Write,
-                path: d.to_path_buf(),
-                kind: e.kind(),
-            })?;
+            std::fs::create_dir_all(d).map_err(|e| Error::io(IoOp::Write, d, e))?;
             d.to_path_buf()
         }
         None => {
-            tmp = tempfile::tempdir().map_err(|e| Error::Io {
-                op: salvq::error::IoOp::CreateTemp,
-                path: std::env::temp_dir(),
-                kind: e.kind(),
-            })?;
+            tmp = tempfile::tempdir()
+                .map_err(|e| Error::io(IoOp::CreateTemp, &std::env::temp_dir(), e))?;
             tmp.path().to_path_buf()
         }
     };
@@ -143,12 +138,13 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
         println!("files kept in {}", dir.display());
     }
     if !(exact && bounded) {
-        return Err(Error::ValueInvalid {
+        return Err(salvq::Error::ValueInvalid {
             tensor: "demo check",
             index: vec![],
             value: 0,
             allowed: "exact geometry and masks, errors within half a step",
-        });
+        }
+        .into());
     }
     Ok(())
 }

@@ -7,9 +7,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use salvq::Error;
 use salvq_encoder::auto::{self, AutoChoice};
 use salvq_encoder::parsimony::LevelTrial;
+use salvq_encoder::Error;
 use salvq_render::interchange::read_model;
 
 use super::progress::Progress;

@@ -8,9 +8,9 @@ use std::time::Instant;
 use serde::Serialize;
 
 use salvq::explicit::Gaussians;
-use salvq::Error;
 use salvq_encoder::explicit::ratios::{FIT_HEIGHT, FIT_VIEWS, FIT_WIDTH};
 use salvq_encoder::explicit::{self, ExplicitOptions, RateControl};
+use salvq_encoder::Error;
 use salvq_render::compare::RingTarget;
 
 use super::encode::EncodeArgs;

@@ -19,8 +19,9 @@ use demo::demo;
 use tools::{conformance, make_vectors, parse_fault};
 
 use clap::{Parser, Subcommand};
-use salvq::{Error, Limits};
+use salvq::Limits;
 use salvq_encoder::info::inspect;
+use salvq_encoder::Error;
 use salvq_gen::{generate, GenParams};
 use salvq_render::interchange::{model_to_safetensors, write_model};
 
@@ -540,7 +541,7 @@ fn decode_explicit(
     if canonical {
         let tensors = salvq_conformance::canonical::explicit_canonical_tensors(&decoded);
         let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
-        return salvq_render::io::write_bytes_atomic(output, &bytes);
+        return Ok(salvq_render::io::write_bytes_atomic(output, &bytes)?);
     }
     let n = decoded.gaussians.len();
     if measure {

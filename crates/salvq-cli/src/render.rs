@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use salvq::Error;
+use salvq_encoder::Error;
 use salvq_render::camera::{Axis, Ring};
 use salvq_render::scene::Scene;
 use salvq_render::{ply, raster};
@@ -120,7 +120,10 @@ fn with_threads<T: Send>(threads: Option<u32>, f: impl FnOnce() -> T + Send) -> 
 }
 
 fn load(input: &std::path::Path, rate: Option<u8>) -> Result<Scene, Error> {
-    Scene::from_bytes(&salvq_render::io::read_file(input)?, rate)
+    Ok(Scene::from_bytes(
+        &salvq_render::io::read_file(input)?,
+        rate,
+    )?)
 }
 
 /// `salvq render`.
@@ -186,11 +189,12 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
             return Ok(());
         }
         Scene::Gaussians(_) => {
-            return Err(Error::RenderSettingInvalid {
+            return Err(salvq_render::Error::RenderSettingInvalid {
                 setting: "input",
                 value: 0.0,
                 rule: "export-ply reads a SALVQ stream or a safetensors model, not a PLY file",
-            })
+            }
+            .into())
         }
     };
     // The camera position does not depend on the image size; any valid size will do.

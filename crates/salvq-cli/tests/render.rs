@@ -7,10 +7,10 @@ use common::shared_data;
 
 use std::path::PathBuf;
 
-use salvq::Error;
 use salvq_gen::{generate, GenParams};
 use salvq_render::camera::{Axis, Bounds, Ring};
 use salvq_render::ply::{ply_bytes, read_ply};
+use salvq_render::Error;
 use salvq_render::{metrics, neural, raster, sh, Gaussians, Image};
 
 /// `n` Gaussians of SH degree `degree` with awkward binary32 values (negative zero,
@@ -180,17 +180,17 @@ fn malformed_ply_files_give_typed_errors() {
     assert_eq!(class(&file(list)), "PlyHeaderInvalid");
     let negative = header_with("-2", "", "");
     assert_eq!(class(&file(negative)), "PlyHeaderInvalid");
-    assert_eq!(
+    assert!(matches!(
         read_ply(&file(header_with("2", "rot_3", ""))).unwrap_err(),
         Error::PlyPropertyMissing { property: "rot_3" }
-    );
+    ));
     let five_rest: String = (0..5)
         .map(|i| format!("property float f_rest_{i}\n"))
         .collect();
-    assert_eq!(
+    assert!(matches!(
         read_ply(&file(header_with("2", "", &five_rest))).unwrap_err(),
         Error::PlyShCoefficients { count: 5 }
-    );
+    ));
     let gap: String = (1..10)
         .map(|i| format!("property float f_rest_{i}\n"))
         .collect();
@@ -215,13 +215,10 @@ fn malformed_ply_files_give_typed_errors() {
     let mut nan = file(header_with("2", "", ""));
     let at = nan.len() - body.len() + 2 * 14 * 4 - 4;
     nan[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
-    assert_eq!(
+    assert!(matches!(
         read_ply(&nan).unwrap_err(),
-        Error::PlyValueNotFinite {
-            vertex: 1,
-            property: "rot_3".into()
-        }
-    );
+        Error::PlyValueNotFinite { vertex: 1, property } if property == "rot_3"
+    ));
 }
 
 #[test]
@@ -428,7 +425,7 @@ fn neural_gaussians_follow_scaffold_gs() {
     short.mlp_cov.b1.pop();
     assert!(matches!(
         neural::neural_gaussians(&short, camera),
-        Err(Error::TensorShape { .. })
+        Err(Error::Stream(salvq::Error::TensorShape { .. }))
     ));
 }
 

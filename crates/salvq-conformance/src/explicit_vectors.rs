@@ -5,10 +5,10 @@
 use salvq::container::chunk::ChunkTag;
 use salvq::container::surgery;
 use salvq::explicit::Gaussians;
-use salvq::Result;
 use salvq_encoder::explicit::{
     encode_prepared, EncodedGaussians, ExplicitOptions, PreparedGaussians, RateControl, RatePlan,
 };
+use salvq_encoder::Result;
 use salvq_gen::gaussians::{generate_gaussians, GaussianParams};
 
 use super::must_fail::{vector as must_fail, MustFailVector};

@@ -415,7 +415,7 @@ mod tests {
 
     fn octree_rule(e: &Error) -> Option<&'static str> {
         match e {
-            Error::OctreeInvalid { rule, .. } => Some(rule),
+            salvq::Error::OctreeInvalid { rule, .. } => Some(rule),
             _ => None,
         }
     }
@@ -428,28 +428,28 @@ mod tests {
             let ok = match v.name {
                 "x-truncated-signature" => matches!(
                     e,
-                    Error::Truncated {
+                    salvq::Error::Truncated {
                         structure: Structure::Signature,
                         ..
                     }
                 ),
                 "x-truncated-chunk-header" | "x-truncated-before-send" => matches!(
                     e,
-                    Error::Truncated {
+                    salvq::Error::Truncated {
                         structure: Structure::ChunkHeader,
                         ..
                     }
                 ),
                 "x-truncated-chunk-crc" => matches!(
                     e,
-                    Error::Truncated {
+                    salvq::Error::Truncated {
                         structure: Structure::ChunkCrc,
                         ..
                     }
                 ),
                 "x-truncated-head" => matches!(
                     e,
-                    Error::Truncated {
+                    salvq::Error::Truncated {
                         structure: Structure::Payload(ChunkTag::HEAD),
                         ..
                     }
@@ -461,42 +461,42 @@ mod tests {
                 "x-octree-counts-below" => octree_rule(&e) == Some(geometry::COUNTS_BELOW),
                 "x-ans-zero-top-word-apos" => matches!(
                     e,
-                    Error::AnsStreamInvalid {
+                    salvq::Error::AnsStreamInvalid {
                         tag: ChunkTag::APOS,
                         fault: AnsFault::ZeroTopWord
                     }
                 ),
                 "x-ans-lowest-tile-reported" => matches!(
                     e,
-                    Error::AnsStreamInvalid {
+                    salvq::Error::AnsStreamInvalid {
                         tag: ChunkTag::AOFF,
                         fault: AnsFault::ZeroTopWord
                     }
                 ),
                 "x-truncated-tile-lengths" => matches!(
                     e,
-                    Error::Truncated {
+                    salvq::Error::Truncated {
                         structure: Structure::Payload(ChunkTag::APOS),
                         ..
                     }
                 ),
                 "x-tile-lengths-mismatch" => matches!(
                     e,
-                    Error::ChunkSizeMismatch {
+                    salvq::Error::ChunkSizeMismatch {
                         tag: ChunkTag::AFEA,
                         ..
                     }
                 ),
                 "x-ans-out-of-words-afea" => matches!(
                     e,
-                    Error::AnsStreamInvalid {
+                    salvq::Error::AnsStreamInvalid {
                         tag: ChunkTag::AFEA,
                         fault: AnsFault::OutOfWords
                     }
                 ),
                 "x-escape-overflow" => matches!(
                     e,
-                    Error::EscapeOverflow {
+                    salvq::Error::EscapeOverflow {
                         tag: ChunkTag::AFEA,
                         symbol: 0,
                         prefix_bits: 31
@@ -504,21 +504,21 @@ mod tests {
                 ),
                 "x-limit-chunk-length" => matches!(
                     e,
-                    Error::LimitExceeded {
+                    salvq::Error::LimitExceeded {
                         limit: salvq::limits::LimitKind::ChunkBytes,
                         ..
                     }
                 ),
                 "x-limit-anchors" => matches!(
                     e,
-                    Error::LimitExceeded {
+                    salvq::Error::LimitExceeded {
                         limit: salvq::limits::LimitKind::Anchors,
                         ..
                     }
                 ),
                 "x-limit-allocation" => matches!(
                     e,
-                    Error::LimitExceeded {
+                    salvq::Error::LimitExceeded {
                         limit: salvq::limits::LimitKind::AllocationBytes,
                         ..
                     }

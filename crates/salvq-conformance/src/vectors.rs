@@ -6,7 +6,7 @@ use salvq::container::surgery;
 use salvq::limits::Limits;
 use salvq::model::{Dims, Region, SceneModel};
 use salvq::quantizer::LatticeKind;
-use salvq::Result;
+use salvq_encoder::Result;
 use salvq_encoder::{encode_full, EncodeOptions, Encoded};
 use salvq_gen::{generate, GenParams};
 

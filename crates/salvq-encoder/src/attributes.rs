@@ -6,11 +6,11 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::error::Result;
 use salvq::attributes::mask_freq;
 use salvq::container::chunk::ChunkTag;
 use salvq::container::payload::METHOD_CODED;
 use salvq::entropy::{GaussianTables, SymbolWriter};
-use salvq::error::Result;
 use salvq::hyperprior::prior::{Group, Prior};
 use salvq::model::SceneModel;
 use salvq::tiles::{join_bodies, TileTable};
@@ -22,8 +22,11 @@ use salvq::quantizer::reconstruct_value;
 /// What coding one attribute group cost (spec §6.6; reported by `salvq info --json`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct GroupStats {
+    /// The group (`feat`, `scaling`, `offsets`).
     pub group: String,
+    /// Symbols coded.
     pub symbols: u64,
+    /// Of those, symbols coded with an escape (§6.4).
     pub escapes: u64,
     /// Bytes of the chunk's payload.
     pub coded_bytes: u64,
@@ -41,7 +44,9 @@ pub struct GroupStats {
 
 /// The coded chunks and their statistics.
 pub struct CodedAttributes {
+    /// The payloads of `AFEA`, `ASCL`, `AOFF`.
     pub chunks: [Vec<u8>; 3],
+    /// What each cost.
     pub stats: [GroupStats; 3],
     /// What a decoder reconstructs: features [N, F], scalings [N, S], offsets [N, K, 3].
     pub recon: [Vec<f32>; 3],

@@ -11,9 +11,9 @@
 
 use serde::Serialize;
 
+use crate::error::{Error, Result};
 use salvq::container::chunk::ChunkTag;
 use salvq::container::surgery;
-use salvq::error::{Error, Result};
 use salvq::model::{names, LatticeKind, SceneModel};
 
 use super::parsimony::{feature_mse, subsample};
@@ -41,7 +41,10 @@ pub enum FeatureQuantizer {
     /// The model's own lattice (its basis and regions, as trained; or D_n, E8).
     Model,
     /// A basis fitted by the encoder (the KLT, Annex A.5), one per region.
-    Fitted { regions: u16 },
+    Fitted {
+        /// Regions, each with its own basis.
+        regions: u16,
+    },
 }
 
 impl std::fmt::Display for FeatureQuantizer {
@@ -88,6 +91,7 @@ impl FeatureQuantizer {
 /// One candidate, measured at the step that matches the target distortion.
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
+    /// The feature quantizer.
     pub quantizer: FeatureQuantizer,
     /// Factor on the feature step (`quant.feat.step`) that gives the target MSE.
     pub step_factor: f64,
@@ -108,15 +112,18 @@ pub struct AutoChoice {
     /// Feature MSE of the model's own quantizer at the model's step: the distortion every
     /// candidate is matched to.
     pub target_mse: f64,
+    /// Relative tolerance of the distortion match.
     pub tolerance: f64,
     /// Anchors measured on (all when the model has at most [`AUTO_SAMPLE`]).
     pub sample_anchors: usize,
+    /// Every candidate measured.
     pub candidates: Vec<Candidate>,
     /// Index into `candidates` of the choice.
     pub chosen: usize,
 }
 
 impl AutoChoice {
+    /// The candidate chosen.
     pub fn chosen(&self) -> &Candidate {
         &self.candidates[self.chosen]
     }

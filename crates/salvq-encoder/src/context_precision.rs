@@ -9,8 +9,8 @@
 
 use serde::Serialize;
 
+use crate::error::Result;
 use salvq::container::payload::{context_bytes, ContextPrecision, ScaffoldPrecision};
-use salvq::error::Result;
 use salvq::model::SceneModel;
 
 use super::parsimony::subsample;
@@ -29,6 +29,7 @@ pub const MAX_REFINED_RATIO: f64 = 1.05;
 /// What the encoder chose for the context MLP's weights, and why.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ContextChoice {
+    /// The precision chosen.
     pub precision: ContextPrecision,
     /// Model bytes i8 weights save against i16.
     pub model_bytes_saved: u64,

@@ -4,8 +4,8 @@
 
 use rayon::prelude::*;
 
+use crate::error::Result;
 use salvq::container::payload::ContextPrecision;
-use salvq::error::{Error, Result};
 use salvq::hyperprior::mlp::{pow2, HIDDEN_MAX};
 use salvq::hyperprior::{GridLayout, IntMlp};
 use salvq::model::{names, Mlp, SceneModel};
@@ -67,7 +67,7 @@ pub fn convert_context_mlp_for(
                 (s as f64) < I32_LIMIT
             })
     })
-    .ok_or(Error::ValueInvalid {
+    .ok_or(salvq::Error::ValueInvalid {
         tensor: names::MLP_GRID[0],
         index: vec![],
         value: max_abs(&f.w0) as i64,
@@ -151,7 +151,7 @@ pub fn convert_context_mlp_for(
             max_abs(row) * pow2(a) <= weight_max
                 && (row_max * pow2(a) + b * pow2(qh + a)) < I32_LIMIT * MARGIN
         })
-        .ok_or(Error::ValueInvalid {
+        .ok_or(salvq::Error::ValueInvalid {
             tensor: names::MLP_GRID[2],
             index: vec![o as u64],
             value: max_abs(row) as i64,

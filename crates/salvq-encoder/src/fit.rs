@@ -19,7 +19,7 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rayon::prelude::*;
 
 use super::float_prior::FloatPrior;
-use salvq::error::{Error, Result};
+use crate::error::{Error, Result};
 use salvq::model::{names, Basis, Region, SceneModel};
 use salvq::quantizer::GroupLattices;
 

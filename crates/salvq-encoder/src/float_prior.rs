@@ -65,6 +65,7 @@ impl FloatPrior {
         }
     }
 
+    /// The float prior of the anchor at voxel `v`.
     pub fn eval(&self, m: &SceneModel, v: [u32; 3]) -> FloatAnchor<'_> {
         let h = self.hidden(m, v);
         FloatAnchor {

@@ -2,10 +2,13 @@
 //! MLP to fixed point, quantizes and entropy-codes the anchor attributes, and writes the
 //! chunks in the order of spec Table 1-3. Encoding choices never change what a decoder must do.
 
+#![warn(missing_docs)]
+
 pub mod attributes;
 pub mod auto;
 pub mod context_precision;
 pub mod convert;
+pub mod error;
 pub mod explicit;
 pub mod fit;
 pub mod float_grid;
@@ -24,7 +27,7 @@ use salvq::container::payload;
 use salvq::container::preflight::Preflight;
 use salvq::container::signature::Signature;
 use salvq::entropy::GaussianTables;
-use salvq::error::{Error, Field, Result};
+use salvq::error::Field;
 use salvq::hyperprior::prior::Prior;
 use salvq::hyperprior::GridLayout;
 use salvq::model::validate::{check_lattices, validate_model};
@@ -32,6 +35,7 @@ use salvq::model::{decoded_bytes, names, LatticeKind, SceneModel};
 use salvq::quantizer::GroupLattices;
 
 pub use attributes::GroupStats;
+pub use error::{Error, Result};
 pub use search::{GroupSearch, GroupSearches, Search};
 
 /// Options that change what the encoder writes.
@@ -73,13 +77,19 @@ pub struct EncodeOptions {
 /// shows it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EncodeReport {
+    /// Anchors coded.
     pub anchors: u64,
+    /// The rate.
     pub rate: u8,
+    /// What each attribute group cost.
     pub groups: Vec<GroupStats>,
+    /// Ideal bits of the offset masks.
     pub mask_bits: u64,
+    /// Bytes of `AMSK`.
     pub mask_bytes: u64,
     /// Touched / total hash-grid entries (§5.2).
     pub grid_entries_stored: u64,
+    /// Hash-grid entries in all.
     pub grid_entries_total: u64,
 }
 
@@ -114,7 +124,9 @@ pub fn encode_with_report(
 /// One symbol layer as the encoder produced it.
 #[derive(Debug)]
 pub struct EncodedLayer {
+    /// The layer's rate.
     pub rate: u8,
+    /// What the encoder measured.
     pub report: EncodeReport,
     /// The model a conformant decoder must output for this rate, bit for bit.
     pub expected: SceneModel,
@@ -125,7 +137,9 @@ pub struct EncodedLayer {
 /// tests use as their oracle.
 #[derive(Debug)]
 pub struct Encoded {
+    /// The stream.
     pub stream: Vec<u8>,
+    /// Its layers, rates ascending.
     pub layers: Vec<EncodedLayer>,
     /// How the Scaffold-GS MLPs were stored, and why (Annex A.5.2).
     pub scaffold: precision::PrecisionChoice,
@@ -165,9 +179,10 @@ fn choose_lattices(model: &SceneModel, options: &EncodeOptions) -> Result<SceneM
         m.dims.feat_lattice = LatticeKind::General;
     } else if let Some(kind) = options.feat_lattice {
         if kind == LatticeKind::General && model.quant_feat.basis.is_none() {
-            return Err(Error::TensorMissing {
+            return Err(salvq::Error::TensorMissing {
                 tensor: names::QUANT_FEAT[2],
-            });
+            }
+            .into());
         }
         m.dims.feat_lattice = kind;
         if kind != LatticeKind::General {
@@ -196,12 +211,13 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     rates.sort_unstable();
     rates.dedup();
     if let Some(&r) = rates.iter().find(|&&r| r >= model.dims.rates) {
-        return Err(Error::FieldOutOfRange {
+        return Err(salvq::Error::FieldOutOfRange {
             field: Field::CodedRate,
             value: r.into(),
             min: 0,
             max: u64::from(model.dims.rates) - 1,
-        });
+        }
+        .into());
     }
     // Canonical order first: regions (§7.6) and the fits are defined on it.
     let canonical;

@@ -5,7 +5,7 @@
 //! into the layer-0 bias — encodes both, and keeps the smaller stream. No format change: the
 //! stream simply describes a model with fewer levels.
 
-use salvq::error::Result;
+use crate::error::Result;
 use salvq::model::{level_entries, Mlp, SceneModel};
 
 use super::convert::grid_inputs;
@@ -14,7 +14,9 @@ use super::{encode_full, EncodeOptions};
 /// One hash-grid level: 3D level `i`, or 2D level `i` (on all three planes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GridLevel {
+    /// 3D level `i`.
     ThreeD(usize),
+    /// 2D level `i`, on all three planes.
     TwoD(usize),
 }
 
@@ -131,9 +133,11 @@ pub struct LevelTrial {
     pub resolution: u16,
     /// Stream bytes with the level and without it.
     pub bytes_with: u64,
+    /// Stream bytes without the level.
     pub bytes_without: u64,
     /// Feature reconstruction MSE (lowest coded rate) with the level and without it.
     pub mse_with: f64,
+    /// Feature MSE without the level.
     pub mse_without: f64,
     /// Anchors the decision was measured on (all of them up to [`PRUNE_SAMPLE`]); with fewer
     /// than the model has, the byte counts are estimates.

@@ -19,10 +19,12 @@ const SAMPLE: usize = 4096;
 /// What the encoder chose for the Scaffold-GS MLPs, and why.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PrecisionChoice {
+    /// The precision chosen.
     pub precision: ScaffoldPrecision,
     /// Largest change of an activated output with binary16 weights (∞ when a value does not
     /// fit binary16).
     pub max_output_change: f64,
+    /// The largest change allowed.
     pub tolerance: f64,
     /// Model bytes saved against binary32.
     pub bytes_saved: u64,

@@ -1,9 +1,9 @@
 //! The encoder's lattice search per attribute group (informative, spec Annex A.4; DESIGN P8:
 //! any choice of lattice point gives a conformant stream, the decoder only computes `B u`).
 
+use crate::error::{Error, Result};
 use crate::lattice::{closest_dn, closest_e8_product, Lattice, SearchMethod, DEFAULT_MAX_NODES};
 use salvq::entropy::GaussianTables;
-use salvq::error::{Error, Result};
 use salvq::quantizer::{LatticeKind, LatticeMatrix};
 
 /// Which lattice point the encoder picks for a target (`salvq encode --search`).
@@ -21,12 +21,18 @@ pub enum Search {
     NearestPlane,
     /// Schnorr–Euchner closest point on the LLL-reduced basis, at most `max_nodes` nodes
     /// (then the best point found; never worse than nearest plane).
-    Closest { max_nodes: u64 },
+    Closest {
+        /// Most nodes visited.
+        max_nodes: u64,
+    },
     /// Rate-distortion optimised: the `Auto` point, then greedy moves of one coordinate by
     /// ±1 while they lower `‖B u − t‖² + λ · bits(u)`, bits from the integer entropy model
     /// (§6) at the coordinates' own scale indices, `λ = ln 2 / 6` (the slope of a lattice
     /// quantizer's D(R) at high rate, in squared steps per bit) times `lambda_milli / 1000`.
-    Rdo { lambda_milli: u32 },
+    Rdo {
+        /// λ in thousandths of [`RDO_LAMBDA`].
+        lambda_milli: u32,
+    },
 }
 
 /// `λ` of [`Search::Rdo`] at `lambda_milli = 1000`: `−dD/dR = 2 ln 2 · D` with `D = 1/12`
@@ -41,6 +47,7 @@ impl Search {
     /// The names `--search` takes.
     pub const NAMES: [&'static str; 5] = ["auto", "rounding", "nearest-plane", "closest", "rdo"];
 
+    /// The search named `name` (one of [`Self::NAMES`]).
     pub fn from_name(name: &str) -> Option<Search> {
         match name {
             "auto" => Some(Search::Auto),
@@ -54,6 +61,7 @@ impl Search {
         }
     }
 
+    /// Its name, as `--search` takes it.
     pub fn name(self) -> &'static str {
         match self {
             Search::Auto => "auto",
@@ -68,6 +76,7 @@ impl Search {
 /// One group's quantizer as the encoder uses it: the decoder's matrix and a search.
 #[derive(Debug, Clone)]
 pub struct GroupSearch {
+    /// The group's reconstruction matrix, as the decoder builds it (§7.3).
     pub matrix: LatticeMatrix,
     method: Search,
     /// Precomputations of the general search (not needed for Z^n, or for the exact D_n and

@@ -9,7 +9,7 @@
 //! looking at the bounds' centre with one vertical field of view, so that anyone can render
 //! the same views of a scene (Annex C.2 defines it step by step; [`Ring::camera`] follows it).
 
-use salvq::error::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Largest image width or height the renderer accepts.
 pub const MAX_IMAGE_SIDE: u32 = 16_384;
@@ -17,10 +17,13 @@ pub const MAX_IMAGE_SIDE: u32 = 16_384;
 /// A pinhole camera: intrinsics and the world-to-camera transform.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Camera {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Focal lengths in pixels.
     pub fx: f32,
+    /// Vertical focal length in pixels.
     pub fy: f32,
     /// Camera centre in world space.
     pub position: [f32; 3],
@@ -87,7 +90,9 @@ impl Axis {
 /// (Annex C.2), so that a few stray Gaussians far away do not shrink the scene to a dot.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bounds {
+    /// Smallest corner.
     pub min: [f32; 3],
+    /// Largest corner.
     pub max: [f32; 3],
 }
 

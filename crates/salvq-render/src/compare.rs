@@ -9,11 +9,13 @@ use super::camera::{Bounds, Camera, Ring};
 use super::metrics::{psnr, ssim};
 use super::raster::render;
 use super::{Gaussians, Image};
-use salvq::error::Result;
+use crate::error::Result;
 
 /// Reference renders and the cameras they were taken from.
 pub struct RingTarget {
+    /// The ring's cameras.
     pub cameras: Vec<Camera>,
+    /// The reference's image from each.
     pub images: Vec<Image>,
 }
 

@@ -11,7 +11,8 @@ use std::path::Path;
 use safetensors::tensor::TensorView;
 use safetensors::SafeTensors;
 
-use salvq::error::{Error, Field, Result};
+use crate::error::{Error, Result};
+use salvq::error::Field;
 use salvq::model::validate::{check_field, validate_model, MAX_COORD_BITS};
 use salvq::model::{
     names, tensor_table, Anchors, Basis, Dims, Dtype, GroupQuantizer, HashGrid, LatticeKind, Mlp,
@@ -23,6 +24,7 @@ pub const SCHEMA_VERSION: &str = "0.2";
 
 /// Metadata keys naming the lattice of the feature and scaling groups (Annex A.1, §7.1).
 pub const META_FEAT_LATTICE: &str = "feat_lattice";
+/// Metadata key of the scaling group's lattice.
 pub const META_SCALING_LATTICE: &str = "scaling_lattice";
 
 fn st_dtype(d: Dtype) -> safetensors::Dtype {
@@ -45,13 +47,14 @@ impl<'a> Reader<'a> {
         let view = self
             .st
             .tensor(name)
-            .map_err(|_| Error::TensorMissing { tensor: name })?;
+            .map_err(|_| salvq::Error::TensorMissing { tensor: name })?;
         if view.dtype() != st_dtype(dtype) {
-            return Err(Error::TensorDtype {
+            return Err(salvq::Error::TensorDtype {
                 tensor: name,
                 expected: dtype,
                 found: format!("{:?}", view.dtype()),
-            });
+            }
+            .into());
         }
         Ok(view)
     }
@@ -61,11 +64,12 @@ impl<'a> Reader<'a> {
         let view = self.get(name, dtype)?;
         let shape: Vec<u64> = view.shape().iter().map(|&d| d as u64).collect();
         if shape.len() != usize::from(rank) {
-            return Err(Error::TensorRank {
+            return Err(salvq::Error::TensorRank {
                 tensor: name,
                 expected: rank,
                 found: shape.len().min(255) as u8,
-            });
+            }
+            .into());
         }
         Ok(shape)
     }
@@ -75,11 +79,12 @@ impl<'a> Reader<'a> {
         let view = self.get(e.name, e.dtype)?;
         let found: Vec<u64> = view.shape().iter().map(|&d| d as u64).collect();
         if found != e.shape {
-            return Err(Error::TensorShape {
+            return Err(salvq::Error::TensorShape {
                 tensor: e.name,
                 expected: e.shape.clone(),
                 found,
-            });
+            }
+            .into());
         }
         Ok(view.data())
     }
@@ -109,7 +114,7 @@ fn fields(r: &Reader<'_>, name: &'static str, field: Field) -> Result<Vec<u64>> 
     for (i, &v) in values.iter().enumerate() {
         let (min, max) = salvq::model::validate::field_range(field);
         if v < 0 {
-            return Err(Error::ValueInvalid {
+            return Err(salvq::Error::ValueInvalid {
                 tensor: name,
                 index: vec![i as u64],
                 value: v.into(),
@@ -118,7 +123,8 @@ fn fields(r: &Reader<'_>, name: &'static str, field: Field) -> Result<Vec<u64>> 
                 } else {
                     "1..=24"
                 },
-            });
+            }
+            .into());
         }
         out.push(check_field(field, v as u64)?);
     }
@@ -127,12 +133,13 @@ fn fields(r: &Reader<'_>, name: &'static str, field: Field) -> Result<Vec<u64>> 
 
 fn log2_field(field: Field, v: i32) -> Result<u8> {
     if v < 0 {
-        return Err(Error::ValueInvalid {
+        return Err(salvq::Error::ValueInvalid {
             tensor: names::LOG2_SIZE,
             index: vec![u64::from(field == Field::Log2Size2d)],
             value: v.into(),
             allowed: "1..=24",
-        });
+        }
+        .into());
     }
     Ok(check_field(field, v as u64)? as u8)
 }
@@ -153,18 +160,21 @@ fn infer_dims(r: &Reader<'_>) -> Result<Dims> {
     let res_2d = res(names::RES_2D, Field::Resolution2d)?;
     let log2 = r.i32s(names::LOG2_SIZE)?;
     let [log2_3d, log2_2d] = log2[..] else {
-        return Err(Error::TensorShape {
+        return Err(salvq::Error::TensorShape {
             tensor: names::LOG2_SIZE,
             expected: vec![2],
             found: vec![log2.len() as u64],
-        });
+        }
+        .into());
     };
     let feat_dim = check_field(Field::FeatDim, feat[1])?;
-    let view_dims = opa[1].checked_sub(feat_dim).ok_or(Error::TensorShape {
-        tensor: names::MLP_OPACITY[0],
-        expected: vec![opa[0], feat_dim],
-        found: opa.clone(),
-    })?;
+    let view_dims = opa[1]
+        .checked_sub(feat_dim)
+        .ok_or(salvq::Error::TensorShape {
+            tensor: names::MLP_OPACITY[0],
+            expected: vec![opa[0], feat_dim],
+            found: opa.clone(),
+        })?;
     // Annex A.1: a lattice named in the metadata, else a general basis exactly when its
     // factor tensors are present.
     let lattice = |named: &Option<String>, names: &[&'static str; 5]| -> Result<LatticeKind> {
@@ -232,7 +242,7 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
             .collect();
     unknown.sort();
     if let Some(name) = unknown.into_iter().next() {
-        return Err(Error::TensorUnexpected { name });
+        return Err(salvq::Error::TensorUnexpected { name }.into());
     }
     let mut data = Vec::with_capacity(table.len());
     for e in &table {
@@ -252,12 +262,13 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
         let mut v = [0u32; 3];
         for axis in 0..3 {
             if c[axis] < 0 || c[axis] >= 1 << MAX_COORD_BITS {
-                return Err(Error::CoordinateOutOfRange {
+                return Err(salvq::Error::CoordinateOutOfRange {
                     anchor: i as u64,
                     axis: axis as u8,
                     value: c[axis].into(),
                     coord_bits: MAX_COORD_BITS,
-                });
+                }
+                .into());
             }
             v[axis] = c[axis] as u32;
         }

@@ -4,11 +4,11 @@
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
-use salvq::error::{Error, IoOp, Result};
+use crate::error::{Error, IoOp, Result};
 
 /// Reads a whole file.
 pub fn read_file(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| Error::io(IoOp::Read, path, &e))
+    std::fs::read(path).map_err(|e| Error::io(IoOp::Read, path, e))
 }
 
 /// Writes `path` atomically: `fill` writes into a temporary file beside it, which is renamed
@@ -25,14 +25,14 @@ pub fn write_atomic(
         .prefix(".salvq-")
         .suffix(".tmp")
         .tempfile_in(dir)
-        .map_err(|e| Error::io(IoOp::CreateTemp, path, &e))?;
+        .map_err(|e| Error::io(IoOp::CreateTemp, path, e))?;
     {
         let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
-        fill(&mut w).map_err(|e| Error::io(IoOp::Write, path, &e))?;
-        w.flush().map_err(|e| Error::io(IoOp::Write, path, &e))?;
+        fill(&mut w).map_err(|e| Error::io(IoOp::Write, path, e))?;
+        w.flush().map_err(|e| Error::io(IoOp::Write, path, e))?;
     }
     tmp.persist(path)
-        .map_err(|e| Error::io(IoOp::Rename, path, &e.error))?;
+        .map_err(|e| Error::io(IoOp::Rename, path, e.error))?;
     Ok(())
 }
 

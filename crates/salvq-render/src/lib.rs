@@ -19,11 +19,14 @@
 //! let gaussians = neural::neural_gaussians(&model, camera.position)?;
 //! let image = raster::render(&gaussians, &camera, [0.0; 3]);
 //! assert_eq!(image.rgb.len(), 64 * 48 * 3);
-//! # Ok::<(), salvq::Error>(())
+//! # Ok::<(), salvq_render::Error>(())
 //! ```
+
+#![warn(missing_docs)]
 
 pub mod camera;
 pub mod compare;
+pub mod error;
 pub mod interchange;
 pub mod io;
 pub mod metrics;
@@ -33,16 +36,18 @@ pub mod raster;
 pub mod scene;
 pub mod sh;
 
-use salvq::error::{Error, Result};
-
+pub use error::{Error, Result};
 pub use salvq::explicit::{rest_per_channel, Gaussians};
 
 /// An RGB image of binary32 values, row-major from the top-left pixel, 3 values a pixel.
 /// Values are what the renderer composited: ≥ 0, and usually but not necessarily ≤ 1.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// The pixels, `3·width·height` values.
     pub rgb: Vec<f32>,
 }
 

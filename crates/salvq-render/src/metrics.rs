@@ -3,13 +3,15 @@
 //! `ssim`).
 
 use super::Image;
-use salvq::error::{Error, Result};
+use crate::error::{Error, Result};
 
 /// SSIM's Gaussian window: side and standard deviation (Wang et al. 2004).
 pub const SSIM_WINDOW: usize = 11;
+/// SSIM's Gaussian window: σ in pixels (Wang et al. 2004).
 pub const SSIM_SIGMA: f64 = 1.5;
 /// SSIM's stabilising constants `C1 = (K1 L)²`, `C2 = (K2 L)²` with L = 1.
 pub const SSIM_K1: f64 = 0.01;
+/// SSIM's K2 constant.
 pub const SSIM_K2: f64 = 0.03;
 
 fn same_size(a: &Image, b: &Image) -> Result<()> {

@@ -22,7 +22,8 @@
 use rayon::prelude::*;
 
 use super::Gaussians;
-use salvq::error::{Error, Field, Result};
+use crate::error::{Error, Result};
+use salvq::error::Field;
 use salvq::model::{names, Mlp, SceneModel};
 
 /// SH band-0 constant `1 / (2 √π)` in binary64.
@@ -43,6 +44,7 @@ pub enum ScaffoldMlp {
 }
 
 impl ScaffoldMlp {
+    /// The three, in stream order.
     pub const ALL: [ScaffoldMlp; 3] = [ScaffoldMlp::Opacity, ScaffoldMlp::Cov, ScaffoldMlp::Color];
 }
 
@@ -112,11 +114,12 @@ pub fn anchor_positions(m: &SceneModel) -> Vec<[f32; 3]> {
 }
 
 fn shape_error(tensor: &'static str, expected: &[usize], found: usize) -> Error {
-    Error::TensorShape {
+    salvq::Error::TensorShape {
         tensor,
         expected: expected.iter().map(|&d| d as u64).collect(),
         found: vec![found as u64],
     }
+    .into()
 }
 
 /// Checks that the model has Scaffold-GS's shape (S = 6, V = 3 or 4) and that every vector

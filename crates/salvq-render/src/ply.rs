@@ -19,7 +19,7 @@
 use std::io::Write;
 
 use super::{rest_per_channel, Gaussians};
-use salvq::error::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Largest header the reader scans for `end_header` (a 3DGS header with SH degree 3 is
 /// about 1.3 KB).

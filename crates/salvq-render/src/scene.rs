@@ -5,8 +5,8 @@ use std::borrow::Cow;
 
 use super::camera::Bounds;
 use super::{neural, ply, Gaussians};
+use crate::error::{Error, Result};
 use salvq::container::signature::MAGIC;
-use salvq::error::{Error, Result};
 use salvq::model::SceneModel;
 
 /// A renderable scene.

@@ -93,7 +93,7 @@ fn options(rate: Option<u8>) -> DecodeOptions {
     DecodeOptions::default().with_rate(rate)
 }
 
-fn to_js(e: salvq::Error) -> JsError {
+fn to_js(e: impl std::fmt::Display) -> JsError {
     JsError::new(&e.to_string())
 }
 

@@ -2,7 +2,7 @@
 //! (this profile), or one of the compressed splat formats people hand to it by mistake, which
 //! get a message saying what they are and how to convert them.
 
-use salvq::error::{Error, Result};
+use crate::error::{Error, Result};
 
 /// The kinds of file `salvq encode` tells apart by their first bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -8,10 +8,10 @@ use nalgebra::DMatrix;
 use super::prepare::PreparedGaussians;
 use super::prior::{bit_cost, fit_prior, freq, group_histograms, PRED_LEVEL_CANDIDATES};
 pub use super::prior::{group_bits, BitCost, Variant};
+use crate::error::Result;
 use salvq::container::chunk::{write_chunk, ChunkTag};
 use salvq::container::payload::METHOD_CODED;
 use salvq::entropy::{GaussianTables, SymbolWriter};
-use salvq::error::Result;
 use salvq::explicit::attributes::{walk, BitEvent, Events, TileSymbols, MAX_COORDINATE};
 use salvq::explicit::groups::{Group, GroupKind};
 use salvq::explicit::layer::{Layer, MAX_COORD_BITS, SIZE_CLASSES};
@@ -48,6 +48,7 @@ impl RatePlan {
 /// the same for every rate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SizeClasses {
+    /// Upper bounds of classes 0 … 2 on the largest log-scale, increasing.
     pub thresholds: [f64; SIZE_CLASSES - 1],
 }
 
@@ -97,15 +98,23 @@ impl SizeClasses {
 /// What one layer cost and holds.
 #[derive(Debug, Clone)]
 pub struct LayerReport {
+    /// The layer's rate.
     pub rate: u8,
+    /// Bits per voxel coordinate.
     pub coord_bits: u8,
+    /// Edge of a voxel in world units.
     pub voxel_size: f32,
+    /// Octree levels a reference must share (§3.4).
     pub pred_level: u8,
+    /// Position refinement bits per axis, per size class.
     pub refine: [u8; SIZE_CLASSES],
     /// Payload bytes of GLAY, TILS, APOS, GATT (framing excluded).
     pub glay_bytes: usize,
+    /// Payload bytes of `TILS`.
     pub tils_bytes: usize,
+    /// Payload bytes of `APOS`.
     pub apos_bytes: usize,
+    /// Payload bytes of `GATT`.
     pub gatt_bytes: usize,
     /// Ideal bits per group under the fitted tables (the rotation index in its group).
     pub group_bits: Vec<f64>,
@@ -113,20 +122,27 @@ pub struct LayerReport {
     pub refine_bits: f64,
     /// Whether each group is predicted from its reference.
     pub predict: Vec<bool>,
+    /// Tiles in the layer.
     pub tiles: usize,
 }
 
 /// A coded layer: its chunks, what the decoder will output, and its report.
 pub struct CodedLayer {
+    /// The layer's chunks, framed.
     pub chunks: Vec<u8>,
+    /// The Gaussians a conformant decoder outputs for this layer.
     pub expected: Gaussians,
+    /// What it cost.
     pub report: LayerReport,
 }
 
 /// The layer's grid: the voxel of each Gaussian and the canonical order.
 pub struct Grid {
+    /// Bits per voxel coordinate.
     pub coord_bits: u8,
+    /// Edge of a voxel in world units.
     pub voxel_size: f32,
+    /// World position of voxel (0, 0, 0)'s corner.
     pub origin: [f32; 3],
     /// Canonical order: `order[k]` is the input index of the k-th Gaussian.
     pub order: Vec<usize>,
@@ -215,7 +231,7 @@ struct Writer<'a, 't> {
 }
 
 impl Events for Writer<'_, '_> {
-    fn bit(&mut self, freq_one: u32, i: usize, what: BitEvent) -> Result<bool> {
+    fn bit(&mut self, freq_one: u32, i: usize, what: BitEvent) -> salvq::Result<bool> {
         let bit = match what {
             BitEvent::RotationHigh => self.rotation[i] >> 1 == 1,
             BitEvent::RotationLow => self.rotation[i] & 1 == 1,
@@ -224,7 +240,7 @@ impl Events for Writer<'_, '_> {
         self.out.bit(bit, freq_one);
         Ok(bit)
     }
-    fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> Result<i64> {
+    fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> salvq::Result<i64> {
         let r = i64::from(self.coords[i * self.values + v]) - pred;
         self.out.symbol(r, k)?;
         Ok(r)

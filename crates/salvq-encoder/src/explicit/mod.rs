@@ -16,10 +16,10 @@ use nalgebra::{DMatrix, SymmetricEigen};
 pub use layer::{CodedLayer, LayerReport, RatePlan, SizeClasses, Variant};
 pub use prepare::PreparedGaussians;
 
+use crate::error::{Error, Result};
 use salvq::container::chunk::{write_chunk, ChunkTag};
 use salvq::container::signature::Signature;
 use salvq::entropy::GaussianTables;
-use salvq::error::{Error, Result};
 use salvq::explicit::groups::{write_gqua, Group, GroupKind};
 use salvq::explicit::header::GaussianHeader;
 use salvq::explicit::Gaussians;
@@ -71,6 +71,7 @@ pub enum RateControl {
 }
 
 impl RateControl {
+    /// Rates asked for.
     pub fn rate_count(&self) -> usize {
         match self {
             RateControl::Psnr(t) => t.len(),
@@ -86,6 +87,7 @@ pub const DEFAULT_PSNR_TARGETS: [f64; 6] = [62.0, 56.0, 50.0, 45.0, 40.0, 35.0];
 /// What the explicit encoder is asked to do.
 #[derive(Debug, Clone)]
 pub struct ExplicitOptions {
+    /// The rates: PSNR targets or fixed plans.
     pub rates: RateControl,
     /// The rates coded (each below M); `None`: all.
     pub coded: Option<Vec<u8>>,
@@ -93,6 +95,7 @@ pub struct ExplicitOptions {
     /// order; `None`: SH DC and SH rest each when it makes the middle rate's layer, basis
     /// included, smaller.
     pub klt: Option<Vec<bool>>,
+    /// Gaussians per tile at most (§10).
     pub tile_gaussians: u32,
     /// Text for an `encd` chunk (§1.7), written after `GQUA`.
     pub note: Option<String>,
@@ -115,8 +118,11 @@ impl Default for ExplicitOptions {
 
 /// An encoded explicit-profile stream.
 pub struct EncodedGaussians {
+    /// The stream.
     pub stream: Vec<u8>,
+    /// Its preflight (§3.2).
     pub header: GaussianHeader,
+    /// Its attribute groups (§3.3).
     pub groups: Vec<Group>,
     /// Bytes of GHED and GQUA (framed): the model shared by every layer.
     pub shared_bytes: usize,
@@ -352,12 +358,13 @@ pub fn encode_prepared(
     let mut rate_mask = 0u64;
     for &r in &coded {
         if usize::from(r) >= m {
-            return Err(Error::FieldOutOfRange {
+            return Err(salvq::Error::FieldOutOfRange {
                 field: salvq::error::Field::CodedRate,
                 value: r.into(),
                 min: 0,
                 max: m as u64 - 1,
-            });
+            }
+            .into());
         }
         rate_mask |= 1 << r;
     }

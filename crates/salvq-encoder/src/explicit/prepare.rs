@@ -2,7 +2,7 @@
 //! (spec Annex A.8): finite values, clamped opacity logits, unit quaternions as their three
 //! smallest components, each group's values side by side. Every trial encode reuses it.
 
-use salvq::error::{Error, Result};
+use crate::error::{Error, Result};
 use salvq::explicit::groups::GroupKind;
 use salvq::explicit::Gaussians;
 
@@ -13,7 +13,9 @@ pub const OPACITY_LOGIT_LIMIT: f64 = 16.0;
 /// A scene in coding form (Annex A.8).
 #[derive(Debug, Clone)]
 pub struct PreparedGaussians {
+    /// SH degree, 0 … 3.
     pub sh_degree: u8,
+    /// The means.
     pub positions: Vec<[f64; 3]>,
     /// The groups of Table 3-3 present at this degree.
     pub kinds: Vec<GroupKind>,
@@ -23,18 +25,22 @@ pub struct PreparedGaussians {
     pub rotation_index: Vec<u8>,
     /// Smallest corner of the positions' box, and the box's largest side.
     pub min: [f64; 3],
+    /// The box's largest side.
     pub extent: f64,
 }
 
 impl PreparedGaussians {
+    /// Number of Gaussians.
     pub fn len(&self) -> usize {
         self.positions.len()
     }
 
+    /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
     }
 
+    /// Values per Gaussian of group `g`.
     pub fn dim(&self, g: usize) -> usize {
         self.kinds[g].dim(self.sh_degree)
     }
@@ -49,9 +55,12 @@ impl PreparedGaussians {
             });
         }
         let b = g.rest_per_channel();
-        let bad = |vertex: usize, property: String| Error::PlyValueNotFinite {
-            vertex: vertex as u64,
-            property,
+        let bad = |vertex: usize, property: String| -> Error {
+            salvq_render::Error::PlyValueNotFinite {
+                vertex: vertex as u64,
+                property,
+            }
+            .into()
         };
         let kinds = GroupKind::present(g.sh_degree);
         let mut values: Vec<Vec<f64>> = kinds

@@ -20,6 +20,7 @@ pub struct BitCost {
 const SMALL: usize = 4096;
 
 impl BitCost {
+    /// Costs under `tables`.
     pub fn new(tables: &GaussianTables) -> Self {
         BitCost {
             small: (0..SMALL)

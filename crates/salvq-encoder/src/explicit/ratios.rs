@@ -8,7 +8,7 @@
 use super::layer::{RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
 use super::TrialSteps;
-use salvq::error::Result;
+use crate::error::Result;
 use salvq::explicit::groups::GroupKind;
 use salvq::explicit::layer::SIZE_CLASSES;
 use salvq::explicit::Gaussians;
@@ -16,7 +16,9 @@ use salvq_render::compare::RingTarget;
 
 /// Views and image size of the fit's renders (small: each trial renders them all).
 pub const FIT_VIEWS: u32 = 8;
+/// Width of the fit's renders.
 pub const FIT_WIDTH: u32 = 256;
+/// Height of the fit's renders.
 pub const FIT_HEIGHT: u32 = 192;
 
 /// `g` with one part of the Gaussians of class `class` (all when `None`) uniformly

@@ -5,10 +5,10 @@
 
 use serde::Serialize;
 
+use crate::error::Result;
 use salvq::container::chunk::ChunkReader;
 use salvq::container::signature::{Signature, SIGNATURE_LEN};
 use salvq::entropy::GaussianTables;
-use salvq::error::Result;
 use salvq::explicit::attributes::{walk, BitEvent, Events};
 use salvq::explicit::decode_gaussians;
 use salvq::limits::Limits;
@@ -16,10 +16,15 @@ use salvq::limits::Limits;
 /// One layer as `info` shows it.
 #[derive(Debug, Clone, Serialize)]
 pub struct ExplicitLayerInfo {
+    /// The layer's rate.
     pub rate: u8,
+    /// Bits per voxel coordinate.
     pub coord_bits: u8,
+    /// Edge of a voxel in world units.
     pub voxel_size: f32,
+    /// Position refinement bits per axis, per size class.
     pub refine: [u8; 4],
+    /// Tiles in the layer.
     pub tiles: usize,
     /// Framed bytes of the layer's chunks (its section, §3.7).
     pub layer_bytes: u64,
@@ -27,6 +32,7 @@ pub struct ExplicitLayerInfo {
     pub single_rate_bytes: u64,
     /// Bits per Gaussian: the octree (`APOS` payload) and the refinement bits.
     pub octree_bits: f64,
+    /// Bits per Gaussian of the position refinement.
     pub refine_bits: f64,
     /// Bits per Gaussian of each group, by name (the rotation index in `rotation`).
     pub group_bits: Vec<(String, f64)>,
@@ -35,16 +41,23 @@ pub struct ExplicitLayerInfo {
 /// `info` of an explicit-profile stream.
 #[derive(Debug, Clone, Serialize)]
 pub struct ExplicitInfo {
+    /// The format version, `major.minor`.
     pub format_version: String,
+    /// Gaussians in every layer.
     pub gaussians: u32,
+    /// SH degree.
     pub sh_degree: u8,
+    /// Rates the quantizers have gains for.
     pub rate_count: u8,
+    /// The rates the stream codes.
     pub coded_rates: Vec<u8>,
+    /// Bytes of the stream.
     pub file_bytes: u64,
     /// Framed bytes of `GHED`, `GQUA` and the ancillary chunks before the first layer.
     pub shared_bytes: u64,
     /// Per group: its name and whether it has a KLT basis (lattice code 4).
     pub lattices: Vec<(String, bool)>,
+    /// Its layers, in stream order.
     pub layers: Vec<ExplicitLayerInfo>,
 }
 
@@ -59,7 +72,7 @@ struct Cost<'a> {
 }
 
 impl Events for Cost<'_> {
-    fn bit(&mut self, _freq_one: u32, _: usize, what: BitEvent) -> Result<bool> {
+    fn bit(&mut self, _freq_one: u32, _: usize, what: BitEvent) -> salvq::Result<bool> {
         // A refinement bit costs one bit; the rotation index's bits are costed from the
         // decoded indices afterwards (the traversal does not need them to be right here).
         if let BitEvent::Refine { .. } = what {
@@ -67,7 +80,7 @@ impl Events for Cost<'_> {
         }
         Ok(false)
     }
-    fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> Result<i64> {
+    fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> salvq::Result<i64> {
         let r = i64::from(self.coords[i * self.values + v]) - pred;
         self.bits[self.group_of[v]] += self.tables.ideal_bits(k, r);
         Ok(r)

@@ -5,11 +5,11 @@ pub mod explicit;
 
 use serde::Serialize;
 
+use crate::error::Result;
 use crate::EncodeReport;
 use salvq::container::chunk::{ChunkReader, ChunkTag, CHUNK_OVERHEAD};
 use salvq::container::preflight::Preflight;
 use salvq::container::signature::{Signature, SIGNATURE_LEN};
-use salvq::error::Result;
 use salvq::limits::Limits;
 use salvq::model::Dims;
 
@@ -39,14 +39,19 @@ pub fn byte_class(tag: ChunkTag) -> ByteClass {
 /// One chunk as `info` lists it.
 #[derive(Debug, Clone, Serialize)]
 pub struct ChunkInfo {
+    /// The chunk type.
     pub tag: String,
+    /// Whether a decoder must understand it.
     pub critical: bool,
+    /// What its bytes count as.
     pub class: ByteClass,
     /// Offset of the chunk's length field.
     pub offset: u64,
+    /// Bytes of its payload.
     pub payload_bytes: u64,
     /// Payload plus 12 bytes of framing.
     pub total_bytes: u64,
+    /// Its CRC-32C, in hex.
     pub crc32c: String,
 }
 
@@ -54,11 +59,17 @@ pub struct ChunkInfo {
 #[derive(Debug, Clone, Serialize)]
 pub struct HeadInfo {
     #[serde(flatten)]
+    /// The dimensions (§2.1).
     pub dims: Dims,
+    /// Bits per voxel coordinate.
     pub coord_bits: u8,
+    /// World position of voxel (0, 0, 0)'s corner.
     pub origin: [f32; 3],
+    /// Edge of a voxel in world units.
     pub voxel_size: f32,
+    /// The decoded model's size in bytes (§1.4).
     pub decoded_bytes: u64,
+    /// The rates the stream codes.
     pub coded_rates: Vec<u8>,
 }
 
@@ -78,10 +89,15 @@ impl From<&Preflight> for HeadInfo {
 /// Bytes per class and per anchor.
 #[derive(Debug, Clone, Serialize)]
 pub struct Totals {
+    /// Bytes of the stream.
     pub file_bytes: u64,
+    /// Of those, the shared model's chunks.
     pub model_bytes: u64,
+    /// The anchors' chunks.
     pub anchor_bytes: u64,
+    /// Everything else (signature, ancillary chunks).
     pub other_bytes: u64,
+    /// The whole stream per anchor, in bits.
     pub bits_per_anchor: f64,
 }
 
@@ -93,7 +109,9 @@ pub struct ModelPart {
     pub part: String,
     /// The group it belongs to, for the text report's subtotals (`mlp_grid`, `quant.feat`, …).
     pub group: String,
+    /// The chunk it is stored in.
     pub chunk: String,
+    /// Its bytes.
     pub bytes: u64,
 }
 
@@ -242,10 +260,13 @@ fn model_parts(
 /// The symbol bytes of one coded rate (`salvq info --json`: `layers`).
 #[derive(Debug, Clone, Serialize)]
 pub struct LayerInfo {
+    /// The rate.
     pub rate: u8,
     /// `AFEA`, `ASCL`, `AOFF` of this layer, chunk overhead included.
     pub feat_bytes: u64,
+    /// `ASCL` of this layer, chunk overhead included.
     pub scaling_bytes: u64,
+    /// `AOFF` of this layer, chunk overhead included.
     pub offsets_bytes: u64,
     /// This layer's symbol bits per anchor.
     pub symbol_bits_per_anchor: f64,
@@ -257,10 +278,15 @@ pub struct LayerInfo {
 /// Everything `salvq info` reports.
 #[derive(Debug, Clone, Serialize)]
 pub struct StreamInfo {
+    /// The format version, `major.minor`.
     pub format_version: String,
+    /// The signature's file flags (§1.2).
     pub file_flags: u16,
+    /// The preflight, when `HEAD` decodes.
     pub head: Option<HeadInfo>,
+    /// Every chunk, in stream order.
     pub chunks: Vec<ChunkInfo>,
+    /// Bytes per class.
     pub totals: Totals,
     /// Model bytes per part (framing and method bytes not included).
     pub model_parts: Vec<ModelPart>,
@@ -275,8 +301,11 @@ pub struct StreamInfo {
 /// How a stream is cut into tiles (§10).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TilesInfo {
+    /// Tiles.
     pub count: u64,
+    /// Anchors in the smallest tile.
     pub min_anchors: u32,
+    /// Anchors in the largest tile.
     pub max_anchors: u32,
 }
 

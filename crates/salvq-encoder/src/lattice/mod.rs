@@ -67,7 +67,12 @@ pub enum LatticeError {
     /// Dimension 0.
     EmptyDimension,
     /// A slice has the wrong length.
-    DimensionMismatch { expected: usize, got: usize },
+    DimensionMismatch {
+        /// The length required.
+        expected: usize,
+        /// The length given.
+        got: usize,
+    },
     /// The basis has a NaN or infinite entry, or overflows f64 when factored.
     NonFiniteBasis,
     /// The basis is singular (a Gram–Schmidt norm ≤ [`SINGULAR_RTOL`] · longest vector).
@@ -116,7 +121,10 @@ pub enum SearchMethod {
     /// Babai nearest plane on the LLL-reduced basis.
     NearestPlane,
     /// Schnorr–Euchner closest point, stopped after `max_nodes` visited nodes.
-    ClosestPoint { max_nodes: u64 },
+    ClosestPoint {
+        /// The node bound.
+        max_nodes: u64,
+    },
 }
 
 /// A quantized vector.

@@ -1,0 +1,138 @@
+//! The encoder's errors: an input it does not read (Annex A.8.1), a lattice search or a fit
+//! that failed (§7.3, Annex A.5), and the errors it passes on from the decoder crate (a model
+//! that fails validation, §2) and from the scene files it reads (PLY, safetensors).
+
+use std::fmt;
+
+/// An error of the encoder (and of the tools built on it).
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Error {
+    /// The decoder crate's error: a model that breaks a rule of §2, or a stream (§9).
+    Stream(salvq::Error),
+    /// Reading or writing a scene file, or rendering (Annex A.1, Annex C, §9.2).
+    Files(salvq_render::Error),
+    /// An encoder input is a file of a kind the encoder does not read (Annex A.8.1).
+    UnsupportedInput {
+        /// What the input is.
+        found: &'static str,
+        /// How to convert it.
+        hint: &'static str,
+    },
+    /// The lattice search could not quantize a group (§7.3).
+    LatticeSearchFailed {
+        /// The tensor.
+        tensor: &'static str,
+        /// The anchor, when one is to blame.
+        anchor: Option<u64>,
+        /// Why.
+        reason: String,
+    },
+    /// The fit of a basis or of scale rows to the model's anchors (Annex A.5) failed.
+    FitFailed {
+        /// The tensor.
+        tensor: &'static str,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// The encoder's result type.
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    /// The error's class, as `salvq` stderr spells it.
+    pub fn class(&self) -> &'static str {
+        match self {
+            Error::Stream(e) => e.class(),
+            Error::Files(e) => e.class(),
+            Error::UnsupportedInput { .. } => "UnsupportedInput",
+            Error::LatticeSearchFailed { .. } => "LatticeSearchFailed",
+            Error::FitFailed { .. } => "FitFailed",
+        }
+    }
+
+    /// The spec section whose rule this error reports.
+    pub fn spec_section(&self) -> &'static str {
+        match self {
+            Error::Stream(e) => e.spec_section(),
+            Error::Files(e) => e.spec_section(),
+            Error::UnsupportedInput { .. } => "Annex A.8.1",
+            Error::LatticeSearchFailed { .. } => "§7.3",
+            Error::FitFailed { .. } => "Annex A.5",
+        }
+    }
+
+    /// An I/O error on `path` during `op` (§9.2).
+    pub fn io(
+        op: salvq_render::error::IoOp,
+        path: &std::path::Path,
+        source: std::io::Error,
+    ) -> Error {
+        Error::Files(salvq_render::Error::io(op, path, source))
+    }
+
+    /// The decoder's error inside, if that is what this is.
+    pub fn as_stream(&self) -> Option<&salvq::Error> {
+        match self {
+            Error::Stream(e) | Error::Files(salvq_render::Error::Stream(e)) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+/// An encoder error equals a decoder error when it passes that error on.
+impl PartialEq<salvq::Error> for Error {
+    fn eq(&self, other: &salvq::Error) -> bool {
+        self.as_stream() == Some(other)
+    }
+}
+
+impl From<salvq::Error> for Error {
+    fn from(e: salvq::Error) -> Self {
+        Error::Stream(e)
+    }
+}
+
+impl From<salvq_render::Error> for Error {
+    fn from(e: salvq_render::Error) -> Self {
+        match e {
+            // One wrapping of the decoder's error, whichever way it came.
+            salvq_render::Error::Stream(e) => Error::Stream(e),
+            e => Error::Files(e),
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Stream(e) => return write!(f, "{e}"),
+            Error::Files(e) => return write!(f, "{e}"),
+            Error::UnsupportedInput { found, hint } => write!(
+                f,
+                "the input is {found}, which the encoder does not read: {hint}"
+            )?,
+            Error::LatticeSearchFailed {
+                tensor,
+                anchor,
+                reason,
+            } => match anchor {
+                Some(a) => write!(f, "{tensor}: anchor {a}: {reason}")?,
+                None => write!(f, "{tensor}: {reason}")?,
+            },
+            Error::FitFailed { tensor, reason } => write!(f, "{tensor}: fit failed: {reason}")?,
+        }
+        write!(f, " [{}]", self.spec_section())
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Stream(e) => Some(e),
+            Error::Files(e) => Some(e),
+            _ => None,
+        }
+    }
+}
