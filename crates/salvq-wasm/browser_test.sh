@@ -41,7 +41,10 @@ echo "-- native decode of the same stream, in process (cargo bench --bench first
 (cd "$REPO" && SALVQ_BENCH_STREAM="$WORK/www/data/scene.salvq" cargo bench -q --bench first_tile) \
   | tee "$WORK/out/native.txt"
 
-(cd "$WORK/www" && python3 -m http.server "$PORT" --bind 127.0.0.1 > "$WORK/out/http.log" 2>&1) &
+if (echo > "/dev/tcp/127.0.0.1/$PORT") 2> /dev/null; then
+  echo "port $PORT is already in use (PORT=... picks another)"; exit 1
+fi
+(cd "$WORK/www" && exec python3 -m http.server "$PORT" --bind 127.0.0.1 > "$WORK/out/http.log" 2>&1) &
 server=$!
 trap 'kill $server 2> /dev/null || true' EXIT
 sleep 1
