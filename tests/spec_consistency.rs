@@ -355,6 +355,11 @@ fn every_tool_error() -> Vec<salvq_encoder::Error> {
             found: "x",
             hint: "y",
         },
+        salvq_encoder::Error::OptionUnsupported {
+            option: "x",
+            reason: "y",
+            hint: "z",
+        },
         salvq_encoder::Error::LatticeSearchFailed {
             tensor: "x",
             anchor: Some(1),

@@ -26,7 +26,7 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
             tmp.path().to_path_buf()
         }
     };
-    println!(
+    out!(
         "salvq demo: format {}.{}, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n",
         salvq::container::FORMAT_MAJOR,
         salvq::container::FORMAT_MINOR
@@ -59,18 +59,22 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
     write_model(&decoded, &dir.join("decoded.safetensors"))?;
 
     let info = inspect(stream, &Limits::default())?;
-    println!("{:<10} {:>10}", "step", "seconds");
-    println!("{:<10} {:>10.3}", "generate", t_gen);
-    println!("{:<10} {:>10.3}", "encode", t_enc);
-    println!("{:<10} {:>10.3}", "decode", t_dec);
-    println!(
+    out!("{:<10} {:>10}", "step", "seconds");
+    out!("{:<10} {:>10.3}", "generate", t_gen);
+    out!("{:<10} {:>10.3}", "encode", t_enc);
+    out!("{:<10} {:>10.3}", "decode", t_dec);
+    out!(
         "decode throughput: {:.0} anchors/s, {:.0} symbols/s\n",
         f64::from(anchors) / t_dec,
         report.groups.iter().map(|g| g.symbols).sum::<u64>() as f64 / t_dec
     );
-    println!(
+    out!(
         "{:<6} {:<7} {:>12} {:>8} {:>12}",
-        "chunk", "class", "bytes", "share", "bits/anchor"
+        "chunk",
+        "class",
+        "bytes",
+        "share",
+        "bits/anchor"
     );
     let total = info.totals.file_bytes as f64;
     for c in &info.chunks {
@@ -79,7 +83,7 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
             ByteClass::Anchor => "anchor",
             ByteClass::Other => "other",
         };
-        println!(
+        out!(
             "{:<6} {:<7} {:>12} {:>7.2}% {:>12.2}",
             c.tag,
             class,
@@ -89,7 +93,7 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
         );
     }
     let t = &info.totals;
-    println!(
+    out!(
         "\nmodel bytes {} ({:.2}%), anchor bytes {} ({:.2}%), other {}; total {} bytes = {:.2} bits/anchor",
         t.model_bytes,
         100.0 * t.model_bytes as f64 / total,
@@ -99,12 +103,12 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
         t.file_bytes,
         t.bits_per_anchor
     );
-    println!(
+    out!(
         "input model file {} bytes; stream / input = {:.4}\n",
         input_bytes,
         total / input_bytes.max(1) as f64
     );
-    print!("{}", salvq_encoder::info::groups_text(report));
+    crate::print_text(&salvq_encoder::info::groups_text(report));
     // Verify: geometry and masks exact, attributes within half a step.
     // The quantizer is lossless but for the base step the encoder may refine to hold the
     // distortion with i8 context-MLP weights (spec Annex A.5.4).
@@ -120,22 +124,22 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
         .groups
         .iter()
         .all(|g| g.max_error_steps <= 0.5 + 1e-3);
-    println!("\n{:<8} {:>12} {:>14}", "group", "RMSE", "max |err|/step");
+    out!("\n{:<8} {:>12} {:>14}", "group", "RMSE", "max |err|/step");
     for g in &report.groups {
-        println!(
+        out!(
             "{:<8} {:>12.3e} {:>14.4}",
             g.group,
             (g.squared_error / g.symbols.max(1) as f64).sqrt(),
             g.max_error_steps
         );
     }
-    println!(
+    out!(
         "check: voxels, masks, Scaffold-GS MLPs and quantizers {}; every coded value within half a step: {}",
         if exact { "exact" } else { "DIFFER" },
         if bounded { "yes" } else { "NO" }
     );
     if out.is_some() {
-        println!("files kept in {}", dir.display());
+        out!("files kept in {}", dir.display());
     }
     if !(exact && bounded) {
         return Err(salvq::Error::ValueInvalid {

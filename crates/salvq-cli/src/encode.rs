@@ -142,6 +142,13 @@ pub fn run_model(
         "salvq" => Some(salvq::LatticeKind::General),
         _ => None,
     };
+    if feat_lattice == Some(salvq::LatticeKind::General) && model.quant_feat.basis.is_none() {
+        return Err(Error::OptionUnsupported {
+            option: "--quantizer salvq",
+            reason: "the model has no learned lattice basis (quant.feat.basis_u, _s, _v)",
+            hint: "--quantizer klt fits one to its features (Annex A.5); --quantizer usq codes them with the identity",
+        });
+    }
     let mut options = salvq_encoder::EncodeOptions {
         encoder_note: a.note,
         rates: a.rates.unwrap_or_else(|| vec![0]),
@@ -243,21 +250,21 @@ pub fn run_model(
             pruned_levels,
             layers: reports,
         };
-        println!(
+        out!(
             "{}",
             serde_json::to_string_pretty(&summary).unwrap_or_default()
         );
     } else if !a.quiet {
         let rates: Vec<u8> = reports.iter().map(|r| r.rate).collect();
-        println!(
+        out!(
             "encoded {anchors} anchors at rates {rates:?} into {} ({} bytes, {bits_per_anchor:.2} bits/anchor) in {:.2} s",
             a.output.display(),
             stream.len(),
             secs(t)
         );
         for r in reports {
-            println!("rate {}:", r.rate);
-            print!("{}", salvq_encoder::info::groups_text(r));
+            out!("rate {}:", r.rate);
+            crate::print_text(&salvq_encoder::info::groups_text(r));
         }
     }
     Ok(())

@@ -151,13 +151,13 @@ fn report(
             klt,
             layers,
         };
-        println!("{}", serde_json::to_string_pretty(&s).unwrap_or_default());
+        out!("{}", serde_json::to_string_pretty(&s).unwrap_or_default());
         return;
     }
     if quiet {
         return;
     }
-    println!(
+    out!(
         "encoded {} Gaussians (SH degree {}) at {} rates into {} ({} bytes) in {seconds:.2} s",
         g.len(),
         g.sh_degree,
@@ -167,10 +167,10 @@ fn report(
     );
     let fitted: Vec<&str> = klt.iter().filter(|k| k.1).map(|k| k.0.as_str()).collect();
     if !fitted.is_empty() {
-        println!("KLT basis fitted for: {}", fitted.join(", "));
+        out!("KLT basis fitted for: {}", fitted.join(", "));
     }
     let names: Vec<&str> = e.groups.iter().map(|gr| gr.kind.name()).collect();
-    println!(
+    out!(
         "rate  target dB  PSNR dB  bytes (alone)  B/Gaussian  bits/Gaussian: position {}",
         names.join(" ")
     );
@@ -180,7 +180,7 @@ fn report(
             .iter()
             .map(|(_, b)| format!("{b:.2}"))
             .collect();
-        println!(
+        out!(
             "{:>4}  {:>9}  {:>7.2}  {:>13}  {:>10.3}  {:.2} {}",
             l.rate,
             l.target_db.map(|t| format!("{t:.1}")).unwrap_or_default(),
@@ -191,5 +191,5 @@ fn report(
             groups.join(" ")
         );
     }
-    println!("(rate 0 is the finest; `salvq extract --rate I` writes one rate alone; PSNR from {FIT_VIEWS} ring views at {FIT_WIDTH}x{FIT_HEIGHT})");
+    out!("(rate 0 is the finest; `salvq extract --rate I` writes one rate alone; PSNR from {FIT_VIEWS} ring views at {FIT_WIDTH}x{FIT_HEIGHT})");
 }

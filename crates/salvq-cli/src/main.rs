@@ -8,6 +8,32 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+/// `println!` for the command's report: a reader that closes the pipe early (`salvq info x |
+/// head`) ends the command quietly instead of a panic ("failed printing to stdout").
+macro_rules! out {
+    () => {
+        $crate::print_line(format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::print_line(format_args!($($arg)*))
+    };
+}
+
+/// One line to standard output; a closed pipe ends the process with status 0 (as `head`
+/// expects of the commands it reads), any other failure with status 1.
+fn print_line(args: std::fmt::Arguments<'_>) {
+    print_text(&format!("{args}\n"));
+}
+
+/// Text to standard output, as [`print_line`] writes it.
+fn print_text(text: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        std::process::exit(i32::from(e.kind() != std::io::ErrorKind::BrokenPipe));
+    }
+}
+
 mod demo;
 mod encode;
 mod encode_ply;
@@ -282,7 +308,24 @@ fn secs(t: Instant) -> f64 {
     t.elapsed().as_secs_f64()
 }
 
+/// The file a command writes, checked before any work is done (a folder, or a path in a
+/// folder that does not exist, fails at once rather than after the encode).
+fn output_of(command: &Command) -> Option<&std::path::Path> {
+    match command {
+        Command::Gen { output, .. }
+        | Command::Decode { output, .. }
+        | Command::Extract { output, .. } => Some(output),
+        Command::Encode(a) => Some(&a.output),
+        Command::Render(a) => Some(&a.output),
+        Command::ExportPly(a) => Some(&a.output),
+        _ => None,
+    }
+}
+
 fn run(cli: Cli) -> Result<(), Error> {
+    if let Some(path) = output_of(&cli.command) {
+        salvq_render::io::check_output(path)?;
+    }
     match cli.command {
         Command::Gen {
             anchors,
@@ -304,7 +347,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             let model = generate(&params);
             let bytes = model_to_safetensors(&model);
             salvq_render::io::write_bytes_atomic(&output, &bytes)?;
-            println!(
+            out!(
                 "wrote {} ({} anchors, seed {seed}, {} bytes) in {:.2} s\nsha256 {}",
                 output.display(),
                 anchors,
@@ -322,7 +365,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             let stream = salvq_render::io::read_file(&input)?;
             let one = salvq::extract_rate(&stream, rate, &Limits::default())?;
             salvq_render::io::write_bytes_atomic(&output, &one)?;
-            println!(
+            out!(
                 "extracted rate {rate} into {} ({} of {} bytes)",
                 output.display(),
                 one.len(),
@@ -358,7 +401,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             }
             let model = salvq::decode_with_options(&stream, &options)?;
             if measure {
-                println!(
+                out!(
                     "measure decode_secs={} peak_rss_bytes={} anchors={} decoded_bytes={}",
                     secs(t),
                     salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
@@ -372,9 +415,16 @@ fn run(cli: Cli) -> Result<(), Error> {
                 return Ok(());
             }
             write_model(&model, &output)?;
-            println!(
-                "decoded {} anchors into {} in {:.2} s",
+            // Which rate was decoded (§7.4): the one asked for, else the lowest coded.
+            let decoded_rate = match salvq::Decoder::builder().build().read_header(&stream) {
+                Ok(salvq::Header::Anchors(p)) => rate.or(p.coded_rates().first().copied()),
+                _ => rate,
+            };
+            out!(
+                "decoded {} anchors (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
                 model.dims.anchors,
+                decoded_rate.map_or("?".into(), |r| r.to_string()),
+                model.dims.rates,
                 output.display(),
                 secs(t)
             );
@@ -387,23 +437,23 @@ fn run(cli: Cli) -> Result<(), Error> {
                 let info =
                     salvq_encoder::info::explicit::inspect_explicit(&stream, &Limits::default())?;
                 if json {
-                    println!(
+                    out!(
                         "{}",
                         serde_json::to_string_pretty(&info).unwrap_or_default()
                     );
                 } else {
-                    print!("{}", info.to_text());
+                    crate::print_text(&info.to_text());
                 }
                 return Ok(());
             }
             let info = inspect(&stream, &Limits::default())?;
             if json {
-                println!(
+                out!(
                     "{}",
                     serde_json::to_string_pretty(&info).unwrap_or_default()
                 );
             } else {
-                print!("{}", info.to_text());
+                crate::print_text(&info.to_text());
             }
         }
         Command::Bench {
@@ -415,16 +465,16 @@ fn run(cli: Cli) -> Result<(), Error> {
                 seed,
                 out: out.clone(),
             })?;
-            print!("{text}");
-            println!("wrote rd.svg, rd_correlation.svg, search_speed.svg, stability.svg, rd.csv, summary.txt to {} in {:.1} s", out.display(), secs(t));
+            crate::print_text(&text);
+            out!("wrote rd.svg, rd_correlation.svg, search_speed.svg, stability.svg, rd.csv, summary.txt to {} in {:.1} s", out.display(), secs(t));
         }
         Command::Bench {
             which: Bench::Scale { out, max },
         } => {
             let t = Instant::now();
             let text = salvq_bench::scale::run(&out, max)?;
-            print!("{text}");
-            println!(
+            crate::print_text(&text);
+            out!(
                 "wrote scale.svg, scale.csv, scale.txt to {} in {:.1} s",
                 out.display(),
                 secs(t)
@@ -459,12 +509,12 @@ fn run(cli: Cli) -> Result<(), Error> {
             };
             if replot {
                 salvq_bench::real::replot(&out, &options)?;
-                println!("redrew {}", out.join("real.svg").display());
+                out!("redrew {}", out.join("real.svg").display());
                 return Ok(());
             }
             let text = salvq_bench::real::run(&options, &|m| eprintln!("{m}"))?;
-            print!("{text}");
-            println!(
+            crate::print_text(&text);
+            out!(
                 "wrote real.svg, real.csv, real.txt to {} in {:.1} s",
                 out.display(),
                 secs(t)
@@ -475,8 +525,8 @@ fn run(cli: Cli) -> Result<(), Error> {
         } => {
             let t = Instant::now();
             let text = salvq_bench::parsimony::run(&out, max)?;
-            print!("{text}");
-            println!(
+            crate::print_text(&text);
+            out!(
                 "wrote parsimony and precision .svg, .csv, .txt to {} in {:.1} s",
                 out.display(),
                 secs(t)
@@ -517,6 +567,12 @@ fn main() -> ExitCode {
     }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        // `-o -` into a reader that stopped early (`| head -c 100`): not a failure.
+        Err(salvq_encoder::Error::Files(salvq_render::Error::Io { source, .. }))
+            if source.kind() == std::io::ErrorKind::BrokenPipe =>
+        {
+            ExitCode::SUCCESS
+        }
         Err(e) => {
             eprintln!("salvq: error[{}]: {e}", e.class());
             ExitCode::FAILURE
@@ -545,7 +601,7 @@ fn decode_explicit(
     }
     let n = decoded.gaussians.len();
     if measure {
-        println!(
+        out!(
             "measure decode_secs={} peak_rss_bytes={} gaussians={n} decoded_bytes={}",
             secs(t),
             salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
@@ -558,7 +614,7 @@ fn decode_explicit(
         return Ok(());
     }
     salvq_render::ply::write_ply_file(&decoded.gaussians, output)?;
-    println!(
+    out!(
         "decoded {n} Gaussians (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
         decoded.rate,
         decoded.header.rate_count,

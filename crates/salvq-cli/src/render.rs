@@ -51,7 +51,7 @@ pub(crate) struct RenderArgs {
     input: PathBuf,
     /// Output image (PNG, 8-bit RGB).
     #[arg(short, long)]
-    output: PathBuf,
+    pub(crate) output: PathBuf,
     /// The rate to decode a stream at (default: the lowest rate it carries).
     #[arg(long)]
     rate: Option<u8>,
@@ -78,7 +78,7 @@ pub(crate) struct ExportPlyArgs {
     input: PathBuf,
     /// Output PLY file (Inria 3DGS layout, spec Annex C.3).
     #[arg(short, long)]
-    output: PathBuf,
+    pub(crate) output: PathBuf,
     /// The rate to decode a stream at (default: the lowest rate it carries).
     #[arg(long)]
     rate: Option<u8>,
@@ -152,7 +152,7 @@ pub(crate) fn render(a: RenderArgs) -> Result<(), Error> {
         ),
         Scene::Gaussians(g) => format!("{} Gaussians (SH degree {})", g.len(), g.sh_degree),
     };
-    println!(
+    out!(
         "rendered view {} of {} ({}x{}) into {}: {source}; {} drawn, {} tile entries; \
          read in {:.1} ms, rasterized in {:.1} ms",
         a.ring.view,
@@ -179,7 +179,7 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
             if salvq::decoder::is_explicit(&salvq_render::io::read_file(&a.input)?) =>
         {
             ply::write_ply_file(g, &a.output)?;
-            println!(
+            out!(
                 "exported {} Gaussians (SH degree {}) into {} in {:.2} s",
                 g.len(),
                 g.sh_degree,
@@ -205,7 +205,7 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
     let gaussians = salvq_render::neural::neural_gaussians(model, camera.position)?;
     ply::write_ply_file(&gaussians, &a.output)?;
     let unmasked = model.anchors.mask.iter().filter(|&&m| m == 1).count();
-    println!(
+    out!(
         "exported {} Gaussians into {} in {:.2} s: the unmasked offsets ({unmasked}) of {} anchors \
          with opacity > 0 seen from ring camera {} of {} at {:?}",
         gaussians.len(),

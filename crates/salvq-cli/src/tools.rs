@@ -32,9 +32,9 @@ pub(crate) fn conformance(
     let (_, report) = salvq_conformance::runner::run(vectors, &template, filter)?;
     for o in &report.outcomes {
         let verdict = if o.passed { "pass" } else { "FAIL" };
-        println!("{verdict}  {:<32} {}", o.label, o.detail);
+        out!("{verdict}  {:<32} {}", o.label, o.detail);
     }
-    println!("{}", report.summary());
+    out!("{}", report.summary());
     if report.failed() > 0 {
         return Err(format!(
             "{} of {} conformance checks failed",
@@ -57,7 +57,7 @@ pub(crate) fn make_vectors(
     if check {
         let diffs = salvq_conformance::generate::check(&g, out, readme);
         for d in &diffs {
-            println!("stale: {d}");
+            out!("stale: {d}");
         }
         if !diffs.is_empty() {
             return Err(format!(
@@ -66,7 +66,7 @@ pub(crate) fn make_vectors(
                 diffs.len()
             ));
         }
-        println!(
+        out!(
             "{} vectors, {} files, {bytes} bytes: identical to a fresh generation ({:.1} s)",
             g.manifest.vectors.len(),
             g.files.len(),
@@ -75,7 +75,7 @@ pub(crate) fn make_vectors(
         return Ok(());
     }
     salvq_conformance::generate::write(&g, out, readme)?;
-    println!(
+    out!(
         "wrote {} vectors ({} files, {bytes} bytes) to {} in {:.1} s",
         g.manifest.vectors.len(),
         g.files.len(),

@@ -192,3 +192,106 @@ fn encode_a_ply_with_a_nan() {
         "{err}"
     );
 }
+
+/// A vector to decode in the output tests.
+fn vector() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../conformance/vectors/g-sh3-rates.salvq")
+        .to_string_lossy()
+        .into_owned()
+}
+
+#[cfg(unix)]
+#[test]
+fn outputs_get_the_permissions_of_any_new_file_and_symlinks_stay() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    // A file created the ordinary way gets the umask; salvq's output must get the same.
+    let plain = dir.path().join("plain");
+    std::fs::File::create(&plain).unwrap();
+    let want = std::fs::metadata(&plain).unwrap().permissions().mode() & 0o777;
+    let out = dir.path().join("g.ply");
+    let o = salvq(&["decode", &vector(), "-o", &out.to_string_lossy()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
+    assert_eq!(got, want, "{got:o} vs {want:o}");
+    // Replacing a file keeps its permissions; a symbolic link is followed and stays a link.
+    let real = dir.path().join("real.ply");
+    std::fs::write(&real, b"old").unwrap();
+    std::fs::set_permissions(&real, std::fs::Permissions::from_mode(0o640)).unwrap();
+    let link = dir.path().join("link.ply");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let o = salvq(&["decode", &vector(), "-o", &link.to_string_lossy()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::read(&real).unwrap().starts_with(b"ply"));
+    assert_eq!(
+        std::fs::metadata(&real).unwrap().permissions().mode() & 0o777,
+        0o640
+    );
+    assert_eq!(
+        files_in(dir.path()),
+        ["g.ply", "link.ply", "plain", "real.ply"]
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn dev_null_and_standard_output_are_written_directly() {
+    let o = salvq(&["decode", &vector(), "-o", "/dev/null"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata("/dev/null")
+        .unwrap()
+        .file_type()
+        .is_char_device());
+    let o = salvq(&["decode", &vector(), "-o", "-"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.stdout.starts_with(b"ply\n"), "the PLY on standard output");
+}
+
+#[test]
+fn an_output_that_is_a_folder_fails_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = salvq(&["decode", &vector(), "-o", &dir.path().to_string_lossy()]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("error[Io]") && err.contains("folder"), "{err}");
+    // Nothing was decoded: the line is the only output, and no temporary file is left.
+    assert!(o.stdout.is_empty());
+    assert!(files_in(dir.path()).is_empty());
+}
+
+#[test]
+fn a_reader_that_stops_early_is_not_a_failure() {
+    use std::io::Read;
+    use std::process::Stdio;
+    // A report (`info --json`, many lines) and a binary output on standard output, each
+    // read for a few bytes and then closed.
+    for args in [
+        vec!["info".to_string(), "--json".to_string(), vector()],
+        vec![
+            "gen".into(),
+            "--anchors".into(),
+            "20000".into(),
+            "-o".into(),
+            "-".into(),
+        ],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_salvq"))
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut first = [0u8; 8];
+        child.stdout.take().unwrap().read_exact(&mut first).unwrap();
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(out.status.success(), "{args:?}: {err}");
+    }
+}

@@ -19,6 +19,15 @@ pub enum Error {
         /// How to convert it.
         hint: &'static str,
     },
+    /// An encoder option does not apply to this input (Annex A.4).
+    OptionUnsupported {
+        /// The option.
+        option: &'static str,
+        /// Why it does not apply.
+        reason: &'static str,
+        /// What to do instead.
+        hint: &'static str,
+    },
     /// The lattice search could not quantize a group (§7.3).
     LatticeSearchFailed {
         /// The tensor.
@@ -47,6 +56,7 @@ impl Error {
             Error::Stream(e) => e.class(),
             Error::Files(e) => e.class(),
             Error::UnsupportedInput { .. } => "UnsupportedInput",
+            Error::OptionUnsupported { .. } => "OptionUnsupported",
             Error::LatticeSearchFailed { .. } => "LatticeSearchFailed",
             Error::FitFailed { .. } => "FitFailed",
         }
@@ -58,6 +68,7 @@ impl Error {
             Error::Stream(e) => e.spec_section(),
             Error::Files(e) => e.spec_section(),
             Error::UnsupportedInput { .. } => "Annex A.8.1",
+            Error::OptionUnsupported { .. } => "Annex A.4",
             Error::LatticeSearchFailed { .. } => "§7.3",
             Error::FitFailed { .. } => "Annex A.5",
         }
@@ -113,6 +124,11 @@ impl fmt::Display for Error {
                 f,
                 "the input is {found}, which the encoder does not read: {hint}"
             )?,
+            Error::OptionUnsupported {
+                option,
+                reason,
+                hint,
+            } => write!(f, "{option}: {reason}; {hint}")?,
             Error::LatticeSearchFailed {
                 tensor,
                 anchor,

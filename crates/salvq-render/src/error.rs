@@ -220,7 +220,7 @@ impl fmt::Display for Error {
                     IoOp::CreateTemp => "cannot create a temporary file beside",
                     IoOp::Rename => "cannot move the finished file to",
                 };
-                write!(f, "{verb} {}: {}", path.display(), source.kind())?
+                write!(f, "{verb} {}: {source}", path.display())?
             }
         }
         write!(f, " [{}]", self.spec_section())

@@ -1,5 +1,6 @@
 //! File helpers: whole-file reads, and atomic writes (temp file in the same folder, then
-//! rename), so a failed command never leaves a partial output behind (spec §9.2).
+//! rename), so a failed command never leaves a partial output behind (spec §9.2); outputs
+//! get the permissions any new file gets, and `-`, devices and FIFOs are written directly.
 
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -11,27 +12,88 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| Error::io(IoOp::Read, path, e))
 }
 
+/// Checks, before any work, that `path` can be an output: not a folder, in a folder that
+/// exists (`-`, standard output, always can).
+pub fn check_output(path: &Path) -> Result<()> {
+    if path == Path::new("-") {
+        return Ok(());
+    }
+    if path.is_dir() {
+        let e = std::io::Error::new(std::io::ErrorKind::IsADirectory, "it is a folder");
+        return Err(Error::io(IoOp::Write, path, e));
+    }
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => {
+            let e = std::io::Error::new(std::io::ErrorKind::NotFound, "its folder does not exist");
+            Err(Error::io(IoOp::Write, path, e))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Writes `path` atomically: `fill` writes into a temporary file beside it, which is renamed
 /// over `path` only when `fill` and the flush succeed; on any error the temporary is removed.
+/// The new file gets the permissions of the file it replaces, or those the umask gives a new
+/// file. A symbolic link is followed (the file it names is replaced, the link stays); a
+/// target that is not a regular file (`/dev/null`, a FIFO) is written directly, and `-` is
+/// standard output.
 pub fn write_atomic(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    let dir = match path.parent() {
+    if path == Path::new("-") {
+        let stdout = std::io::stdout();
+        let mut w = BufWriter::with_capacity(1 << 20, stdout.lock());
+        fill(&mut w).map_err(|e| Error::io(IoOp::Write, path, e))?;
+        return w.flush().map_err(|e| Error::io(IoOp::Write, path, e));
+    }
+    check_output(path)?;
+    let target = match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => {
+            std::fs::canonicalize(path).map_err(|e| Error::io(IoOp::Write, path, e))?
+        }
+        _ => path.to_path_buf(),
+    };
+    let existing = std::fs::metadata(&target).ok();
+    if let Some(m) = &existing {
+        if !m.is_file() {
+            // A device or a FIFO: nothing to replace atomically.
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&target)
+                .map_err(|e| Error::io(IoOp::Write, path, e))?;
+            let mut w = BufWriter::with_capacity(1 << 20, file);
+            fill(&mut w).map_err(|e| Error::io(IoOp::Write, path, e))?;
+            return w.flush().map_err(|e| Error::io(IoOp::Write, path, e));
+        }
+    }
+    let dir = match target.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let tmp = tempfile::Builder::new()
-        .prefix(".salvq-")
-        .suffix(".tmp")
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".salvq-").suffix(".tmp");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // Opened with this mode, the temporary gets the umask like any new file (0644
+        // under the usual 022), not tempfile's private 0600.
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let tmp = builder
         .tempfile_in(dir)
         .map_err(|e| Error::io(IoOp::CreateTemp, path, e))?;
+    if let Some(m) = existing {
+        tmp.as_file()
+            .set_permissions(m.permissions())
+            .map_err(|e| Error::io(IoOp::Write, path, e))?;
+    }
     {
         let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
         fill(&mut w).map_err(|e| Error::io(IoOp::Write, path, e))?;
         w.flush().map_err(|e| Error::io(IoOp::Write, path, e))?;
     }
-    tmp.persist(path)
+    tmp.persist(&target)
         .map_err(|e| Error::io(IoOp::Rename, path, e.error))?;
     Ok(())
 }
