@@ -128,9 +128,9 @@ def parse_quan(body: bytes, d: Dims) -> tuple[dict, dict]:
         check_finite(f"{base}.step", step, (1,))
         positive(f"{base}.step", step[0], 0)
         gains = words(d.M)
+        # §1.6.3: the whole field's finiteness, then every value's sign.
+        check_finite(f"{base}.gains", gains, (d.M,))
         for r in range(d.M):
-            if (int(gains[r]) & 0x7F800000) == 0x7F800000:
-                raise SalvqError("NonFiniteValue", f"{base}.gains[{r}]: value is not finite [§1.6.3]")
             positive(f"{base}.gains", gains[r], r)
         g = Group(gname, dim, lat, int(step[0]), [int(v) for v in gains])
         with np.errstate(over="ignore", under="ignore"):

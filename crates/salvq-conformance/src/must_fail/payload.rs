@@ -105,6 +105,26 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
             }),
         ),
         vector(
+            "x-quan-gain-zero-then-nan",
+            "NonFiniteValue",
+            &["§1.6.3"],
+            "QUAN quant.feat.gains = [0, NaN]: the whole tensor's finiteness is checked before any sign",
+            edit(base, ChunkTag::QUAN, |p| {
+                p[5..9].copy_from_slice(&0f32.to_le_bytes());
+                p[9..13].copy_from_slice(&f32::NAN.to_le_bytes());
+            }),
+        ),
+        vector(
+            "x-quan-step-zero-gain-nan",
+            "ValueNotPositive",
+            &["§1.6.3"],
+            "QUAN quant.feat.step = 0 and gains[0] = NaN: the step is checked whole before the gains are read",
+            edit(base, ChunkTag::QUAN, |p| {
+                p[1..5].copy_from_slice(&0f32.to_le_bytes());
+                p[5..9].copy_from_slice(&f32::NAN.to_le_bytes());
+            }),
+        ),
+        vector(
             "x-basis-singular",
             "BasisSingular",
             &["§1.6.3", "§2.6"],
