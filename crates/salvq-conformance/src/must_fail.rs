@@ -277,6 +277,17 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "4 bytes after SEND",
             with(&|s| s.extend_from_slice(b"junk")),
         ),
+        vector(
+            "x-trailing-data-before-layer",
+            "TrailingData",
+            &["§1.5", "§6.6.2"],
+            "4 bytes after SEND and AFEA coding_method = 7 (CRC valid): SEND's rules are checked when it is read, before the selected layer is decoded",
+            {
+                let mut s = edit(base, ChunkTag::AFEA, |p| p[0] = 7);
+                s.extend_from_slice(b"junk");
+                s
+            },
+        ),
     ]
 }
 
