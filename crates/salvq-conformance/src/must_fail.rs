@@ -278,6 +278,19 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             with(&|s| s.extend_from_slice(b"junk")),
         ),
         vector(
+            "x-layer-chunk-by-chunk",
+            "ChunkSizeMismatch",
+            &["§6.6.2", "§10.2"],
+            "AFEA's tile lengths add up to one byte more than its words and ASCL's coding_method = 7: AFEA's method and tile framing are checked before ASCL's",
+            {
+                let s = edit(base, ChunkTag::AFEA, |p| {
+                    let l = u32::from_le_bytes([p[1], p[2], p[3], p[4]]) + 1;
+                    p[1..5].copy_from_slice(&l.to_le_bytes());
+                });
+                edit(&s, ChunkTag::ASCL, |p| p[0] = 7)
+            },
+        ),
+        vector(
             "x-trailing-data-before-layer",
             "TrailingData",
             &["§1.5", "§6.6.2"],
