@@ -6,11 +6,14 @@
 
 use std::time::Instant;
 
+use salvq::attributes::layer_bodies;
 use salvq::container::chunk::{ChunkReader, ChunkTag};
-use salvq::container::payload::{body, read_mlps, read_quan, METHOD_CODED};
+use salvq::container::payload::{read_mlps, read_quan};
 use salvq::container::preflight::Preflight;
+use salvq::decoder::decode_with_symbols;
 use salvq::entropy::{GaussianTables, SymbolReader};
 use salvq::hyperprior::prior::{Group, Prior};
+use salvq::tiles::TileTable;
 use salvq::Limits;
 use salvq_bench::coder as measure;
 use salvq_encoder::{encode_full, EncodeOptions};
@@ -136,18 +139,64 @@ fn main() {
     });
     let tables = GaussianTables::standard();
     let tags = [ChunkTag::AFEA, ChunkTag::ASCL, ChunkTag::AOFF];
+    // §10.2: each chunk holds one body per tile; a tile's symbols are its anchors', group by
+    // group (offsets only where the mask is set).
+    let tiles =
+        TileTable::parse(payloads[&ChunkTag::TILS], d.anchors, head.coord_bits).expect("TILS");
+    let bodies = layer_bodies(tags.map(|t| payloads[&t]), tiles.len()).expect("tile framing");
+    let masks = &expected.anchors.mask;
+    let counts = |t: usize| {
+        let r = tiles.range(t);
+        let set = masks[r.start * k..r.end * k]
+            .iter()
+            .filter(|&&m| m != 0)
+            .count();
+        [r.len() * f, r.len() * s, 3 * set]
+    };
     let mut symbols: Vec<i64> = Vec::with_capacity(symbols_total as usize);
     let t_entropy = median_secs(runs, || {
         symbols.clear();
-        for (tag, ks) in tags.iter().zip(&ks) {
-            let b = body(*tag, payloads[tag], METHOD_CODED).expect("method");
-            let mut reader = SymbolReader::new(*tag, b, tables).expect("reader");
-            for &ki in ks {
-                symbols.push(reader.symbol(ki).expect("symbol"));
+        let mut at = [0usize; 3];
+        for (t, b) in bodies.iter().enumerate() {
+            let c = counts(t);
+            for g in 0..3 {
+                let mut reader = SymbolReader::new(tags[g], b[g], tables).expect("reader");
+                for &ki in &ks[g][at[g]..at[g] + c[g]] {
+                    symbols.push(reader.symbol(ki).expect("symbol"));
+                }
+                reader.finish().expect("finish");
+                at[g] += c[g];
             }
-            reader.finish().expect("finish");
         }
     });
+    // What the bench measures is the stream's: the symbols fed to the bare coder are the ones
+    // the decoder reads (§11.1's symbol tensors, in the same tile and group order).
+    let (decoded, sy) = decode_with_symbols(stream, &Default::default()).expect("decodes");
+    assert_eq!(
+        &decoded, expected,
+        "the decode timed is the encoder's prediction"
+    );
+    let mut stream_symbols = Vec::with_capacity(symbols.len());
+    for t in 0..tiles.len() {
+        let r = tiles.range(t);
+        stream_symbols.extend_from_slice(&sy.feat[r.start * f..r.end * f]);
+        stream_symbols.extend_from_slice(&sy.scaling[r.start * s..r.end * s]);
+        for i in r {
+            for slot in 0..k {
+                if masks[i * k + slot] != 0 {
+                    stream_symbols.extend_from_slice(&sy.offsets[(i * k + slot) * 3..][..3]);
+                }
+            }
+        }
+    }
+    assert_eq!(
+        symbols, stream_symbols,
+        "the bare coder's symbols are the stream's"
+    );
+    println!(
+        "checked: the decode equals the encoder's prediction; {} symbols equal the stream's",
+        symbols.len()
+    );
     let bare_ns = measure::bare_coder_decode_ns(&symbols, tables.precision(), runs);
     let t_bare = bare_ns * 1e-9 * symbols.len() as f64;
     // The machine is noisy: the ratio is taken within each round (full decode, then the bare
