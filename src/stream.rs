@@ -347,22 +347,19 @@ impl StreamDecoder {
                     g.whole = true;
                     break;
                 };
-                match decode_tile(layer, groups, &voxels[tiles.range(t)], body, tables) {
-                    Ok(symbols) => {
-                        let from = self.gaussians.len();
-                        if e.decoder
-                            .reconstruct(t, &symbols, &mut self.gaussians)
-                            .is_err()
-                        {
-                            g.whole = true;
-                            break;
-                        }
-                        self.tiles.push(DecodedTile {
-                            index: t,
-                            gaussians: from..self.gaussians.len(),
-                        });
-                        g.per_tile[t] = Some(symbols);
-                    }
+                let decoded = decode_tile(layer, groups, &voxels[tiles.range(t)], body, tables)
+                    .and_then(|symbols| {
+                        hand_out(
+                            &e.decoder,
+                            t,
+                            &symbols,
+                            &mut self.gaussians,
+                            &mut self.tiles,
+                        )?;
+                        Ok(symbols)
+                    });
+                match decoded {
+                    Ok(symbols) => g.per_tile[t] = Some(symbols),
                     Err(_) => {
                         g.whole = true;
                         break;
@@ -391,16 +388,11 @@ impl StreamDecoder {
             // The whole-chunk decoder gives the error, or (if the tiles could not be taken
             // one by one for another reason) the symbols; tiles not yet reconstructed are.
             e.decoder.chunk(chunk.tag, chunk.payload, &[])?;
-            let done: Vec<usize> = self.tiles.iter().map(|t| t.index).collect();
-            let per_tile = e.decoder.decoded_tiles().unwrap_or_default().to_vec();
+            // The tiles handed out already are those `g.per_tile` holds: a prefix, in order.
+            let per_tile = e.decoder.decoded_tiles().unwrap_or_default();
             for (t, s) in per_tile.iter().enumerate() {
-                if let (Some(s), false) = (s, done.contains(&t)) {
-                    let from = self.gaussians.len();
-                    e.decoder.reconstruct(t, s, &mut self.gaussians)?;
-                    self.tiles.push(DecodedTile {
-                        index: t,
-                        gaussians: from..self.gaussians.len(),
-                    });
+                if let (Some(s), None) = (s, &g.per_tile[t]) {
+                    hand_out(&e.decoder, t, s, &mut self.gaussians, &mut self.tiles)?;
                 }
             }
         } else {
@@ -409,4 +401,21 @@ impl StreamDecoder {
         self.at = at + complete;
         Ok(true)
     }
+}
+
+/// §3.6: reconstructs tile `t` from its symbols onto `gaussians` and records it as ready.
+fn hand_out(
+    decoder: &ExplicitDecoder,
+    t: usize,
+    symbols: &TileSymbols,
+    gaussians: &mut Gaussians,
+    tiles: &mut Vec<DecodedTile>,
+) -> Result<()> {
+    let from = gaussians.len();
+    decoder.reconstruct(t, symbols, gaussians)?;
+    tiles.push(DecodedTile {
+        index: t,
+        gaussians: from..gaussians.len(),
+    });
+    Ok(())
 }
