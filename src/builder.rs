@@ -68,7 +68,7 @@ impl DecoderBuilder {
 
     /// Decode only the tiles whose box meets this world box (min x, y, z, max x, y, z;
     /// §10.3); default: every tile.
-    pub fn region(mut self, region: [f64; 6]) -> Self {
+    pub fn region(mut self, region: crate::tiles::RegionBox) -> Self {
         self.options.region = Some(region);
         self
     }

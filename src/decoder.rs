@@ -40,7 +40,7 @@ pub struct DecodeOptions {
     pub threads: Option<usize>,
     /// Decode only the tiles whose box intersects this world-space box (min x, y, z, max x,
     /// y, z; §10.3); `None`: every tile.
-    pub region: Option<[f64; 6]>,
+    pub region: Option<crate::tiles::RegionBox>,
     /// A deliberate decoder bug, for proving that the conformance vectors catch it (§11);
     /// only with the `test-hooks` feature, never set outside tests.
     #[cfg(feature = "test-hooks")]
@@ -73,7 +73,7 @@ impl DecodeOptions {
 
     /// These options keeping only the tiles that meet `region` (§10.3; `None`: all).
     #[must_use]
-    pub fn with_region(mut self, region: Option<[f64; 6]>) -> Self {
+    pub fn with_region(mut self, region: Option<crate::tiles::RegionBox>) -> Self {
         self.region = region;
         self
     }
@@ -457,7 +457,7 @@ fn assemble(
     for result in decoded {
         result?;
     }
-    // A region decode outputs the selected tiles' anchors only (§10.3).
+    // A region decode outputs the selected tiles' anchors only (§10.3.1 step 4).
     let (voxel, dims, quant_feat, quant_scaling) = if chosen.len() == tiles.len() {
         (voxel, head.dims, quant_feat, quant_scaling)
     } else {
@@ -497,9 +497,9 @@ fn assemble(
     Ok((model, symbols))
 }
 
-/// §10.3: a quantizer's spatial regions (§7.6) re-based onto the anchors of the `kept`
-/// ranges (in order): a region starts at the first kept anchor at or after its start;
-/// regions left empty are dropped.
+/// §10.3.1 step 5: a quantizer's spatial regions (§7.6) re-based onto the anchors of the
+/// `kept` ranges (in order): a region's new start counts the kept anchors below its start;
+/// regions left empty are dropped, except region 0 when every region is.
 fn rebase_regions(mut q: GroupQuantizer, kept: &[std::ops::Range<usize>]) -> GroupQuantizer {
     if q.regions.is_empty() {
         return q;
@@ -529,11 +529,18 @@ fn rebase_regions(mut q: GroupQuantizer, kept: &[std::ops::Range<usize>]) -> Gro
     // Region r covers new indices starts[r] .. starts[r + 1]; keep the non-empty ones, the
     // first of them as region 0.
     let mut kept_regions: Vec<(usize, crate::model::Basis)> = Vec::new();
+    let mut first = None;
     for (r, b) in bases.into_iter().enumerate() {
         let end = starts.get(r + 1).copied().unwrap_or(total);
         if end > starts[r] {
             kept_regions.push((starts[r], b));
+        } else if r == 0 {
+            first = Some(b);
         }
+    }
+    // §10.3.1 step 5: with no anchor left (N' = 0), region 0 is kept alone.
+    if kept_regions.is_empty() {
+        kept_regions.extend(first.map(|b| (0, b)));
     }
     let mut it = kept_regions.into_iter();
     if let Some((_, b)) = it.next() {

@@ -14,6 +14,88 @@ pub const TILE_ENTRY_BYTES: u64 = 4 + 1 + 12 + 24;
 /// The reference encoder's tile size (anchors per tile) when none is asked for.
 pub const DEFAULT_TILE_ANCHORS: u32 = 16_384;
 
+/// The box of a region decode (§10.3.1): world coordinates, binary64, `min ≤ max` on each
+/// axis (a bound may be infinite). Only [`RegionBox::new`] makes one, so a decoder never
+/// sees a NaN or an inverted box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegionBox {
+    min: [f64; 3],
+    max: [f64; 3],
+}
+
+/// Why six numbers are not a region box (§10.3.1): the caller's error, not the stream's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InvalidRegion {
+    /// The axis (0 = x, 1 = y, 2 = z).
+    pub axis: usize,
+    /// The minimum given on it.
+    pub min: f64,
+    /// The maximum given on it.
+    pub max: f64,
+}
+
+impl std::fmt::Display for InvalidRegion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "region box, {} axis: min {} and max {} are not a range (a NaN, or min > max) \
+             [§10.3.1]",
+            ["x", "y", "z"][self.axis],
+            self.min,
+            self.max
+        )
+    }
+}
+
+impl std::error::Error for InvalidRegion {}
+
+impl RegionBox {
+    /// The box from `min` to `max`, refused when an axis has a NaN or `min > max`.
+    pub fn new(min: [f64; 3], max: [f64; 3]) -> std::result::Result<RegionBox, InvalidRegion> {
+        for axis in 0..3 {
+            // Refused: min > max, or a NaN (no order at all).
+            if !matches!(
+                min[axis].partial_cmp(&max[axis]),
+                Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+            ) {
+                return Err(InvalidRegion {
+                    axis,
+                    min: min[axis],
+                    max: max[axis],
+                });
+            }
+        }
+        Ok(RegionBox { min, max })
+    }
+
+    /// The box from six numbers: min x, y, z, then max x, y, z.
+    pub fn from_array(b: [f64; 6]) -> std::result::Result<RegionBox, InvalidRegion> {
+        RegionBox::new([b[0], b[1], b[2]], [b[3], b[4], b[5]])
+    }
+
+    /// Min x, y, z, then max x, y, z.
+    pub fn to_array(&self) -> [f64; 6] {
+        [
+            self.min[0],
+            self.min[1],
+            self.min[2],
+            self.max[0],
+            self.max[1],
+            self.max[2],
+        ]
+    }
+
+    /// The minimum corner.
+    pub fn min(&self) -> [f64; 3] {
+        self.min
+    }
+
+    /// The maximum corner.
+    pub fn max(&self) -> [f64; 3] {
+        self.max
+    }
+}
+
 /// The tile table of a stream (§10.1).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TileTable {
@@ -199,22 +281,16 @@ impl TileTable {
         };
         let mut start = 0u64;
         for tile in 0..t {
-            // Every later tile needs at least one anchor.
+            // §10.1: every later tile needs at least one anchor, and the last one makes it N
+            // exactly (its bounds are that one value).
             let max = n - start - (t - 1 - tile);
+            let min = if tile + 1 == t { max } else { 1 };
             let count = u64::from(r.u32()?);
-            if count == 0 || count > max {
+            if count < min || count > max {
                 return Err(Error::FieldOutOfRange {
                     field: Field::TileAnchors,
                     value: count,
-                    min: 1,
-                    max,
-                });
-            }
-            if tile + 1 == t && count != max {
-                return Err(Error::FieldOutOfRange {
-                    field: Field::TileAnchors,
-                    value: count,
-                    min: max,
+                    min,
                     max,
                 });
             }
@@ -273,22 +349,36 @@ impl TileTable {
         Ok(())
     }
 
-    /// §10.3: the tiles whose box, in world coordinates, intersects `region` (min x, y, z,
-    /// max x, y, z, binary64); every tile without a region.
-    pub fn select(&self, origin: [f32; 3], voxel_size: f32, region: Option<[f64; 6]>) -> Vec<bool> {
+    /// §10.3.1 step 1: tile `t`'s world box (min x, y, z, max x, y, z), for voxels of edge
+    /// `voxel_size` whose voxel (0, 0, 0) has its corner at `origin`.
+    pub fn world_box(&self, t: usize, origin: [f32; 3], voxel_size: f32) -> [f64; 6] {
+        let b = self.boxes[t];
+        let vs = f64::from(voxel_size);
+        let mut w = [0f64; 6];
+        for a in 0..3 {
+            // Exact conversions and an exact product (≤ 22 × 24 bits); one rounding.
+            let o = f64::from(origin[a]);
+            w[a] = o + f64::from(b[a]) * vs;
+            w[3 + a] = o + (f64::from(b[3 + a]) + 1.0) * vs;
+        }
+        w
+    }
+
+    /// §10.3.1 step 2: the tiles whose world box meets `region` (closed on both sides);
+    /// every tile without a region.
+    pub fn select(
+        &self,
+        origin: [f32; 3],
+        voxel_size: f32,
+        region: Option<RegionBox>,
+    ) -> Vec<bool> {
         let Some(r) = region else {
             return vec![true; self.len()];
         };
-        let vs = f64::from(voxel_size);
-        self.boxes
-            .iter()
-            .map(|b| {
-                (0..3).all(|a| {
-                    let o = f64::from(origin[a]);
-                    let lo = o + f64::from(b[a]) * vs;
-                    let hi = o + (f64::from(b[3 + a]) + 1.0) * vs;
-                    lo <= r[3 + a] && r[a] <= hi
-                })
+        (0..self.len())
+            .map(|t| {
+                let w = self.world_box(t, origin, voxel_size);
+                (0..3).all(|a| w[a] <= r.max[a] && r.min[a] <= w[3 + a])
             })
             .collect()
     }

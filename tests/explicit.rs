@@ -178,7 +178,9 @@ fn a_region_decodes_only_the_tiles_it_meets() {
     )
     .unwrap();
     let all = decode(&e.stream, 0).gaussians;
-    let o = DecodeOptions::default().with_region(Some([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]));
+    let o = DecodeOptions::default().with_region(Some(
+        salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap(),
+    ));
     let Decoded::Gaussians(part) = decode_any(&e.stream, &o).unwrap() else {
         panic!("an explicit stream")
     };

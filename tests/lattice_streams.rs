@@ -292,7 +292,7 @@ fn bad_quantizer_values_in_a_stream() {
     assert_eq!(
         decode(&s).unwrap_err(),
         Error::NonFiniteValue {
-            tensor: "quant.feat.basis_u",
+            tensor: "quant.feat.matrix",
             index: vec![0, 0]
         }
     );

@@ -34,7 +34,7 @@ fn tiled(m: &salvq::SceneModel, per_tile: u32) -> salvq_encoder::Encoded {
 fn with(threads: Option<usize>, region: Option<[f64; 6]>) -> DecodeOptions {
     DecodeOptions::default()
         .with_threads(threads)
-        .with_region(region)
+        .with_region(region.map(|r| salvq::RegionBox::from_array(r).unwrap()))
 }
 
 #[test]
@@ -84,7 +84,11 @@ fn a_region_decodes_the_intersecting_tiles_only() {
         o[1] + f64::from(b[4]) * vs + 0.75 * vs,
         o[2] + f64::from(b[5]) * vs + 0.75 * vs,
     ];
-    let selected = tiles.select(full.origin, full.voxel_size, Some(region));
+    let selected = tiles.select(
+        full.origin,
+        full.voxel_size,
+        Some(salvq::RegionBox::from_array(region).unwrap()),
+    );
     assert!(selected[pick]);
     assert!(selected.iter().filter(|&&s| s).count() < nt / 2);
     let part = decode_with_options(&e.stream, &with(Some(2), Some(region))).unwrap();
@@ -144,6 +148,50 @@ fn region_decodes_rebase_spatial_quantizer_regions() {
     let back = salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
     assert_eq!(back, part);
     assert!(part.dims.anchors < 900);
+}
+
+#[test]
+fn a_region_meeting_no_tile_outputs_no_anchors_and_keeps_region_0() {
+    let m = model(900);
+    let e = encode_full(
+        &m,
+        &EncodeOptions {
+            fit_basis: true,
+            feat_regions: 3,
+            tile_anchors: 100,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let full = e.expected();
+    let far = full.origin.map(|x| f64::from(x) - 1.0e3);
+    let part = decode_with_options(
+        &e.stream,
+        &with(None, Some([far[0], far[1], far[2], far[0], far[1], far[2]])),
+    )
+    .unwrap();
+    // §10.3.1 step 6: no anchors, every shared tensor; step 5: region 0 kept alone.
+    assert_eq!(part.dims.anchors, 0);
+    assert!(part.anchors.voxel.is_empty() && part.anchors.feat.is_empty());
+    assert_eq!(part.dims.feat_regions, 1);
+    assert!(part.quant_feat.regions.is_empty());
+    assert_eq!(part.quant_feat.basis, full.quant_feat.basis);
+    assert_eq!(part.grid, full.grid);
+}
+
+#[test]
+fn region_boxes_refuse_nan_and_inverted_axes() {
+    use salvq::RegionBox;
+    assert!(RegionBox::from_array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]).is_ok());
+    // A point and infinite bounds are boxes.
+    assert!(RegionBox::from_array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0]).is_ok());
+    let inf = f64::INFINITY;
+    assert!(RegionBox::from_array([-inf, -inf, -inf, inf, inf, inf]).is_ok());
+    let e = RegionBox::from_array([0.0, 2.0, 0.0, 1.0, 1.0, 1.0]).unwrap_err();
+    assert_eq!((e.axis, e.min, e.max), (1, 2.0, 1.0));
+    assert!(e.to_string().contains("y axis") && e.to_string().contains("§10.3.1"));
+    let e = RegionBox::from_array([0.0, 0.0, f64::NAN, 1.0, 1.0, 1.0]).unwrap_err();
+    assert_eq!(e.axis, 2);
 }
 
 /// TILS entries: count (4), cell level (1), cell (12), box (24), after method and T.

@@ -3,7 +3,7 @@
 chunk (§1.5)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -18,6 +18,7 @@ from .hyperprior import (grid_body_length, mlp_grid_tensors, parse_grid,
                          parse_mlps, touched_entries)
 from .model import Dims, parse_head
 from .quantizers import parse_quan, quan_body_length
+from .region import parse_region, rebase, select_tiles, selected_rows
 from .tiles import check_tiles, parse_tils, split_tiles
 
 KNOWN_CRITICAL = ("HEAD", "MLPS", "QUAN", "TILS", "APOS", "GRID", "AMSK", "AFEA", "ASCL",
@@ -33,6 +34,7 @@ class Decoded:
     tensors: dict          # Table 2-1 tensors (present ones), numpy arrays
     symbols: dict          # feat [N, F], scaling [N, S], offsets [N, K, 3], int64
     profile = "anchors"
+    tiles: list | None = None   # region decode (§10.3.1): the selected tiles' indices
 
 
 @dataclass
@@ -43,6 +45,7 @@ class ExplicitDecoded:
     integers: dict         # Table 11-2, in order
     tensors: dict          # Table 3-4 (the decoded Gaussians), in order
     profile = "explicit"
+    tiles: list | None = None   # region decode (§10.3.1): the selected tiles' indices
 
 
 def _fixed_length(tag: str, payload: bytes, method: int, body_len: int) -> bytes:
@@ -74,23 +77,28 @@ def _send(chunk: Chunk, data: bytes, pos: int) -> None:
         raise SalvqError("TrailingData", f"{len(data) - pos} bytes after SEND [§1.5]")
 
 
-def decode_bytes(data: bytes, rate: int | None = None, limits: Limits | None = None):
-    """Decode a stream of either profile: a `Decoded` (anchors) or an `ExplicitDecoded`."""
+def decode_bytes(data: bytes, rate: int | None = None, limits: Limits | None = None,
+                 region=None):
+    """Decode a stream of either profile: a `Decoded` (anchors) or an `ExplicitDecoded`.
+    `region` (six numbers or the string `x0,y0,z0,x1,y1,z1`) makes it a region decode
+    (§10.3.1); a box that is no box raises `region.RegionError` before the stream is read."""
+    box = None if region is None else parse_region(region)
     limits = limits or Limits()
     pos = check_signature(data)
     first, pos = read_chunk(data, pos, limits)
     if first.tag == "GHED":                                            # §1.5, §3
-        return _decode_explicit(data, first, pos, rate, limits)
-    return _decode_anchors(data, first, pos, rate, limits)
+        return _decode_explicit(data, first, pos, rate, limits, box)
+    return _decode_anchors(data, first, pos, rate, limits, box)
 
 
 def _decode_explicit(data: bytes, chunk: Chunk, pos: int, rate: int | None,
-                     limits: Limits) -> ExplicitDecoded:
+                     limits: Limits, box=None) -> ExplicitDecoded:
     """§3.7: GHED GQUA (GLAY TILS APOS GATT)×L SEND; the selected layer's chunks are decoded
     as they are read, the other layers' are only checked as chunks and for their order."""
     order = ["GHED"]
     due = 0
     layer = -1
+    sel = None
     while True:
         tag = chunk.tag
         if chunk.critical and tag not in EXPLICIT_CRITICAL:
@@ -120,13 +128,21 @@ def _decode_explicit(data: bytes, chunk: Chunk, pos: int, rate: int | None,
                     elif tag == "TILS":
                         payload_method(tag, p, 0)
                         tiles = parse_tils(p, head.N, lay.coord_bits)
+                        # §10.3.1 steps 1-2: GHED's origin, the layer's voxel_size
+                        sel = None if box is None else select_tiles(
+                            tiles, head.origin(), lay.voxel_size, box)
                     elif tag == "APOS":
                         payload_method(tag, p, 1)
                         voxels = decode_apos(split_tiles("APOS", p, 1, len(tiles)), tiles)
                         check_tiles(tiles, voxels)
                     else:
-                        sym = decode_gatt(p, head, lay, tiles, voxels)
+                        sym = decode_gatt(p, head, lay, tiles, voxels, sel)
         chunk, pos = read_chunk(data, pos, limits)
+    chosen = None
+    if sel is not None:                                                # §10.3.1 step 4
+        rows = selected_rows(tiles, sel)
+        voxels, sym = voxels[rows], sym.take(rows)
+        chosen = [t.index for t in tiles if sel[t.index]]
     integers = {
         "gaussian.voxel": voxels.astype(np.int32),
         "symbols.coordinates": sym.coordinates,
@@ -135,11 +151,11 @@ def _decode_explicit(data: bytes, chunk: Chunk, pos: int, rate: int | None,
         "symbols.refinement": sym.refinement,
     }
     gaussians = reconstruct_gaussians(head, groups, rate, lay, voxels, sym)
-    return ExplicitDecoded(head, rate, integers, gaussians)
+    return ExplicitDecoded(head, rate, integers, gaussians, chosen)
 
 
 def _decode_anchors(data: bytes, chunk: Chunk, pos: int, rate: int | None,
-                    limits: Limits) -> Decoded:
+                    limits: Limits, box=None) -> Decoded:
     """§1.5: HEAD MLPS QUAN TILS APOS GRID AMSK (AFEA ASCL AOFF)×L SEND; the selected layer
     is decoded after SEND (§6.6.2)."""
     first = True
@@ -189,6 +205,9 @@ def _decode_anchors(data: bytes, chunk: Chunk, pos: int, rate: int | None,
         elif tag == "TILS":
             payload_method(tag, p, 0)
             tiles = parse_tils(p, dims.N, dims.coord_bits)
+            # §10.3.1 steps 1-2: HEAD's origin and voxel_size
+            sel = None if box is None else select_tiles(
+                tiles, tensors["geometry.origin"], tensors["geometry.voxel_size"][0], box)
         elif tag == "APOS":
             payload_method(tag, p, 1)
             bodies = split_tiles("APOS", p, 1, len(tiles))
@@ -201,7 +220,7 @@ def _decode_anchors(data: bytes, chunk: Chunk, pos: int, rate: int | None,
             grids = parse_grid(body, dims, touched)
             tensors.update(grids)
         elif tag == "AMSK":
-            mask = decode_amsk(p, dims, tiles)
+            mask = decode_amsk(p, dims, tiles, sel)
             tensors["anchor.mask"] = mask
         elif tag in ("AFEA", "ASCL", "AOFF"):
             if tag == "AFEA":
@@ -211,8 +230,15 @@ def _decode_anchors(data: bytes, chunk: Chunk, pos: int, rate: int | None,
         elif tag == "SEND":
             _send(chunk, data, pos)                                        # rules 4-5
             break
-    prior = Prior(dims, mlp, groups, rate, voxels, grids)
-    attrs, symbols = decode_layer(selected, dims, tiles, mask, prior, groups)
+    rows = None if sel is None else selected_rows(tiles, sel)
+    prior = Prior(dims, mlp, groups, rate, voxels if rows is None else voxels[rows], grids)
+    attrs, symbols = decode_layer(selected, dims, tiles, mask, prior, groups, sel, rows)
+    chosen = None
+    if rows is not None:                                               # §10.3.1 steps 4-6
+        chosen = [t.index for t in tiles if sel[t.index]]
+        tensors["anchor.voxel"] = tensors["anchor.voxel"][rows]
+        tensors["anchor.mask"] = tensors["anchor.mask"][rows]
+        dims = _rebase_regions(dims, groups, tensors, rows)
     tensors["anchor.feat"] = attrs["feat"]
     tensors["anchor.scaling"] = attrs["scaling"]
     tensors["anchor.offsets"] = attrs["offsets"]
@@ -221,10 +247,34 @@ def _decode_anchors(data: bytes, chunk: Chunk, pos: int, rate: int | None,
         a = tensors[name]
         assert tuple(a.shape) == tuple(shape), (name, a.shape, shape)
         ordered[name] = a
-    return Decoded(dims, rate, ordered, symbols)
+    return Decoded(dims, rate, ordered, symbols, chosen)
 
 
-def decode_file(path, rate: int | None = None, limits: Limits | None = None):
+def _rebase_regions(dims: Dims, groups: dict, tensors: dict, rows) -> Dims:
+    """§10.3.1 step 5: each general group's regions re-based onto the N' output anchors;
+    returns the output's dimensions (N', R' per group; every other dimension the stream's)."""
+    out = {"N": len(rows)}
+    for g, field in (("feat", "feat_regions"), ("scaling", "scaling_regions")):
+        grp = groups[g]
+        base = f"quant.{g}"
+        for t in ("start", "basis_u", "basis_s", "basis_v"):
+            tensors.pop(f"{base}.regions.{t}", None)
+        if not grp.bases:                   # not a general lattice: R = 1, nothing stored
+            continue
+        kept, starts = rebase(grp.region_starts, rows)
+        U, s, V = grp.bases[kept[0]]
+        tensors[f"{base}.basis_u"], tensors[f"{base}.basis_s"], tensors[f"{base}.basis_v"] = U, s, V
+        if len(kept) > 1:
+            tensors[f"{base}.regions.start"] = np.array(starts[1:], np.int32)
+            tensors[f"{base}.regions.basis_u"] = np.stack([grp.bases[r][0] for r in kept[1:]])
+            tensors[f"{base}.regions.basis_s"] = np.stack([grp.bases[r][1] for r in kept[1:]])
+            tensors[f"{base}.regions.basis_v"] = np.stack([grp.bases[r][2] for r in kept[1:]])
+        out[field] = len(kept)
+    return replace(dims, **out)
+
+
+def decode_file(path, rate: int | None = None, limits: Limits | None = None, region=None):
+    box = None if region is None else parse_region(region)      # refused before reading
     with open(path, "rb") as fh:
         data = fh.read()
-    return decode_bytes(data, rate, limits)
+    return decode_bytes(data, rate, limits, box)

@@ -23,8 +23,9 @@ def payload_method(tag: str, payload: bytes, method: int) -> None:
                          f"chunk {tag}: coding_method {payload[0]}, expected {method} [§1.6]")
 
 
-def decode_amsk(payload: bytes, d: Dims, tiles: list[Tile]) -> np.ndarray:
-    """§6.6.1: the [N, K] masks."""
+def decode_amsk(payload: bytes, d: Dims, tiles: list[Tile], sel: list[bool] | None = None) -> np.ndarray:
+    """§6.6.1: the [N, K] masks. With `sel` (a region decode, §10.3.1 step 3) only the
+    selected tiles' bodies are decoded; the others are framed (§10.2) and their rows stay 0."""
     payload_method("AMSK", payload, 1)
     K = d.K
     p_one = []
@@ -40,6 +41,8 @@ def decode_amsk(payload: bytes, d: Dims, tiles: list[Tile]) -> np.ndarray:
     bodies = split_tiles("AMSK", payload, 1 + 2 * K, len(tiles))
     mask = np.zeros((d.N, K), np.uint8)
     for body, t in zip(bodies, tiles):
+        if sel is not None and not sel[t.index]:
+            continue
         try:
             dec = AnsDecoder(body)
             for i in range(t.start, t.start + t.count):
@@ -53,7 +56,9 @@ def decode_amsk(payload: bytes, d: Dims, tiles: list[Tile]) -> np.ndarray:
 
 
 class Prior:
-    """§5.3 - §5.5 for every anchor at the selected rate."""
+    """§5.3 - §5.5 at the selected rate for the anchors at `voxels` (every anchor, or in a
+    region decode the selected ones: an anchor's prior depends only on its voxel and the
+    shared model, §10)."""
 
     def __init__(self, d: Dims, mlp: IntMlp, groups: dict, rate: int, voxels: np.ndarray,
                  grids: dict):
@@ -69,7 +74,7 @@ class Prior:
             self.rows[g] = (o, o + n, o + n, o + 2 * n)     # mean rows, scale rows
             o += 2 * n
         alpha_row = {"feat": Cout - 3, "scaling": Cout - 2, "offsets": Cout - 1}
-        N = d.N
+        N = voxels.shape[0]
         self.k = {}
         self.means = {}
         self.delta = {}
@@ -101,19 +106,31 @@ class Prior:
 
 
 def decode_layer(payloads: dict, d: Dims, tiles: list[Tile], mask: np.ndarray, prior: Prior,
-                 groups: dict) -> tuple[dict, dict]:
-    """§6.6.2: the selected layer's symbols and reconstructed attributes."""
+                 groups: dict, sel: list[bool] | None = None,
+                 rows: np.ndarray | None = None) -> tuple[dict, dict]:
+    """§6.6.2: the selected layer's symbols and reconstructed attributes. In a region decode
+    (§10.3.1) `sel` marks the selected tiles and `rows` their anchors' canonical indices (the
+    prior's rows): only those tiles' bodies are decoded, the others only framed (§10.2), and
+    the output has len(rows) rows; `mask` is indexed by canonical index."""
     bodies = {}
     for tag in ("AFEA", "ASCL", "AOFF"):
         p = payloads[tag]
         payload_method(tag, p, 1)
         bodies[tag] = split_tiles(tag, p, 1, len(tiles))
-    N, F, S, K = d.N, d.F, d.S, d.K
+    F, S, K = d.F, d.S, d.K
+    if rows is None:
+        rows = np.arange(d.N, dtype=np.int64)
+    N = len(rows)
     u_feat = np.zeros((N, F), np.int64)
     u_scal = np.zeros((N, S), np.int64)
     u_off = np.zeros((N, K, 3), np.int64)
     kf, ksc, ko = prior.k["feat"], prior.k["scaling"], prior.k["offsets"]
+    nxt = 0                                 # output row of the tile's first anchor
     for t in tiles:
+        if sel is not None and not sel[t.index]:
+            continue
+        j0 = nxt
+        nxt += t.count
         decs = {}
         for tag in ("AFEA", "ASCL", "AOFF"):
             try:
@@ -124,19 +141,20 @@ def decode_layer(payloads: dict, d: Dims, tiles: list[Tile], mask: np.ndarray, p
         try:
             da, ds, do = decs["AFEA"], decs["ASCL"], decs["AOFF"]
             for i in range(t.start, t.start + t.count):
+                o = j0 + i - t.start                # the anchor's output (prior) row
                 cur = "AFEA"
-                krow = kf[i].tolist()
-                u_feat[i] = [da.decode_symbol(k) for k in krow]
+                krow = kf[o].tolist()
+                u_feat[o] = [da.decode_symbol(k) for k in krow]
                 cur = "ASCL"
-                krow = ksc[i].tolist()
-                u_scal[i] = [ds.decode_symbol(k) for k in krow]
+                krow = ksc[o].tolist()
+                u_scal[o] = [ds.decode_symbol(k) for k in krow]
                 cur = "AOFF"
-                krow = ko[i].tolist()
+                krow = ko[o].tolist()
                 mrow = mask[i]
                 for s in range(K):
                     if mrow[s]:
                         j = 3 * s
-                        u_off[i, s] = [do.decode_symbol(krow[j]), do.decode_symbol(krow[j + 1]),
+                        u_off[o, s] = [do.decode_symbol(krow[j]), do.decode_symbol(krow[j + 1]),
                                        do.decode_symbol(krow[j + 2])]
             for tag in ("AFEA", "ASCL", "AOFF"):
                 cur = tag
@@ -151,7 +169,7 @@ def decode_layer(payloads: dict, d: Dims, tiles: list[Tile], mask: np.ndarray, p
         grp: Group = groups[g]
         if len(grp.matrices) > 1:
             x = np.empty(u.shape, np.float32)
-            reg = grp.region_of(N)
+            reg = grp.region_of(d.N)[rows]          # §7.6 by canonical index
             for r, B in enumerate(grp.matrices):
                 sel = reg == r
                 if sel.any():
@@ -161,6 +179,6 @@ def decode_layer(payloads: dict, d: Dims, tiles: list[Tile], mask: np.ndarray, p
         out[g] = x
     off = reconstruct(u_off.reshape(N, 3 * K), None, prior.delta["offsets"], prior.means["offsets"])
     off = off.reshape(N, K, 3)
-    off[mask == 0] = np.float32(0.0)
+    off[mask[rows] == 0] = np.float32(0.0)
     out["offsets"] = off
     return out, {"feat": u_feat, "scaling": u_scal, "offsets": u_off}

@@ -25,6 +25,11 @@ class GattSymbols:
     size_class: np.ndarray       # [N]
     refinement: np.ndarray       # [N, 3] w per axis
 
+    def take(self, rows: np.ndarray) -> "GattSymbols":
+        """The rows of a region decode's output (§10.3.1 step 4)."""
+        return GattSymbols(self.coordinates[rows], self.rotation_index[rows],
+                           self.size_class[rows], self.refinement[rows])
+
 
 def bitlen(x: int) -> int:
     """bitlen(0) = 0, bitlen(x) = ⌊log2 x⌋ + 1."""
@@ -99,15 +104,18 @@ def _tile(dec: AnsDecoder, tile: Tile, h: GHead, lay: GLayer, voxels: np.ndarray
 
 
 def decode_gatt(payload: bytes, h: GHead, lay: GLayer, tiles: list[Tile],
-                voxels: np.ndarray) -> GattSymbols:
+                voxels: np.ndarray, sel: list[bool] | None = None) -> GattSymbols:
     """§3.5: §1.6 steps 1-2, the tile framing of §10.2, then tile by tile (the lowest tile's
-    error first, §10.3): §6.2.6 steps 1-3, the events, §6.2.6 step 5."""
+    error first, §10.3): §6.2.6 steps 1-3, the events, §6.2.6 step 5. In a region decode
+    (§10.3.1 step 3) only the tiles marked in `sel` are decoded (the others' rows stay 0)."""
     payload_method("GATT", payload, 1)
     bodies = split_tiles("GATT", payload, 1, len(tiles))
     N = h.N
     out = GattSymbols(np.zeros((N, h.D), np.int32), np.zeros(N, np.uint8),
                       np.zeros(N, np.uint8), np.zeros((N, 3), np.int32))
     for body, t in zip(bodies, tiles):
+        if sel is not None and not sel[t.index]:
+            continue
         try:
             dec = AnsDecoder(body)
             _tile(dec, t, h, lay, voxels, out)

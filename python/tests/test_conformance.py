@@ -7,12 +7,18 @@ Run with `python3 -m pytest python/tests` if pytest is installed, or directly:
   manifest's; every tensor in the expected file must match (integer domain byte for byte,
   float tensors within the §11.3 tolerance); the float hash is reported (bit-exact or not).
 * must-fail vectors: decoding must raise SalvqError with the manifest's error class.
+* region decodes (§10.3.1, §11.7): every `decodes` entry with a `region` member, of valid and
+  must-fail vectors, is decoded with its box and checked as above; plus `test_region_decodes`
+  (boxes that are no box refused before the stream is read, CLI exit status 2; an unbounded
+  box gives the full decode; the re-basing of spatial regions, §10.3.1 step 5).
 """
 from __future__ import annotations
 
 import json
 import os
+import subprocess
 import sys
+import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -20,11 +26,12 @@ sys.path.insert(0, os.path.dirname(HERE))
 
 import numpy as np  # noqa: E402
 
-from salvq_py import SalvqError, decode_bytes  # noqa: E402
+from salvq_py import RegionError, SalvqError, decode_bytes, decode_file  # noqa: E402
 from salvq_py.ans import AnsDecoder  # noqa: E402
 from salvq_py.canonical import (FLOAT_TENSORS, canonical_form, float_match, hashes,  # noqa: E402
                                 read_safetensors)
 from salvq_py.container import crc32c  # noqa: E402
+from salvq_py.region import rebase  # noqa: E402
 from salvq_py.tables import check_step_factor, scale_tables  # noqa: E402
 
 VECTORS = os.environ.get("SALVQ_VECTORS",
@@ -41,13 +48,26 @@ def _read(name):
         return fh.read()
 
 
-def check_valid(vec) -> list[str]:
-    """Returns a list of notes; raises AssertionError on a failure."""
+def check_valid(vec, regions_only: bool = False) -> list[str]:
+    """Returns a list of notes; raises AssertionError on a failure. Region decodes (§11.7)
+    are decoded with their box; `regions_only` checks only those (must-fail vectors)."""
     notes = []
     data = _read(vec["file"])
+    k = 0
     for dec in vec["decodes"]:
         rate = dec["rate"]
-        form = canonical_form(decode_bytes(data, rate))
+        region = dec.get("region")
+        if region is None and regions_only:
+            continue
+        if region is not None:
+            decoded = decode_bytes(data, rate, region=region["box"])
+            assert decoded.tiles == region["tiles"], \
+                f"{vec['name']}@{rate} region {k}: tiles {decoded.tiles}, expected {region['tiles']}"
+            rate = f"{rate} region {k}"
+            k += 1
+        else:
+            decoded = decode_bytes(data, rate)
+        form = canonical_form(decoded)
         ih, fh = hashes(form)
         assert ih == dec["integer_sha256"], f"{vec['name']}@{rate}: integer-domain hash differs"
         expected = read_safetensors(os.path.join(VECTORS, dec["expected"]))
@@ -75,8 +95,43 @@ def check_must_fail(vec) -> str:
     except SalvqError as e:
         assert e.error_class == vec["error_class"], \
             f"{vec['name']}: got {e.error_class} ({e.message}), expected {vec['error_class']}"
-        return e.error_class
+        notes = check_valid(vec, regions_only=True) if vec.get("decodes") else []
+        return ", ".join([e.error_class] + notes)
     raise AssertionError(f"{vec['name']}: decoded, expected {vec['error_class']}")
+
+
+def test_region_decodes():
+    """§10.3.1 beyond the vectors: a box with a NaN or min > max is refused before the stream
+    is read (RegionError; the CLI exits 2, not 1), an unbounded box (and one that only touches
+    every tile) selects every tile and gives the full decode's canonical form, and step 5's
+    re-basing on hand-made runs."""
+    for bad in ("nan,0,0,1,1,1", "0,0,0,1,nan,1", "0,0,2,1,1,1", "1,0,0,0,1,1", "1,2,3",
+                "0,0,0,1,1,x"):
+        try:
+            decode_file("/nonexistent/stream.salvq", 0, region=bad)
+        except RegionError:
+            pass
+        else:
+            raise AssertionError(f"box {bad!r} accepted")
+        r = subprocess.run([sys.executable, "-m", "salvq_py", os.path.join(VECTORS, "g-sh0.salvq"),
+                            os.path.join(tempfile.gettempdir(), "salvq_py-region-test.st"), "0", bad],
+                           cwd=os.path.dirname(HERE), capture_output=True, text=True)
+        assert r.returncode == 2 and "no box" in r.stderr, (bad, r.returncode, r.stderr)
+    everything = "-inf,-inf,-inf,inf,inf,inf"
+    for name, rate in (("tiles-regions", 0), ("sp-salvq-regions", 1), ("g-sh0", 0),
+                       ("g-sh3-rates", 2)):
+        data = _read(f"{name}.salvq")
+        whole = decode_bytes(data, rate)
+        part = decode_bytes(data, rate, region=everything)
+        assert hashes(canonical_form(part)) == hashes(canonical_form(whole)), name
+        # a degenerate box on -0.0 = +0.0 is a box (min ≤ max)
+        decode_bytes(data, rate, region="0,0,0,-0.0,0,0")
+    # step 5: starts 4, 9 (regions [0,4), [4,9), [9,N)); selected rows 5..12
+    rows = np.arange(5, 13)
+    assert rebase([4, 9], rows) == ([1, 2], [0, 4])           # region 0 drops out
+    assert rebase([4, 9], np.arange(0, 3)) == ([0], [0])       # only region 0 left
+    assert rebase([4, 9], np.array([0, 1, 10])) == ([0, 2], [0, 2])   # region 1 empty
+    assert rebase([4, 9], np.zeros(0, np.int64)) == ([0], [0])  # N' = 0: region 0 alone
 
 
 # ----------------------------------------------------------------- pytest entry points
@@ -444,7 +499,7 @@ def test_must_fail_vectors():
 def main() -> int:
     failed = 0
     for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector,
-              test_mlps_precision_checks, test_explicit_profile_checks):
+              test_mlps_precision_checks, test_explicit_profile_checks, test_region_decodes):
         try:
             t()
             print(f"pass  {t.__name__}")

@@ -116,6 +116,8 @@ fn read_basis(r: &mut PayloadReader<'_>, names: [&'static str; 3], dim: u64) -> 
 struct GroupShape<'a> {
     names: &'a [&'static str],
     region_names: &'a [&'static str; 4],
+    /// §1.6.3: how errors name the computed matrix B of region 0 and of the other regions.
+    matrix_names: [&'static str; 2],
     dim: u64,
     basis: bool,
     regions: u16,
@@ -174,9 +176,14 @@ fn read_group(
         .enumerate()
     {
         if let Some((i, j)) = crate::quantizer::general_matrix_non_finite(n, b) {
+            let (i, j) = (i as u64, j as u64);
             return Err(Error::NonFiniteValue {
-                tensor: if r == 0 { names[2] } else { rn[1] },
-                index: vec![i as u64, j as u64],
+                tensor: g.matrix_names[usize::from(r > 0)],
+                index: if r == 0 {
+                    vec![i, j]
+                } else {
+                    vec![r as u64 - 1, i, j]
+                },
             });
         }
     }
@@ -204,6 +211,7 @@ pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
     let feat = GroupShape {
         names: &names::QUANT_FEAT,
         region_names: &names::QUANT_FEAT_REGIONS,
+        matrix_names: ["quant.feat.matrix", "quant.feat.regions.matrix"],
         dim: f,
         basis: d.feat_lattice.has_factors(),
         regions: d.feat_regions,
@@ -211,6 +219,7 @@ pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
     let scaling = GroupShape {
         names: &names::QUANT_SCALING,
         region_names: &names::QUANT_SCALING_REGIONS,
+        matrix_names: ["quant.scaling.matrix", "quant.scaling.regions.matrix"],
         dim: s,
         basis: d.scaling_lattice.has_factors(),
         regions: d.scaling_regions,
@@ -218,6 +227,7 @@ pub fn read_quan(payload: &[u8], d: &Dims) -> Result<[GroupQuantizer; 3]> {
     let offsets = GroupShape {
         names: &names::QUANT_OFFSETS,
         region_names: &[""; 4],
+        matrix_names: [""; 2],
         dim: 3,
         basis: false,
         regions: 1,

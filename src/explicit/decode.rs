@@ -138,7 +138,7 @@ pub fn decode_gaussians_in(
     data: &[u8],
     limits: &Limits,
     rate: Option<u8>,
-    region: Option<[f64; 6]>,
+    region: Option<crate::tiles::RegionBox>,
 ) -> Result<DecodedGaussians> {
     let (_sig, rest) = Signature::parse(data)?;
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
@@ -171,7 +171,7 @@ pub(crate) enum Due {
 pub(crate) struct ExplicitDecoder {
     limits: Limits,
     rate: Option<u8>,
-    region: Option<[f64; 6]>,
+    region: Option<crate::tiles::RegionBox>,
     /// Position of the next critical chunk (0 = `GHED`).
     next: usize,
     header: Option<GaussianHeader>,
@@ -196,7 +196,11 @@ fn missing(tag: ChunkTag) -> Error {
 }
 
 impl ExplicitDecoder {
-    pub(crate) fn new(limits: &Limits, rate: Option<u8>, region: Option<[f64; 6]>) -> Self {
+    pub(crate) fn new(
+        limits: &Limits,
+        rate: Option<u8>,
+        region: Option<crate::tiles::RegionBox>,
+    ) -> Self {
         ExplicitDecoder {
             limits: *limits,
             rate,

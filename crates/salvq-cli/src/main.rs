@@ -106,7 +106,7 @@ enum Command {
         /// Decode only the tiles that intersect this world-space box:
         /// `xmin,ymin,zmin,xmax,ymax,zmax` (spec §10.3).
         #[arg(long, value_parser = parse_box, allow_hyphen_values = true)]
-        region: Option<[f64; 6]>,
+        region: Option<salvq::RegionBox>,
         /// Measure instead of writing: print the decode time and the process's peak resident
         /// memory (used by `bench scale`).
         #[arg(long, hide = true)]
@@ -127,6 +127,11 @@ enum Command {
         /// The decoder under test (default: this program's `decode --canonical`).
         #[arg(long)]
         decoder: Option<String>,
+        /// The command for region decodes (spec §11.7): as `--decoder`, with `{region}`
+        /// replaced by `x0,y0,z0,x1,y1,z1` too. Without it, a `--decoder`'s region decodes
+        /// are skipped (the reference's run with `--region {region}`).
+        #[arg(long)]
+        region_decoder: Option<String>,
         /// The vectors folder (with manifest.json).
         #[arg(long, default_value = "conformance/vectors")]
         vectors: PathBuf,
@@ -276,7 +281,7 @@ enum Bench {
 }
 
 /// `xmin,ymin,zmin,xmax,ymax,zmax`: six finite numbers, each min ≤ its max.
-fn parse_box(s: &str) -> Result<[f64; 6], String> {
+fn parse_box(s: &str) -> Result<salvq::RegionBox, String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|x| x.trim().parse::<f64>().map_err(|e| format!("'{x}': {e}")))
@@ -284,10 +289,7 @@ fn parse_box(s: &str) -> Result<[f64; 6], String> {
     let b: [f64; 6] = v
         .try_into()
         .map_err(|v: Vec<f64>| format!("6 numbers expected, {} given", v.len()))?;
-    if b.iter().any(|x| !x.is_finite()) || (0..3).any(|a| b[a] > b[a + 3]) {
-        return Err("the box needs finite numbers and min <= max on each axis".into());
-    }
-    Ok(b)
+    salvq::RegionBox::from_array(b).map_err(|e| e.to_string())
 }
 
 fn parse_decay(s: &str) -> Result<f64, String> {
@@ -546,9 +548,15 @@ fn main() -> ExitCode {
     let tool = match &cli.command {
         Command::Conformance {
             decoder,
+            region_decoder,
             vectors,
             filter,
-        } => Some(conformance(decoder.clone(), vectors, filter.as_deref())),
+        } => Some(conformance(
+            decoder.clone(),
+            region_decoder.clone(),
+            vectors,
+            filter.as_deref(),
+        )),
         Command::MakeVectors {
             out,
             readme,

@@ -16,20 +16,26 @@ pub(crate) fn parse_fault(s: &str) -> Result<salvq::decoder::Fault, String> {
 
 pub(crate) fn conformance(
     decoder: Option<String>,
+    region_decoder: Option<String>,
     vectors: &Path,
     filter: Option<&str>,
 ) -> Result<(), String> {
-    let template = match decoder {
-        Some(d) => d,
+    // The reference decoder, unless another is named: then its region decodes run only
+    // with a region decoder named too.
+    let (template, region_template) = match decoder {
+        Some(d) => (d, region_decoder),
         None => {
             let exe = std::env::current_exe().map_err(|e| e.to_string())?;
-            format!(
+            let reference = format!(
                 "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical",
                 exe.display()
-            )
+            );
+            let region = region_decoder.unwrap_or(format!("{reference} --region {{region}}"));
+            (reference, Some(region))
         }
     };
-    let (_, report) = salvq_conformance::runner::run(vectors, &template, filter)?;
+    let (_, report) =
+        salvq_conformance::runner::run(vectors, &template, region_template.as_deref(), filter)?;
     for o in &report.outcomes {
         let verdict = if o.passed { "pass" } else { "FAIL" };
         out!("{verdict}  {:<32} {}", o.label, o.detail);

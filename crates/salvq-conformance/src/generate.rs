@@ -13,12 +13,14 @@ use super::canonical::{
     self, canonical_tensors, float_hash, integer_hash, FLOAT_TENSORS, SYMBOL_TENSORS,
 };
 use super::manifest::{
-    ExpectedDecode, Manifest, Tolerance, VectorEntry, VectorKind, MANIFEST_FILE,
+    ExpectedDecode, Manifest, RegionDecode, Tolerance, VectorEntry, VectorKind, MANIFEST_FILE,
 };
 use super::must_fail::must_fail_vectors;
+use super::region_vectors::{anchors_tiles, region_cases, selected_tiles};
 use super::vectors::{valid_vectors, BASE_SECTIONS};
 use salvq::container::signature::{FORMAT_MAJOR, FORMAT_MINOR};
 use salvq::decoder::{decode_with_symbols, DecodeOptions};
+use salvq::explicit::decode::decode_gaussians_in;
 use salvq::explicit::decode_gaussians;
 
 use super::canonical::{explicit_canonical_tensors, EXPLICIT_INTEGER_TENSORS};
@@ -112,6 +114,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
             let tensors = canonical_tensors(&model, &symbols);
             decodes.push(expected_decode(v.name, rate, &tensors, &mut files));
         }
+        decodes.extend(region_decodes(v.name, &v.stream, &mut files)?);
         entries.push(VectorEntry {
             decodes,
             ..entry(
@@ -139,6 +142,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
             let tensors = explicit_canonical_tensors(&d);
             decodes.push(expected_decode(v.name, rate, &tensors, &mut files));
         }
+        decodes.extend(region_decodes(v.name, &v.stream, &mut files)?);
         let mut sections = EXPLICIT_SECTIONS.to_vec();
         sections.extend(v.sections.iter().filter(|s| !EXPLICIT_SECTIONS.contains(s)));
         entries.push(VectorEntry {
@@ -176,6 +180,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
             sections.push("§9.2");
         }
         entries.push(VectorEntry {
+            decodes: region_decodes(v.name, &v.stream, &mut files)?,
             rate: Some(v.rate),
             error_class: Some(v.class.to_string()),
             ..entry(
@@ -215,7 +220,16 @@ fn expected_decode(
     tensors: &[canonical::CanonicalTensor],
     files: &mut BTreeMap<String, Vec<u8>>,
 ) -> ExpectedDecode {
-    let expected = format!("{name}.r{rate}.safetensors");
+    expected_file(format!("{name}.r{rate}.safetensors"), rate, tensors, files)
+}
+
+/// [`expected_decode`] into the file `expected`.
+fn expected_file(
+    expected: String,
+    rate: u8,
+    tensors: &[canonical::CanonicalTensor],
+    files: &mut BTreeMap<String, Vec<u8>>,
+) -> ExpectedDecode {
     let (kept, omitted): (Vec<_>, Vec<_>) = tensors.iter().cloned().partition(|t| {
         FLOAT_TENSORS.contains(&t.name.as_str())
             || SYMBOL_TENSORS.contains(&t.name.as_str())
@@ -230,6 +244,88 @@ fn expected_decode(
         float_sha256: float_hash(tensors),
         tolerance: Tolerance::STANDARD,
         omitted: omitted.into_iter().map(|t| t.name).collect(),
+        region: None,
+    }
+}
+
+/// The region decodes of a vector (§10.3.1, §11.7), each into
+/// `<name>.r<rate>.region<k>.safetensors`. For a valid anchors-profile vector, each is
+/// checked against the whole decode: the selected tiles' anchors, in order.
+fn region_decodes(
+    name: &str,
+    stream: &[u8],
+    files: &mut BTreeMap<String, Vec<u8>>,
+) -> Result<Vec<ExpectedDecode>, String> {
+    let mut out = Vec::new();
+    for (k, case) in region_cases(name, stream).into_iter().enumerate() {
+        let rate = case.rate;
+        let fail = |e: salvq::Error| format!("{name} region {k}: the reference decoder fails: {e}");
+        let tiles = selected_tiles(stream, rate, case.region);
+        let (tensors, count) = if salvq::decoder::is_explicit(stream) {
+            let d = decode_gaussians_in(stream, &Default::default(), Some(rate), Some(case.region))
+                .map_err(fail)?;
+            (explicit_canonical_tensors(&d), d.gaussians.len() as u64)
+        } else {
+            let options = DecodeOptions::default()
+                .with_rate(Some(rate))
+                .with_region(Some(case.region));
+            let (model, symbols) = decode_with_symbols(stream, &options).map_err(fail)?;
+            if let Ok(whole) =
+                salvq::decode_with_options(stream, &options.clone().with_region(None))
+            {
+                check_region_rows(name, k, stream, &whole, &model, &tiles)?;
+            }
+            (
+                canonical_tensors(&model, &symbols),
+                u64::from(model.dims.anchors),
+            )
+        };
+        let mut e = expected_file(
+            format!("{name}.r{rate}.region{k}.safetensors"),
+            rate,
+            &tensors,
+            files,
+        );
+        e.region = Some(RegionDecode {
+            region: case.region.to_array(),
+            tiles,
+            count,
+            pins: case.pins.to_string(),
+        });
+        out.push(e);
+    }
+    Ok(out)
+}
+
+/// A region decode holds the whole decode's anchors of the selected tiles, in order.
+fn check_region_rows(
+    name: &str,
+    k: usize,
+    stream: &[u8],
+    whole: &salvq::SceneModel,
+    part: &salvq::SceneModel,
+    tiles: &[u32],
+) -> Result<(), String> {
+    let table = anchors_tiles(stream);
+    let rows: Vec<usize> = tiles
+        .iter()
+        .flat_map(|&t| table.range(t as usize))
+        .collect();
+    let f = usize::from(whole.dims.feat_dim);
+    let same = part.anchors.voxel.len() == rows.len()
+        && rows.iter().enumerate().all(|(i, &a)| {
+            part.anchors.voxel[i] == whole.anchors.voxel[a]
+                && part.anchors.feat[i * f..(i + 1) * f]
+                    .iter()
+                    .zip(&whole.anchors.feat[a * f..(a + 1) * f])
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+        });
+    if same {
+        Ok(())
+    } else {
+        Err(format!(
+            "{name} region {k}: the region decode is not the whole decode's rows of tiles {tiles:?}"
+        ))
     }
 }
 

@@ -7,6 +7,7 @@
 //! | float tolerances | §11.3 | [`manifest::Tolerance`] |
 //! | vectors and manifest | §11.4 | [`vectors`], [`must_fail`], [`manifest`], [`generate`] |
 //! | decoder contract and runner | §11.5 | [`runner`] |
+//! | region decodes | §10.3.1, §11.7 | [`region_vectors`] |
 //! | what the fuzz targets (`fuzz/`) check | §9 | [`fuzzing`] |
 
 pub mod canonical;
@@ -16,5 +17,6 @@ pub mod generate;
 pub mod manifest;
 pub mod models;
 pub mod must_fail;
+pub mod region_vectors;
 pub mod runner;
 pub mod vectors;

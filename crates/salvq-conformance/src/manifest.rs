@@ -37,7 +37,8 @@ pub struct VectorEntry {
     /// Spec sections the vector exercises (for valid vectors, beyond the sections every
     /// valid vector exercises, `base_sections` of the README's coverage table).
     pub sections: Vec<String>,
-    /// Valid vectors: one decode per rate.
+    /// Valid vectors: one decode per rate, then the region decodes (§11.7); must-fail
+    /// vectors: region decodes that must succeed (the fault is in a tile they leave out).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub decodes: Vec<ExpectedDecode>,
     /// Must-fail vectors: the rate the decoder is asked for.
@@ -63,6 +64,23 @@ pub struct ExpectedDecode {
     /// the integer hash alone checks them.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub omitted: Vec<String>,
+    /// A region decode (§10.3.1, §11.7): the box asked for; absent for a whole decode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub region: Option<RegionDecode>,
+}
+
+/// A region decode's box and, to help a decoder's author, what it selects (§11.7).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegionDecode {
+    /// Min x, y, z, max x, y, z (binary64; JSON numbers that read back exactly).
+    #[serde(rename = "box")]
+    pub region: [f64; 6],
+    /// The selected tiles (informative: follows from `TILS` and the box).
+    pub tiles: Vec<u32>,
+    /// Anchors (Gaussians) in the output (informative).
+    pub count: u64,
+    /// The rule this decode pins.
+    pub pins: String,
 }
 
 /// §11.3: a decoded float `a` matches the expected `b` when `|a − b| ≤ relative·|b| + absolute`

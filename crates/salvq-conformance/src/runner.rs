@@ -6,6 +6,9 @@
 //! none of them gets the three appended. On success the decoder exits with status 0 and has
 //! written the canonical form (§11.1) to `{out}`; on a stream it rejects, it exits with a
 //! status from 1 to 125 and names the error class (Table 9-1) in its standard error.
+//!
+//! Region decodes (§11.7) run through a second command, the region decoder, in which
+//! `{region}` is also replaced (by `x0,y0,z0,x1,y1,z1`); without one they are skipped.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -28,14 +31,18 @@ pub struct Outcome {
     pub passed: bool,
     /// Why it failed, or how it passed (`bit-exact`, `within tolerance …`, the error class).
     pub detail: String,
-    /// Whether the vector is a must-fail one.
+    /// Whether the vector is a must-fail one (and this its rejection, not a region decode).
     pub must_fail: bool,
+    /// Whether this is a region decode (§11.7).
+    pub region: bool,
 }
 
 /// Every outcome, in manifest order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
     pub outcomes: Vec<Outcome>,
+    /// Region decodes not run: no region decoder was given.
+    pub regions_skipped: usize,
 }
 
 impl Report {
@@ -43,21 +50,30 @@ impl Report {
         self.outcomes.iter().filter(|o| !o.passed).count()
     }
 
-    /// `conformance: P passed, F failed (V decodes of valid vectors, B of them bit-exact; X
-    /// must-fail vectors)`.
+    /// `conformance: P passed, F failed (V decodes of valid vectors and R region decodes, B of
+    /// them bit-exact; X must-fail vectors)`, and how many region decodes were skipped.
     pub fn summary(&self) -> String {
         let must_fail = self.outcomes.iter().filter(|o| o.must_fail).count();
+        let regions = self.outcomes.iter().filter(|o| o.region).count();
         let bit_exact = self
             .outcomes
             .iter()
             .filter(|o| o.passed && o.detail.starts_with("bit-exact"))
             .count();
+        let skipped = if self.regions_skipped > 0 {
+            format!(
+                "; {} region decodes skipped: no --region-decoder (§11.7)",
+                self.regions_skipped
+            )
+        } else {
+            String::new()
+        };
         format!(
-            "conformance: {} passed, {} failed ({} decodes of valid vectors, {bit_exact} of them \
-             bit-exact; {must_fail} must-fail vectors)",
+            "conformance: {} passed, {} failed ({} decodes of valid vectors and {regions} region \
+             decodes, {bit_exact} of them bit-exact; {must_fail} must-fail vectors){skipped}",
             self.outcomes.len() - self.failed(),
             self.failed(),
-            self.outcomes.len() - must_fail,
+            self.outcomes.len() - must_fail - regions,
         )
     }
 }
@@ -71,16 +87,43 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest, String> {
 
 /// The argument vector for one decode (the contract above).
 pub fn command_line(template: &str, input: &Path, output: &Path, rate: u8) -> Vec<String> {
+    region_command_line(template, input, output, rate, None)
+}
+
+/// `{region}`'s text: the box's six numbers, comma-separated, each the shortest decimal that
+/// reads back as the same binary64 (§11.7).
+pub fn region_text(b: &[f64; 6]) -> String {
+    // Debug, not Display: the same shortest digits, with an exponent where it is shorter.
+    b.iter()
+        .map(|x| format!("{x:?}"))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// [`command_line`] for a region decode: `{region}` replaced too (appended after the three
+/// others when no argument names any mark).
+pub fn region_command_line(
+    template: &str,
+    input: &Path,
+    output: &Path,
+    rate: u8,
+    region: Option<&[f64; 6]>,
+) -> Vec<String> {
     let mut argv: Vec<String> = template.split_whitespace().map(String::from).collect();
-    let marks = ["{in}", "{out}", "{rate}"];
+    let mut marks = vec!["{in}", "{out}", "{rate}"];
+    if region.is_some() {
+        marks.push("{region}");
+    }
     if !argv.iter().any(|a| marks.iter().any(|m| a.contains(m))) {
         argv.extend(marks.iter().map(|m| m.to_string()));
     }
+    let region = region.map(region_text).unwrap_or_default();
     argv.iter()
         .map(|a| {
             a.replace("{in}", &input.to_string_lossy())
                 .replace("{out}", &output.to_string_lossy())
                 .replace("{rate}", &rate.to_string())
+                .replace("{region}", &region)
         })
         .collect()
 }
@@ -239,8 +282,9 @@ fn check_valid(
     let expected_bytes =
         std::fs::read(dir.join(&e.expected)).map_err(|err| format!("{}: {err}", e.expected))?;
     let expected = from_safetensors(&expected_bytes)?;
-    let out = work.join(format!("{}.r{}.safetensors", v.name, e.rate));
-    let argv = command_line(template, &dir.join(&v.file), &out, e.rate);
+    let out = work.join(&e.expected);
+    let region = e.region.as_ref().map(|r| &r.region);
+    let argv = region_command_line(template, &dir.join(&v.file), &out, e.rate, region);
     let run = run_decoder(&argv)?;
     if run.timed_out {
         return Err(format!("no result within {} s", DECODE_TIMEOUT.as_secs()));
@@ -285,63 +329,105 @@ fn check_must_fail(
     }
 }
 
-/// Runs `template` on every vector of `dir` whose name contains `filter` (all when `None`).
-pub fn run(dir: &Path, template: &str, filter: Option<&str>) -> Result<(Manifest, Report), String> {
-    run_selected(dir, template, &|v| {
+/// Runs `template` on every vector of `dir` whose name contains `filter` (all when `None`),
+/// and `region_template` on their region decodes (skipped when `None`).
+pub fn run(
+    dir: &Path,
+    template: &str,
+    region_template: Option<&str>,
+    filter: Option<&str>,
+) -> Result<(Manifest, Report), String> {
+    run_selected(dir, template, region_template, &|v| {
         filter.is_none_or(|f| v.name.contains(f))
     })
 }
 
-/// Runs `template` on the vectors of `dir` that `select` picks.
+/// One decode the runner makes.
+enum Job<'a> {
+    /// A whole or region decode that must succeed.
+    Decode(&'a ExpectedDecode),
+    /// A must-fail vector's rejection.
+    Reject,
+}
+
+/// Runs `template` on the vectors of `dir` that `select` picks, and `region_template` on
+/// their region decodes (skipped when `None`).
 pub fn run_selected(
     dir: &Path,
     template: &str,
+    region_template: Option<&str>,
     select: &(dyn Fn(&VectorEntry) -> bool + Sync),
 ) -> Result<(Manifest, Report), String> {
     let manifest = read_manifest(dir)?;
     let work = tempfile::tempdir().map_err(|e| format!("temporary folder: {e}"))?;
     let work: PathBuf = work.path().to_path_buf();
-    let mut jobs: Vec<(&VectorEntry, Option<&ExpectedDecode>)> = Vec::new();
-    for v in &manifest.vectors {
-        if !select(v) {
-            continue;
+    let mut jobs: Vec<(&VectorEntry, Job)> = Vec::new();
+    let mut regions_skipped = 0;
+    for v in manifest.vectors.iter().filter(|v| select(v)) {
+        if v.kind == VectorKind::MustFail {
+            jobs.push((v, Job::Reject));
         }
-        match v.kind {
-            VectorKind::Valid => jobs.extend(v.decodes.iter().map(|e| (v, Some(e)))),
-            VectorKind::MustFail => jobs.push((v, None)),
+        for e in &v.decodes {
+            if e.region.is_some() && region_template.is_none() {
+                regions_skipped += 1;
+            } else {
+                jobs.push((v, Job::Decode(e)));
+            }
         }
     }
     let outcomes = jobs
         .par_iter()
-        .map(|&(v, e)| {
-            let (label, result) = match e {
-                Some(e) => {
-                    let label = if v.decodes.len() > 1 {
+        .map(|(v, job)| {
+            let (label, result, region) = match job {
+                Job::Decode(e) => {
+                    let whole = v.decodes.iter().filter(|d| d.region.is_none()).count();
+                    let mut label = if whole > 1 || e.region.is_some() {
                         format!("{}@{}", v.name, e.rate)
                     } else {
                         v.name.clone()
                     };
-                    (label, check_valid(dir, v, e, template, &work))
+                    let t = match &e.region {
+                        Some(_) => {
+                            let k = v
+                                .decodes
+                                .iter()
+                                .filter(|d| d.region.is_some())
+                                .position(|d| std::ptr::eq(d, *e))
+                                .unwrap_or(0);
+                            label.push_str(&format!(" region {k}"));
+                            region_template.unwrap_or(template)
+                        }
+                        None => template,
+                    };
+                    (label, check_valid(dir, v, e, t, &work), e.region.is_some())
                 }
-                None => (v.name.clone(), check_must_fail(dir, v, template, &work)),
+                Job::Reject => (
+                    v.name.clone(),
+                    check_must_fail(dir, v, template, &work),
+                    false,
+                ),
             };
-            match result {
-                Ok(detail) => Outcome {
-                    label,
-                    passed: true,
-                    detail,
-                    must_fail: e.is_none(),
-                },
-                Err(detail) => Outcome {
-                    label,
-                    passed: false,
-                    detail,
-                    must_fail: e.is_none(),
-                },
+            let must_fail = matches!(job, Job::Reject);
+            let (passed, detail) = match result {
+                Ok(detail) => (true, detail),
+                Err(detail) => (false, detail),
+            };
+            Outcome {
+                label,
+                passed,
+                detail,
+                must_fail,
+                region,
             }
         })
         .collect();
-    Ok((manifest, Report { outcomes }))
+    Ok((
+        manifest,
+        Report {
+            outcomes,
+            regions_skipped,
+        },
+    ))
 }
 
 #[cfg(test)]
@@ -359,6 +445,26 @@ mod tests {
             command_line("python3 -m dec", i, o, 0),
             ["python3", "-m", "dec", "/v/a.salvq", "/t/a.st", "0"]
         );
+        let b = [-0.5, 0.1, 1e-300, 2.0, 1.0, 3.0];
+        assert_eq!(
+            region_command_line("dec {in} {out} --region={region}", i, o, 0, Some(&b)),
+            [
+                "dec",
+                "/v/a.salvq",
+                "/t/a.st",
+                "--region=-0.5,0.1,1e-300,2.0,1.0,3.0"
+            ]
+        );
+        assert_eq!(
+            region_command_line("dec", i, o, 2, Some(&b))[4],
+            "-0.5,0.1,1e-300,2.0,1.0,3.0"
+        );
+        // Each number reads back as the same binary64.
+        let back: Vec<f64> = region_text(&b)
+            .split(',')
+            .map(|x| x.parse().unwrap())
+            .collect();
+        assert_eq!(back, b);
     }
 
     #[test]

@@ -197,6 +197,25 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         )?,
     ));
 
+    // Region decodes (§10.3.1) of this vector are listed by `region_vectors`.
+    let regions = generate(&GenParams {
+        scaling_basis: true,
+        ..small(360, 17, true)
+    });
+    out.push(vector(
+        "tiles-regions",
+        "360 anchors in tiles of at most 40, three feature and two scaling regions (Sp-SALVQ): \
+         region decodes at tile faces, across region boundaries, and of no tile",
+        &["§7.6", "§10.3.1", "§11.7"],
+        encode_full(&with_scaling_regions(&regions), &{
+            let mut o = options(&[0]);
+            o.fit_basis = true;
+            o.feat_regions = 3;
+            o.tile_anchors = 40;
+            o
+        })?,
+    ));
+
     out.push(vector(
         "tiles-one-anchor",
         "a tile per anchor (tile_anchors = 1), cells down to a single voxel",

@@ -494,8 +494,8 @@ impl StreamInfo {
             let d = &h.dims;
             let _ = writeln!(
                 s,
-                "anchors {}  feat_dim {}  offsets {}  scaling_dim {}  rates {}  coord_bits {}",
-                d.anchors, d.feat_dim, d.offsets, d.scaling_dim, d.rates, h.coord_bits
+                "anchors {}  feat_dim {}  offsets {}  scaling_dim {}  coord_bits {}",
+                d.anchors, d.feat_dim, d.offsets, d.scaling_dim, h.coord_bits
             );
             let _ = writeln!(
                 s,
@@ -527,8 +527,8 @@ impl StreamInfo {
             );
             let _ = writeln!(
                 s,
-                "coded rates {:?}; decoded size {} bytes",
-                h.coded_rates, h.decoded_bytes
+                "coded rates {:?} of the model's {} (rate 0 is the finest); decoded size {} bytes",
+                h.coded_rates, d.rates, h.decoded_bytes
             );
         }
         let _ = writeln!(
