@@ -2,6 +2,9 @@
 //! during a decode, counted by a capping global allocator, against
 //! `salvq_conformance::fuzzing::allocation_bound` — the same bound the fuzz targets enforce. Each decode
 //! runs in a child process of this test so its peak is its own.
+//!
+//! Quiet when it passes (one summary line); the table of every decode's peak comes with a
+//! failure, or always with `SALVQ_TEST_VERBOSE=1`.
 
 use std::alloc::System;
 use std::path::PathBuf;
@@ -42,6 +45,7 @@ fn main() {
     let exe = std::env::current_exe().expect("test binary");
     let mut worst: f64 = 0.0;
     let mut failures = Vec::new();
+    let mut table = Vec::new();
     for v in &manifest.vectors {
         // Whole decodes only: a region decode allocates less, and a must-fail vector lists
         // region decodes only (spec §11.7).
@@ -66,16 +70,28 @@ fn main() {
             let bound = salvq_conformance::fuzzing::allocation_bound(decoded, len);
             let ratio = peak as f64 / (decoded + len) as f64;
             worst = worst.max(ratio);
-            println!(
+            table.push(format!(
                 "{:<22} rate {:>2}: peak heap {:>9} B, decoded {:>9} B, stream {:>7} B, peak/(decoded+stream) {:.2}",
                 v.name, e.rate, peak, decoded, len, ratio
-            );
+            ));
             if peak > bound {
                 failures.push(format!("{}: peak {peak} above the bound {bound}", v.name));
             }
         }
     }
-    println!("largest peak/(decoded+stream): {worst:.2}");
+    let verbose = std::env::var_os("SALVQ_TEST_VERBOSE").is_some_and(|v| v == "1");
+    if verbose || !failures.is_empty() {
+        println!("{}", table.join("\n"));
+    }
+    println!(
+        "allocation_bound: {} decodes, largest peak/(decoded+stream) {worst:.2}{}",
+        table.len(),
+        if failures.is_empty() {
+            ", all within the bound"
+        } else {
+            ""
+        }
+    );
     if !failures.is_empty() {
         eprintln!("{}", failures.join("\n"));
         std::process::exit(1);

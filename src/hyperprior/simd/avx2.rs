@@ -244,10 +244,43 @@ mod tests {
         }
     }
 
+    /// §5.3 written out in scalar code, independent of the crate's `dot` (SSE2 on x86-64):
+    /// products in i32, every addition modulo 2^32. Also returns, per output, whether its sum
+    /// left the i32 range (so wrapped), and per hidden unit the exact sum before the shift.
+    fn scalar_mlp(m: &IntMlp, x: &[i16]) -> (Vec<i16>, Vec<i32>, Vec<bool>) {
+        let h: Vec<i16> = (0..m.hidden)
+            .map(|r| {
+                let row = &m.w0[r * m.cin..(r + 1) * m.cin];
+                let acc = row.iter().zip(x).fold(m.b0[r], |a, (&w, &v)| {
+                    a.wrapping_add(i32::from(w) * i32::from(v))
+                });
+                let q = crate::hyperprior::mlp::round_shift(acc, m.shift0);
+                q.clamp(0, crate::hyperprior::mlp::HIDDEN_MAX) as i16
+            })
+            .collect();
+        let mut wrapped = Vec::new();
+        let y = (0..m.cout)
+            .map(|o| {
+                let row = &m.w1[o * m.hidden..(o + 1) * m.hidden];
+                let exact = row.iter().zip(&h).fold(i64::from(m.b1[o]), |a, (&w, &v)| {
+                    a + i64::from(w) * i64::from(v)
+                });
+                wrapped.push(i32::try_from(exact).is_err());
+                exact as i32
+            })
+            .collect();
+        (h, y, wrapped)
+    }
+
+    /// The kernel against the scalar definition and the portable path, on random MLPs of
+    /// shapes that need every kind of padding (inputs not a multiple of 16, hidden units not a
+    /// multiple of 16, outputs not a multiple of 8), every shift, and extreme weights. The
+    /// inputs must reach every branch a wrong kernel could get wrong: hidden units clamped to
+    /// 0, saturated at 32767 and in between, and outputs whose sums wrap modulo 2^32; the test
+    /// counts them and fails if any kind never occurred.
     #[test]
     fn matches_the_portable_mlp() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
-            eprintln!("no AVX2 on this CPU: kernel not tested");
+        if !super::super::avx2_or_skip("hyperprior::simd::avx2::tests::matches_the_portable_mlp") {
             return;
         }
         let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
@@ -259,6 +292,8 @@ mod tests {
             (24, 8, 19),
             (48, 33, 7),
         ];
+        // Hidden units at 0, at 32767, in between; outputs that wrapped; vectors compared.
+        let mut seen = [0usize; 5];
         for (cin, hidden, cout) in shapes {
             for shift0 in [0u8, 1, 5, 12, 20, 31] {
                 for extreme in [false, true] {
@@ -272,19 +307,34 @@ mod tests {
                         for v in &mut x[..cin] {
                             *v = rng.i16(extreme);
                         }
+                        let (hs, ys, wrapped) = scalar_mlp(&m, &x[..cin]);
                         m.eval(&x[..cin], &mut h, &mut y);
                         k.eval(&x, &mut hk, &mut yk);
-                        assert_eq!(y, yk, "shape {cin}/{hidden}/{cout} shift {shift0}");
-                        assert_eq!(&hk[..hidden], &h[..]);
+                        let at = format!("shape {cin}/{hidden}/{cout} shift {shift0}");
+                        assert_eq!(yk, ys, "{at}: kernel vs scalar definition");
+                        assert_eq!(&hk[..hidden], &hs[..], "{at}: hidden units");
+                        assert_eq!(y, ys, "{at}: portable path vs scalar definition");
+                        assert_eq!(h, hs, "{at}: portable hidden units");
+                        seen[0] += hs.iter().filter(|&&v| v == 0).count();
+                        seen[1] += hs.iter().filter(|&&v| v == i16::MAX).count();
+                        seen[2] += hs.iter().filter(|&&v| v > 0 && v < i16::MAX).count();
+                        seen[3] += wrapped.iter().filter(|&&w| w).count();
+                        seen[4] += 1;
                     }
                 }
             }
         }
+        assert!(
+            seen.iter().all(|&c| c > 0),
+            "inputs too tame: hidden 0 / 32767 / between, wrapped outputs, runs: {seen:?}"
+        );
     }
 
     #[test]
     fn round_shift_matches_the_definition_at_the_edges() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !super::super::avx2_or_skip(
+            "hyperprior::simd::avx2::tests::round_shift_matches_the_definition_at_the_edges",
+        ) {
             return;
         }
         let values = [

@@ -23,3 +23,25 @@ pub mod sse2;
 
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub use sse2::dot;
+
+/// For tests of the AVX2 kernel: whether this CPU has AVX2. Where it has none, the test
+/// cannot compare the kernel with anything, so it says that it skipped on stderr (written
+/// directly, so that `cargo test` shows it even though the test passes; libtest's capture only
+/// takes `print!` / `eprint!`), and it fails instead when `SALVQ_REQUIRE_AVX2` is set (`.ci/run`
+/// sets it on CPUs with AVX2, so that a detection bug cannot turn the tests into silent passes).
+#[cfg(all(test, feature = "simd", target_arch = "x86_64"))]
+pub(crate) fn avx2_or_skip(test: &str) -> bool {
+    use std::io::Write;
+    if std::arch::is_x86_feature_detected!("avx2") {
+        return true;
+    }
+    assert!(
+        std::env::var_os("SALVQ_REQUIRE_AVX2").is_none(),
+        "{test}: no AVX2 detected on this CPU, and SALVQ_REQUIRE_AVX2 is set"
+    );
+    let _ = writeln!(
+        std::io::stderr(),
+        "{test}: skipped: no AVX2 on this CPU, the AVX2 kernel is not tested"
+    );
+    false
+}
