@@ -119,7 +119,8 @@ fn with_threads<T: Send>(threads: Option<u32>, f: impl FnOnce() -> T + Send) -> 
     }
 }
 
-fn load(input: &std::path::Path, rate: Option<u8>) -> Result<Scene, Error> {
+/// The scene in a stream, model or PLY file (`rate`: a stream's rate to decode).
+pub(crate) fn load(input: &std::path::Path, rate: Option<u8>) -> Result<Scene, Error> {
     Ok(Scene::from_bytes(
         &salvq_render::io::read_file(input)?,
         rate,

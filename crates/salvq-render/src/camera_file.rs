@@ -148,10 +148,9 @@ pub fn parse_inria_json(text: &str, path: &Path) -> Result<Vec<NamedCamera>> {
         1 + before.iter().filter(|&&b| b == b'\n').count() as u64
     };
     let syntax = |e: serde_json::Error, field| r.error(e.line() as u64, field, e.to_string());
-    let entries: Vec<&RawValue> =
-        serde_json::from_str(text).map_err(|e| syntax(e, "the list of cameras"))?;
+    let entries: Vec<&RawValue> = serde_json::from_str(text).map_err(|e| syntax(e, "JSON"))?;
     if entries.is_empty() {
-        return Err(r.error(0, "the list of cameras", "no cameras"));
+        return Err(r.error(0, "cameras", "the list holds no camera"));
     }
     let mut cameras = Vec::with_capacity(entries.len());
     for (index, entry) in entries.into_iter().enumerate() {

@@ -193,7 +193,7 @@ fn malformed_cameras_json_is_rejected_naming_the_line_and_field() {
     let (at, _, text) = error_of(json(&good.replacen("\"id\": 1,", "\"id\": 1", 1)));
     assert_eq!(at, line_of("\"id\": 1") + 1, "{text}");
     assert_eq!(error_of(json("[]")).0, 0);
-    assert_eq!(error_of(json("{}")).1, "the list of cameras");
+    assert_eq!(error_of(json("{}")).1, "JSON");
     // 3DGS writes the list on one line: the camera's index tells them apart.
     let one_line: String = good.split_whitespace().collect();
     let text = error_of(json(&one_line.replacen("\"fx\":500.0", "\"fx\":0", 1))).2;
