@@ -137,8 +137,8 @@ pub fn read_inria_json(path: &Path) -> Result<Vec<NamedCamera>> {
 }
 
 /// The cameras of an Inria 3DGS `cameras.json` whose text is `text` (`path` names it in
-/// errors): a JSON list of objects with `width`, `height`, `position` [3], `rotation` [3][3]
-/// (camera-to-world, rows), `fx`, `fy`, and optionally `id` and `img_name`.
+/// errors): a JSON list of objects with `width`, `height`, `position` (3 numbers), `rotation`
+/// (3 rows of 3: camera-to-world), `fx`, `fy`, and optionally `id` and `img_name`.
 pub fn parse_inria_json(text: &str, path: &Path) -> Result<Vec<NamedCamera>> {
     let r = Reporter { path, entry: None };
     // Line of a value borrowed from `text` (its offset in it: the value lies inside `text`).
