@@ -393,6 +393,12 @@ fn every_tool_error() -> Vec<salvq_encoder::Error> {
             value: 0.0,
             rule: "x",
         }),
+        files(R::CameraFileInvalid {
+            path: "cameras.txt".into(),
+            line: 3,
+            field: "MODEL",
+            problem: "x".into(),
+        }),
         salvq_encoder::Error::io(
             IoOp::Read,
             std::path::Path::new("x"),

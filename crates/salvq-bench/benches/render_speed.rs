@@ -123,7 +123,7 @@ fn main() {
                     / (g.len().max(1) as f64 / 1e5);
                 let gen = match scene {
                     Scene::Model(_) => format!("{gen_ms:.1}"),
-                    Scene::Gaussians(_) => "-".into(),
+                    Scene::Gaussians { .. } => "-".into(),
                 };
                 println!(
                     "{:<34} {:>9} {:>9} {:>8} {:>10} {:>10.1} {:>14.2}",

@@ -34,6 +34,7 @@ fn print_text(text: &str) {
     }
 }
 
+mod compare;
 mod decode_explicit;
 mod demo;
 mod encode;
@@ -187,6 +188,9 @@ enum Command {
     /// Export a stream or a model file as a standard 3DGS PLY file (spec Annex C.3), its
     /// view-dependent attributes evaluated from a ring camera.
     ExportPly(render::ExportPlyArgs),
+    /// Render two scenes (streams, model files or PLY files) from the same cameras and print
+    /// PSNR and SSIM per view and overall (spec Annex C.5).
+    Compare(compare::CompareArgs),
     /// The main job on an embedded default: generate, encode, decode, verify, report.
     Demo {
         /// Number of anchors of the generated scene.
@@ -538,6 +542,7 @@ fn run(cli: Cli) -> Result<(), Error> {
         Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref())?,
         Command::Render(args) => render::render(args)?,
         Command::ExportPly(args) => render::export_ply(args)?,
+        Command::Compare(args) => compare::run(args)?,
     }
     Ok(())
 }

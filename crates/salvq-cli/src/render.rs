@@ -119,7 +119,8 @@ fn with_threads<T: Send>(threads: Option<u32>, f: impl FnOnce() -> T + Send) -> 
     }
 }
 
-fn load(input: &std::path::Path, rate: Option<u8>) -> Result<Scene, Error> {
+/// The scene in a stream, model or PLY file (`rate`: a stream's rate to decode).
+pub(crate) fn load(input: &std::path::Path, rate: Option<u8>) -> Result<Scene, Error> {
     Ok(Scene::from_bytes(
         &salvq_render::io::read_file(input)?,
         rate,
@@ -150,7 +151,9 @@ pub(crate) fn render(a: RenderArgs) -> Result<(), Error> {
             m.dims.anchors,
             gen_secs * 1e3
         ),
-        Scene::Gaussians(g) => format!("{} Gaussians (SH degree {})", g.len(), g.sh_degree),
+        Scene::Gaussians { gaussians: g, .. } => {
+            format!("{} Gaussians (SH degree {})", g.len(), g.sh_degree)
+        }
     };
     out!(
         "rendered view {} of {} ({}x{}) into {}: {source}; {} drawn, {} tile entries; \
@@ -175,7 +178,7 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
     let model = match &scene {
         Scene::Model(m) => m,
         // An explicit-profile stream (spec §3): its Gaussians are the export.
-        Scene::Gaussians(g)
+        Scene::Gaussians { gaussians: g, .. }
             if salvq::decoder::is_explicit(&salvq_render::io::read_file(&a.input)?) =>
         {
             ply::write_ply_file(g, &a.output)?;
@@ -188,7 +191,7 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
             );
             return Ok(());
         }
-        Scene::Gaussians(_) => {
+        Scene::Gaussians { .. } => {
             return Err(salvq_render::Error::RenderSettingInvalid {
                 setting: "input",
                 value: 0.0,
@@ -198,12 +201,11 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
         }
     };
     // The camera position does not depend on the image size; any valid size will do.
-    let camera = a
-        .ring
-        .ring()
-        .camera(&scene.bounds(), a.ring.view, 512, 384)?;
+    let bounds = scene.bounds();
+    let camera = a.ring.ring().camera(&bounds, a.ring.view, 512, 384)?;
     let gaussians = salvq_render::neural::neural_gaussians(model, camera.position)?;
-    ply::write_ply_file(&gaussians, &a.output)?;
+    // The anchors' bounds go with the PLY, so that its ring is the model's (Annex C.3).
+    ply::write_ply_file_with(&gaussians, Some(&bounds), &a.output)?;
     let unmasked = model.anchors.mask.iter().filter(|&&m| m == 1).count();
     out!(
         "exported {} Gaussians into {} in {:.2} s: the unmasked offsets ({unmasked}) of {} anchors \

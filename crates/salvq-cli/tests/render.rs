@@ -9,7 +9,7 @@ use std::path::PathBuf;
 
 use salvq_gen::{generate, GenParams};
 use salvq_render::camera::{Axis, Bounds, Ring};
-use salvq_render::ply::{ply_bytes, read_ply};
+use salvq_render::ply::{ply_bytes, read_ply, recorded_ring_bounds};
 use salvq_render::Error;
 use salvq_render::{metrics, neural, raster, sh, Gaussians, Image};
 
@@ -61,6 +61,28 @@ fn ply_write_read_round_trip_is_bit_exact() {
     }
     let empty = read_ply(&ply_bytes(&Gaussians::default()).unwrap()).unwrap();
     assert!(empty.is_empty());
+}
+
+#[test]
+fn ring_bounds_recorded_in_a_ply_header_read_back_exactly() {
+    let g = awkward_gaussians(5, 1);
+    let b = Bounds {
+        min: [-0.0, 1e-30, -3.25],
+        max: [0.1, 7.0e20, f32::from_bits(0x3eaa_aaab)],
+    };
+    let mut bytes = Vec::new();
+    salvq_render::ply::write_ply_with(&g, Some(&b), &mut bytes).unwrap();
+    assert_eq!(recorded_ring_bounds(&bytes).unwrap(), Some(b));
+    assert_eq!(bits(&read_ply(&bytes).unwrap()), bits(&g));
+    assert_eq!(recorded_ring_bounds(&ply_bytes(&g).unwrap()).unwrap(), None);
+    // min > max on x, a number missing, one not finite: header line 3 is named.
+    let text = String::from_utf8_lossy(&ply_bytes(&g).unwrap()).into_owned();
+    for bad in ["5 0 0 1 1 1", "0 0 0 1 1", "0 0 0 1 1 inf"] {
+        let line = format!("format binary_little_endian 1.0\ncomment salvq ring_bounds {bad}");
+        let broken = text.replacen("format binary_little_endian 1.0", &line, 1);
+        let e = recorded_ring_bounds(broken.as_bytes()).unwrap_err();
+        assert!(matches!(e, Error::PlyHeaderInvalid { line: 3, .. }), "{e}");
+    }
 }
 
 #[test]
@@ -507,4 +529,75 @@ fn export_ply_writes_one_gaussian_per_kept_offset_and_render_writes_a_png() {
         .unwrap();
     assert!(!out.status.success() && !bad.exists());
     assert!(String::from_utf8_lossy(&out.stderr).contains("RenderSettingInvalid"));
+}
+
+/// A PNG file that `salvq render` wrote, as an image of values in [0, 1].
+fn read_png(path: &std::path::Path) -> Image {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    Image {
+        width: info.width,
+        height: info.height,
+        rgb: buf[..info.buffer_size()]
+            .iter()
+            .map(|&v| f32::from(v) / 255.0)
+            .collect(),
+    }
+}
+
+fn salvq_ok(args: &[&std::ffi::OsStr]) {
+    let out = std::process::Command::new(salvq_bin())
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn view_0_of_a_stream_and_of_its_exported_ply_are_the_same_image() {
+    // The PLY records the ring bounds of the anchors it came from (Annex C.2 step 1, C.3),
+    // so both renders use the same camera. Before, the PLY's ring was placed around its
+    // Gaussian means: view 0 of the two was 25 dB apart.
+    let dir = tempfile::tempdir().unwrap();
+    let stream = dir.path().join("m.salvq");
+    std::fs::write(&stream, salvq_encoder::encode(&small_model()).unwrap()).unwrap();
+    let ply = dir.path().join("m.ply");
+    salvq_ok(&[
+        "export-ply".as_ref(),
+        stream.as_ref(),
+        "-o".as_ref(),
+        ply.as_ref(),
+    ]);
+    let render = |input: &std::path::Path, name: &str| {
+        let png = dir.path().join(name);
+        let size = ["--width", "96", "--height", "72"].map(std::ffi::OsStr::new);
+        salvq_ok(
+            &[
+                &[
+                    "render".as_ref(),
+                    input.as_ref(),
+                    "-o".as_ref(),
+                    png.as_ref(),
+                ],
+                &size[..],
+            ]
+            .concat(),
+        );
+        read_png(&png)
+    };
+    let (from_stream, from_ply) = (render(&stream, "s.png"), render(&ply, "p.png"));
+    let psnr = metrics::psnr(&from_stream, &from_ply).unwrap();
+    assert!(
+        psnr > 50.0,
+        "view 0 of the stream and of its PLY: {psnr:.1} dB apart"
+    );
+    // Not a blank image agreeing with a blank image.
+    assert!(from_stream.rgb.iter().filter(|&&v| v > 0.05).count() > 96 * 72 / 20);
 }

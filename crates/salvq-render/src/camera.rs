@@ -41,6 +41,19 @@ impl Camera {
         ]
     }
 
+    /// The same camera for a `width × height` image: the focal lengths scale with the sides,
+    /// so the fields of view stay (the principal point is always the image centre).
+    pub fn resized(&self, width: u32, height: u32) -> Result<Camera> {
+        check_image_size(width, height)?;
+        Ok(Camera {
+            width,
+            height,
+            fx: (f64::from(self.fx) * f64::from(width) / f64::from(self.width)) as f32,
+            fy: (f64::from(self.fy) * f64::from(height) / f64::from(self.height)) as f32,
+            ..self.clone()
+        })
+    }
+
     /// A world point in camera space.
     pub fn to_camera(&self, p: [f32; 3]) -> [f32; 3] {
         let d = [

@@ -1,7 +1,7 @@
-//! A scene's renders from a camera ring (Annex C.2), kept to compare other versions of it
-//! against (Annex C.5): PSNR of the mean squared error over the views (so views average in
-//! MSE, not in dB) and mean SSIM. The encoder's rate fit, the real-scene bench and the R-D
-//! bench all measure with it.
+//! A scene's renders from a camera ring (Annex C.2) or from a capture's cameras, kept to
+//! compare other versions of it against (Annex C.5): PSNR of the mean squared error over the
+//! views (so views average in MSE, not in dB) and mean SSIM. The encoder's rate fit, the
+//! real-scene bench, the R-D bench and `salvq compare` all measure with it.
 
 use std::borrow::Cow;
 
@@ -13,7 +13,7 @@ use crate::error::Result;
 
 /// Reference renders and the cameras they were taken from.
 pub struct RingTarget {
-    /// The ring's cameras.
+    /// The cameras: a ring's ([`RingTarget::around`]) or any ([`RingTarget::from_cameras`]).
     pub cameras: Vec<Camera>,
     /// The reference's image from each.
     pub images: Vec<Image>,
@@ -37,7 +37,44 @@ pub fn psnr_of(mse: f64) -> f64 {
     }
 }
 
+/// How one view of a scene compares with the reference's view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewScore {
+    /// Mean squared error over pixels and channels, peak 1 (0: the images are identical).
+    pub mse: f64,
+    /// SSIM (1 for identical images).
+    pub ssim: f64,
+}
+
+impl ViewScore {
+    /// PSNR in dB, +∞ for identical images.
+    pub fn psnr(&self) -> f64 {
+        psnr_of(self.mse)
+    }
+
+    /// Over several views: the mean MSE (whose PSNR is the overall PSNR) and the mean SSIM.
+    pub fn mean(views: &[ViewScore]) -> ViewScore {
+        let n = views.len().max(1) as f64;
+        ViewScore {
+            mse: views.iter().map(|v| v.mse).sum::<f64>() / n,
+            ssim: views.iter().map(|v| v.ssim).sum::<f64>() / n,
+        }
+    }
+}
+
 impl RingTarget {
+    /// The reference renders from `cameras`, each of what `scene` gives for it.
+    pub fn from_cameras<'a>(
+        cameras: Vec<Camera>,
+        scene: impl Fn(&Camera) -> Result<Cow<'a, Gaussians>>,
+    ) -> Result<RingTarget> {
+        let images = cameras
+            .iter()
+            .map(|c| Ok(render(scene(c)?.as_ref(), c, [0.0; 3])))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(RingTarget { cameras, images })
+    }
+
     /// `views` cameras of the default ring around `bounds`, each rendering what `scene`
     /// gives for it (a scene's Gaussians may depend on the camera, Annex C.1).
     pub fn around<'a>(
@@ -54,11 +91,7 @@ impl RingTarget {
         let cameras = (0..views)
             .map(|v| ring.camera(bounds, v, width, height))
             .collect::<Result<Vec<_>>>()?;
-        let images = cameras
-            .iter()
-            .map(|c| Ok(render(scene(c)?.as_ref(), c, [0.0; 3])))
-            .collect::<Result<Vec<_>>>()?;
-        Ok(RingTarget { cameras, images })
+        RingTarget::from_cameras(cameras, scene)
     }
 
     /// The ring around `g`'s means, rendering `g`.
@@ -72,6 +105,30 @@ impl RingTarget {
         )
     }
 
+    /// Per camera, how what `scene` gives for it compares with the reference (SSIM 0
+    /// unless `with_ssim`).
+    pub fn view_scores<'a>(
+        &self,
+        with_ssim: bool,
+        scene: impl Fn(&Camera) -> Result<Cow<'a, Gaussians>>,
+    ) -> Result<Vec<ViewScore>> {
+        self.cameras
+            .iter()
+            .zip(&self.images)
+            .map(|(c, reference)| {
+                let image = render(scene(c)?.as_ref(), c, [0.0; 3]);
+                Ok(ViewScore {
+                    mse: mse_of(psnr(&image, reference)?),
+                    ssim: if with_ssim {
+                        ssim(&image, reference)?
+                    } else {
+                        0.0
+                    },
+                })
+            })
+            .collect()
+    }
+
     /// (mean squared error over the views, mean SSIM if `with_ssim`, else 0) of what
     /// `scene` gives for each camera.
     pub fn measure<'a>(
@@ -79,16 +136,8 @@ impl RingTarget {
         with_ssim: bool,
         scene: impl Fn(&Camera) -> Result<Cow<'a, Gaussians>>,
     ) -> Result<(f64, f64)> {
-        let (mut mse, mut s) = (0.0, 0.0);
-        for (c, reference) in self.cameras.iter().zip(&self.images) {
-            let image = render(scene(c)?.as_ref(), c, [0.0; 3]);
-            mse += mse_of(psnr(&image, reference)?);
-            if with_ssim {
-                s += ssim(&image, reference)?;
-            }
-        }
-        let n = self.images.len().max(1) as f64;
-        Ok((mse / n, s / n))
+        let mean = ViewScore::mean(&self.view_scores(with_ssim, scene)?);
+        Ok((mean.mse, mean.ssim))
     }
 
     /// Mean squared error of `g` over the views (peak 1).

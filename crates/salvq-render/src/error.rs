@@ -91,6 +91,18 @@ pub enum Error {
         /// The rule broken.
         rule: &'static str,
     },
+    /// A camera file (the Inria 3DGS `cameras.json`, a COLMAP `cameras.txt` or `images.txt`)
+    /// breaks its format, or describes a camera the renderer cannot draw (Annex C.2).
+    CameraFileInvalid {
+        /// The file.
+        path: PathBuf,
+        /// The line, from 1; 0 when the problem concerns the file as a whole.
+        line: u64,
+        /// The field, as the file's format names it (`rotation`, `MODEL`, `QW` …).
+        field: &'static str,
+        /// What is wrong, with the value found.
+        problem: String,
+    },
     /// A file operation failed (§9.2: no partial output is left behind).
     Io {
         /// What was being done.
@@ -135,6 +147,7 @@ impl Error {
             Error::PlyValueNotFinite { .. } => "PlyValueNotFinite",
             Error::NeuralGaussiansUnsupported { .. } => "NeuralGaussiansUnsupported",
             Error::RenderSettingInvalid { .. } => "RenderSettingInvalid",
+            Error::CameraFileInvalid { .. } => "CameraFileInvalid",
             Error::Io { .. } => "Io",
         }
     }
@@ -145,7 +158,7 @@ impl Error {
             Error::Stream(e) => e.spec_section(),
             Error::InterchangeFormat { .. } => "§A.1",
             Error::NeuralGaussiansUnsupported { .. } => "§C.1",
-            Error::RenderSettingInvalid { .. } => "§C.2",
+            Error::RenderSettingInvalid { .. } | Error::CameraFileInvalid { .. } => "§C.2",
             Error::PlyHeaderInvalid { .. }
             | Error::PlyPropertyMissing { .. }
             | Error::PlyShCoefficients { .. }
@@ -213,6 +226,22 @@ impl fmt::Display for Error {
                 value,
                 rule,
             } => write!(f, "render setting {setting} = {value}: {rule}")?,
+            Error::CameraFileInvalid {
+                path,
+                line: 0,
+                field,
+                problem,
+            } => write!(f, "camera file {}: {field}: {problem}", path.display())?,
+            Error::CameraFileInvalid {
+                path,
+                line,
+                field,
+                problem,
+            } => write!(
+                f,
+                "camera file {}, line {line}, field {field}: {problem}",
+                path.display()
+            )?,
             Error::Io { op, path, source } => {
                 let verb = match op {
                     IoOp::Read => "cannot read",

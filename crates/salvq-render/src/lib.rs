@@ -5,6 +5,7 @@
 //! |---|---|---|
 //! | scene model → standard Gaussians (Scaffold-GS `generate_neural_gaussians`) | §C.1 | [`neural`] |
 //! | the camera ring: reproducible views around a scene's bounds | §C.2 | [`camera`] |
+//! | real cameras: the Inria 3DGS `cameras.json`, COLMAP text models | §C.2 | [`camera_file`] |
 //! | the Inria 3DGS PLY layout: read and write | §C.3 | [`ply`] |
 //! | rasterization as 3DGS's forward pass (Kerbl et al. 2023) | §C.4 | [`raster`], [`sh`] |
 //! | PSNR and SSIM | §C.5 | [`metrics`] |
@@ -25,6 +26,7 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod camera_file;
 pub mod compare;
 pub mod error;
 pub mod interchange;

@@ -15,9 +15,14 @@
 //! before `vertex` are skipped by their record size. The reader never panics and never
 //! allocates from a count before checking `count × stride` against the file's length. Values
 //! must be finite, except `opacity`, which may be ±∞ (alpha 0 or 1).
+//!
+//! A PLY file that `salvq export-ply` writes from a scene model also records, in a header
+//! comment ([`RING_BOUNDS_COMMENT`]), the bounds its camera ring is placed around (the
+//! anchors', Annex C.2 step 1), so that view I of the PLY is view I of the model it came from.
 
 use std::io::Write;
 
+use super::camera::Bounds;
 use super::{rest_per_channel, Gaussians};
 use crate::error::{Error, Result};
 
@@ -102,11 +107,38 @@ impl Element {
     }
 }
 
-/// The parsed header: byte order, elements, and where the body starts.
+/// The parsed header: byte order, elements, the recorded ring bounds, and where the body
+/// starts.
 struct Header {
     little_endian: bool,
     elements: Vec<Element>,
+    ring_bounds: Option<Bounds>,
     body_start: usize,
+}
+
+/// The header comment's keywords that record the camera ring's bounds (Annex C.3):
+/// `comment salvq ring_bounds xmin ymin zmin xmax ymax zmax`, six binary32 values written
+/// in their shortest decimal form, so that they read back exactly.
+pub const RING_BOUNDS_COMMENT: &str = "salvq ring_bounds";
+
+/// The six numbers of a ring-bounds comment: finite, each min ≤ its max.
+fn parse_ring_bounds(values: &[&str], line: usize) -> Result<Bounds> {
+    let invalid = || {
+        header_error(
+            line,
+            "'comment salvq ring_bounds' takes 6 finite numbers, min <= max on each axis",
+        )
+    };
+    let v: Vec<f32> = values
+        .iter()
+        .map(|x| x.parse::<f32>().map_err(|_| invalid()))
+        .collect::<Result<_>>()?;
+    let [x0, y0, z0, x1, y1, z1]: [f32; 6] = v.try_into().map_err(|_| invalid())?;
+    let (min, max) = ([x0, y0, z0], [x1, y1, z1]);
+    if (0..3).any(|a| !(min[a].is_finite() && max[a].is_finite() && min[a] <= max[a])) {
+        return Err(invalid());
+    }
+    Ok(Bounds { min, max })
 }
 
 fn header_error(line: usize, rule: &'static str) -> Error {
@@ -136,6 +168,7 @@ fn parse_header(bytes: &[u8]) -> Result<Header> {
     }
     let mut little_endian = None;
     let mut elements: Vec<Element> = Vec::new();
+    let mut ring_bounds = None;
     for (i, line) in lines.enumerate() {
         let number = i + 2;
         let words: Vec<&str> = line.split_ascii_whitespace().collect();
@@ -150,6 +183,9 @@ fn parse_header(bytes: &[u8]) -> Result<Header> {
                     number,
                     "format must be binary_little_endian or binary_big_endian 1.0",
                 ))
+            }
+            ["comment", "salvq", "ring_bounds", values @ ..] => {
+                ring_bounds = Some(parse_ring_bounds(values, number)?);
             }
             ["comment", ..] | ["obj_info", ..] | [] => {}
             ["element", name, count] => {
@@ -188,6 +224,7 @@ fn parse_header(bytes: &[u8]) -> Result<Header> {
     Ok(Header {
         little_endian,
         elements,
+        ring_bounds,
         body_start,
     })
 }
@@ -211,6 +248,12 @@ pub fn read_ply(bytes: &[u8]) -> Result<Gaussians> {
 /// Annex A.8.1, reads with it).
 pub fn read_ply_lenient(bytes: &[u8]) -> Result<Gaussians> {
     read_ply_with(bytes, false)
+}
+
+/// The ring bounds a PLY file's header records ([`RING_BOUNDS_COMMENT`]), if any: the
+/// camera ring of a PLY exported from a scene model is placed around them (Annex C.2 step 1).
+pub fn recorded_ring_bounds(bytes: &[u8]) -> Result<Option<Bounds>> {
+    Ok(parse_header(bytes)?.ring_bounds)
 }
 
 /// The vertex properties of a PLY file that a Gaussian does not use (not the Annex C.3
@@ -372,6 +415,16 @@ pub fn ply_header(n: usize, degree: u8) -> String {
 /// Writes the Gaussians in the Inria 3DGS PLY layout (Annex C.3). Fails only if `w` does, or
 /// with `InvalidInput` when the per-Gaussian vectors disagree in length.
 pub fn write_ply(g: &Gaussians, w: &mut dyn Write) -> std::io::Result<()> {
+    write_ply_with(g, None, w)
+}
+
+/// [`write_ply`], with the bounds the file's camera ring is placed around recorded in the
+/// header ([`RING_BOUNDS_COMMENT`]) when given and finite.
+pub fn write_ply_with(
+    g: &Gaussians,
+    ring_bounds: Option<&Bounds>,
+    w: &mut dyn Write,
+) -> std::io::Result<()> {
     let n = g.len();
     let b = g.rest_per_channel();
     let consistent = g.sh_degree <= 3
@@ -390,7 +443,19 @@ pub fn write_ply(g: &Gaussians, w: &mut dyn Write) -> std::io::Result<()> {
             "Gaussians: per-Gaussian vectors of different lengths",
         ));
     }
-    w.write_all(ply_header(n, g.sh_degree).as_bytes())?;
+    let mut header = ply_header(n, g.sh_degree);
+    let finite = |b: &&Bounds| b.min.iter().chain(&b.max).all(|v| v.is_finite());
+    if let Some(b) = ring_bounds.filter(finite) {
+        let [x0, y0, z0] = b.min;
+        let [x1, y1, z1] = b.max;
+        // After the format line (line 3), where readers expect comments.
+        let at = header.find("element").unwrap_or(0);
+        header.insert_str(
+            at,
+            &format!("comment {RING_BOUNDS_COMMENT} {x0} {y0} {z0} {x1} {y1} {z1}\n"),
+        );
+    }
+    w.write_all(header.as_bytes())?;
     let mut record = Vec::with_capacity(4 * (17 + 3 * b));
     for i in 0..n {
         record.clear();
@@ -420,5 +485,14 @@ pub fn ply_bytes(g: &Gaussians) -> std::io::Result<Vec<u8>> {
 
 /// Writes a PLY file atomically (spec §9.2).
 pub fn write_ply_file(g: &Gaussians, path: &std::path::Path) -> Result<()> {
-    crate::io::write_atomic(path, |w| write_ply(g, w))
+    write_ply_file_with(g, None, path)
+}
+
+/// [`write_ply_file`] with [`write_ply_with`]'s ring bounds.
+pub fn write_ply_file_with(
+    g: &Gaussians,
+    ring_bounds: Option<&Bounds>,
+    path: &std::path::Path,
+) -> Result<()> {
+    crate::io::write_atomic(path, |w| write_ply_with(g, ring_bounds, w))
 }

@@ -15,7 +15,13 @@ pub enum Scene {
     /// A Scaffold-GS scene model: its Gaussians depend on the camera (Annex C.1).
     Model(Box<SceneModel>),
     /// Standard 3DGS Gaussians.
-    Gaussians(Gaussians),
+    Gaussians {
+        /// The Gaussians.
+        gaussians: Gaussians,
+        /// The bounds a PLY file exported from a scene model records for its camera ring
+        /// (Annex C.3): the model's anchors', so that the PLY's views are the model's.
+        ring_bounds: Option<Bounds>,
+    },
 }
 
 impl Scene {
@@ -36,23 +42,33 @@ impl Scene {
             return Ok(match salvq::decoder::decode_any(bytes, &options)? {
                 salvq::decoder::Decoded::Anchors(m) => Scene::Model(m),
                 // An explicit-profile stream decodes to the Gaussians themselves (§3).
-                salvq::decoder::Decoded::Gaussians(d) => Scene::Gaussians(d.gaussians),
+                salvq::decoder::Decoded::Gaussians(d) => Scene::Gaussians {
+                    gaussians: d.gaussians,
+                    ring_bounds: None,
+                },
             });
         }
         if bytes.starts_with(b"ply") {
-            return Ok(Scene::Gaussians(ply::read_ply(bytes)?));
+            return Ok(Scene::Gaussians {
+                gaussians: ply::read_ply(bytes)?,
+                ring_bounds: ply::recorded_ring_bounds(bytes)?,
+            });
         }
         Ok(Scene::Model(Box::new(
             crate::interchange::model_from_safetensors(bytes)?,
         )))
     }
 
-    /// The bounds the camera ring is placed around (Annex C.2): of the anchor positions for
-    /// a model, of the means for Gaussians.
+    /// The bounds the camera ring is placed around (Annex C.2 step 1): of the anchor
+    /// positions for a model; for Gaussians, those their PLY file records, else of the means.
     pub fn bounds(&self) -> Bounds {
         match self {
             Scene::Model(m) => Bounds::of_points(&neural::anchor_positions(m)),
-            Scene::Gaussians(g) => Bounds::of_points(&g.positions),
+            Scene::Gaussians {
+                ring_bounds: Some(b),
+                ..
+            } => *b,
+            Scene::Gaussians { gaussians, .. } => Bounds::of_points(&gaussians.positions),
         }
     }
 
@@ -61,7 +77,7 @@ impl Scene {
     pub fn gaussians(&self, camera: [f32; 3]) -> Result<Cow<'_, Gaussians>> {
         match self {
             Scene::Model(m) => Ok(Cow::Owned(neural::neural_gaussians(m, camera)?)),
-            Scene::Gaussians(g) => Ok(Cow::Borrowed(g)),
+            Scene::Gaussians { gaussians, .. } => Ok(Cow::Borrowed(gaussians)),
         }
     }
 }
