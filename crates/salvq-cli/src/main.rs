@@ -35,6 +35,7 @@ fn print_text(text: &str) {
 }
 
 mod compare;
+mod decode;
 mod decode_explicit;
 mod demo;
 mod encode;
@@ -44,7 +45,7 @@ mod render;
 mod tools;
 
 use demo::demo;
-use tools::{conformance, make_vectors, parse_fault};
+use tools::{conformance, make_vectors};
 
 use clap::{Parser, Subcommand};
 use salvq::Limits;
@@ -92,35 +93,7 @@ enum Command {
     /// Encode a model file into a SALVQ stream.
     Encode(encode::EncodeArgs),
     /// Decode a SALVQ stream into a model file.
-    Decode {
-        /// Input stream.
-        input: PathBuf,
-        /// Output model (safetensors).
-        #[arg(short, long)]
-        output: PathBuf,
-        /// The rate to decode (default: the lowest rate the stream carries).
-        #[arg(long)]
-        rate: Option<u8>,
-        /// Decode tiles on N threads (spec §10.3; the output is the same for every N).
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
-        threads: Option<u32>,
-        /// Decode only the tiles that intersect this world-space box:
-        /// `xmin,ymin,zmin,xmax,ymax,zmax` (spec §10.3).
-        #[arg(long, value_parser = parse_box, allow_hyphen_values = true)]
-        region: Option<salvq::RegionBox>,
-        /// Measure instead of writing: print the decode time and the process's peak resident
-        /// memory (used by `bench scale`).
-        #[arg(long, hide = true)]
-        measure: bool,
-        /// Write the canonical decoded form instead of the model file: the model's tensors
-        /// and the decoded symbols, as the conformance runner reads them (spec §11.1).
-        #[arg(long)]
-        canonical: bool,
-        /// Decode with a deliberate bug (`table:K`: one wrong entry in scale K's frequency
-        /// table), to show that the conformance vectors catch it (spec §11).
-        #[arg(long, hide = true, value_parser = parse_fault)]
-        inject_fault: Option<salvq::decoder::Fault>,
-    },
+    Decode(decode::DecodeArgs),
     /// Run a decoder on the conformance vectors and compare its output with the manifest
     /// (spec §11.5). The decoder command gets `{in}`, `{out}` and `{rate}` substituted, or
     /// the three appended.
@@ -284,18 +257,6 @@ enum Bench {
     },
 }
 
-/// `xmin,ymin,zmin,xmax,ymax,zmax`: six finite numbers, each min ≤ its max.
-fn parse_box(s: &str) -> Result<salvq::RegionBox, String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("'{x}': {e}")))
-        .collect::<Result<_, _>>()?;
-    let b: [f64; 6] = v
-        .try_into()
-        .map_err(|v: Vec<f64>| format!("6 numbers expected, {} given", v.len()))?;
-    salvq::RegionBox::from_array(b).map_err(|e| e.to_string())
-}
-
 fn parse_decay(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(d) if d > 0.0 && d <= 1.0 => Ok(d),
@@ -319,10 +280,9 @@ fn secs(t: Instant) -> f64 {
 /// folder that does not exist, fails at once rather than after the encode).
 fn output_of(command: &Command) -> Option<&std::path::Path> {
     match command {
-        Command::Gen { output, .. }
-        | Command::Decode { output, .. }
-        | Command::Extract { output, .. } => Some(output),
+        Command::Gen { output, .. } | Command::Extract { output, .. } => Some(output),
         Command::Encode(a) => Some(&a.output),
+        Command::Decode(a) => Some(&a.output),
         Command::Render(a) => Some(&a.output),
         Command::ExportPly(a) => Some(&a.output),
         _ => None,
@@ -379,63 +339,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 stream.len()
             );
         }
-        Command::Decode {
-            input,
-            output,
-            rate,
-            threads,
-            region,
-            measure,
-            canonical,
-            inject_fault,
-        } => {
-            let t = Instant::now();
-            let stream = salvq_render::io::read_file(&input)?;
-            let options = salvq::DecodeOptions::default()
-                .with_rate(rate)
-                .with_threads(threads.map(|n| n as usize))
-                .with_region(region)
-                .with_fault(inject_fault);
-            if salvq::decoder::is_explicit(&stream) {
-                return decode_explicit::run(&stream, &options, &output, canonical, measure, t);
-            }
-            if canonical {
-                let (model, symbols) = salvq::decoder::decode_with_symbols(&stream, &options)?;
-                let tensors = salvq_conformance::canonical::canonical_tensors(&model, &symbols);
-                let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
-                salvq_render::io::write_bytes_atomic(&output, &bytes)?;
-                return Ok(());
-            }
-            let model = salvq::decode_with_options(&stream, &options)?;
-            if measure {
-                out!(
-                    "measure decode_secs={} peak_rss_bytes={} anchors={} decoded_bytes={}",
-                    secs(t),
-                    salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
-                    model.dims.anchors,
-                    salvq::model::decoded_bytes(&model.dims)
-                );
-                return Ok(());
-            }
-            if model.dims.anchors == 0 {
-                eprintln!("salvq: the region intersects no tile; nothing written");
-                return Ok(());
-            }
-            write_model(&model, &output)?;
-            // Which rate was decoded (§7.4): the one asked for, else the lowest coded.
-            let decoded_rate = match salvq::Decoder::builder().build().read_header(&stream) {
-                Ok(salvq::Header::Anchors(p)) => rate.or(p.coded_rates().first().copied()),
-                _ => rate,
-            };
-            out!(
-                "decoded {} anchors (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
-                model.dims.anchors,
-                decoded_rate.map_or("?".into(), |r| r.to_string()),
-                model.dims.rates,
-                output.display(),
-                secs(t)
-            );
-        }
+        Command::Decode(args) => decode::run(args)?,
         // Handled in `main`: their failures are mismatches, not stream errors.
         Command::Conformance { .. } | Command::MakeVectors { .. } => {}
         Command::Info { input, json } => {

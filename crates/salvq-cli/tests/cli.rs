@@ -295,3 +295,29 @@ fn a_reader_that_stops_early_is_not_a_failure() {
         assert!(out.status.success(), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn a_region_that_is_no_box_is_refused_before_the_stream_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.safetensors");
+    let out = out.to_str().unwrap();
+    // §10.3.1: min > max on y, and a NaN; the stream is not even opened (it does not exist).
+    for (bad, axis) in [("0,2,0,1,1,1", "y axis"), ("0,0,NaN,1,1,1", "z axis")] {
+        let o = salvq(&["decode", "/nonexistent.salvq", "-o", out, "--region", bad]);
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(axis) && err.contains("§10.3.1"), "{err}");
+    }
+    // A valid box that meets no tile: nothing written, status 0.
+    let o = salvq(&[
+        "decode",
+        &vector(),
+        "-o",
+        out,
+        "--region",
+        "1e6,1e6,1e6,1e6,1e6,1e6",
+    ]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("intersects no tile"));
+    assert!(!Path::new(out).exists());
+}
