@@ -97,6 +97,64 @@ fn shifted(c: [u32; 3], d: [i64; 3], bits: u32) -> Option<u64> {
     Some(morton3(out))
 }
 
+/// The 13 neighbour offsets whose first non-zero component (z, then y, then x) is positive:
+/// with their opposites, the 26 of §8.3's neighbourhood.
+const HALF_NEIGHBOURHOOD: [[i64; 3]; 13] = {
+    let mut out = [[0i64; 3]; 13];
+    let mut n = 0;
+    let mut i = 0;
+    while i < 27 {
+        let d = [
+            (i % 3) as i64 - 1,
+            ((i / 3) % 3) as i64 - 1,
+            (i / 9) as i64 - 1,
+        ];
+        let first = if d[2] != 0 {
+            d[2]
+        } else if d[1] != 0 {
+            d[1]
+        } else {
+            d[0]
+        };
+        if first > 0 {
+            out[n] = d;
+            n += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
+/// For every node of a level (coordinates below `2^bits`): which of its 26 neighbours are
+/// nodes (bit `nb(d)`), and the index of its face neighbours (−x, +x, −y, +y, −z, +z;
+/// `u32::MAX` for none). Each pair of neighbours is looked up once, from the node whose
+/// offset to the other is in [`HALF_NEIGHBOURHOOD`].
+fn neighbourhoods(
+    nodes: &[[u32; 3]],
+    index: &FxHashMap<u64, u32>,
+    bits: u32,
+) -> (Vec<u32>, Vec<[u32; 6]>) {
+    let mut present = vec![0u32; nodes.len()];
+    let mut faces = vec![[u32::MAX; 6]; nodes.len()];
+    for (pi, &p) in nodes.iter().enumerate() {
+        for d in HALF_NEIGHBOURHOOD {
+            let Some(&q) = shifted(p, d, bits).and_then(|m| index.get(&m)) else {
+                continue;
+            };
+            let back = d.map(|v| -v);
+            present[pi] |= 1 << nb(d);
+            present[q as usize] |= 1 << nb(back);
+            if d.iter().filter(|&&v| v != 0).count() == 1 {
+                let a = d.iter().position(|&v| v != 0).unwrap_or(0);
+                // `d` points up its axis (its only component is positive).
+                faces[pi][2 * a + 1] = q;
+                faces[q as usize][2 * a] = pi as u32;
+            }
+        }
+    }
+    (present, faces)
+}
+
 /// §8.2–§8.4: walks the octree of depth `depth` for `anchors` anchors. `event(freq_one,
 /// what)` returns each event's bit (occupancy events first, in traversal order, then count
 /// events). Returns the anchors' voxels in canonical order.
@@ -120,30 +178,11 @@ pub fn walk(
             .enumerate()
             .map(|(i, &p)| (morton3(p), i as u32))
             .collect();
-        // Occupancy byte of each node walked so far (0: not yet; a walked node has a child).
+        let (present, faces) = neighbourhoods(&nodes, &index, k);
         let mut bytes = vec![0u8; nodes.len()];
         let mut children: Vec<[u32; 3]> = Vec::with_capacity((nodes.len() * 2).min(n));
         for (pi, &p) in nodes.iter().enumerate() {
-            let mut present = 0u32;
-            let mut face = [u32::MAX; 6];
-            for dz in -1i64..=1 {
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let d = [dx, dy, dz];
-                        if d == [0, 0, 0] {
-                            continue;
-                        }
-                        if let Some(&q) = shifted(p, d, k).and_then(|m| index.get(&m)) {
-                            present |= 1 << nb(d);
-                            let nonzero = d.iter().filter(|&&v| v != 0).count();
-                            if nonzero == 1 {
-                                let a = d.iter().position(|&v| v != 0).unwrap_or(0);
-                                face[2 * a + usize::from(d[a] > 0)] = q;
-                            }
-                        }
-                    }
-                }
-            }
+            let (present, face) = (present[pi], faces[pi]);
             let mut byte = 0u8;
             for (i, &side) in SIDE_MASKS.iter().enumerate() {
                 let c = [

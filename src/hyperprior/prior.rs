@@ -53,19 +53,24 @@ pub struct Prior {
     adj_at: usize,
     /// Fraction bits E_o of each output.
     frac: Vec<i32>,
-    /// Per group: the largest E_o of its scale outputs; per output: emax - E_o (§5.4 step 3).
-    emax: [i32; 3],
+    /// Per output: how far its scale output is shifted up to the group's largest E_o, the
+    /// domain of `thresholds` (§5.4 step 3).
     lift: Vec<u32>,
+    /// Per group and Table 5-2 factor (`g · 129 + factor index`): the binary32 step Δ and the
+    /// scale thresholds in the group's output domain. A step factor takes one of 129 values,
+    /// so these are computed once per decode, not once per anchor.
+    deltas: Vec<f32>,
+    thresholds: Vec<[u64; THRESHOLDS + 1]>,
 }
 
 /// A group's step at one anchor: the Table 5-2 factor, the binary32 step Δ, and the scale
 /// thresholds in the domain of the group's scale outputs (§5.4 step 3).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GroupStep {
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupStep<'a> {
     pub factor: u32,
     pub delta: f32,
     /// The thresholds, then a sentinel u64::MAX that no lifted output reaches.
-    y_thresholds: [u64; THRESHOLDS + 1],
+    y_thresholds: &'a [u64; THRESHOLDS + 1],
 }
 
 impl Prior {
@@ -103,15 +108,27 @@ impl Prior {
         } else {
             None
         };
+        let steps = quant.map(|q| BaseStep::new(q.step, gain(q)));
+        let (mut deltas, mut thresholds) = (Vec::new(), Vec::new());
+        for (g, base) in steps.iter().enumerate() {
+            for &factor in &STEP_FACTOR {
+                deltas.push(base.delta(factor));
+                let t = base.y_thresholds(factor, emax[g], &THRESHOLD_Q16);
+                thresholds.push(std::array::from_fn(|i| {
+                    t.get(i).copied().unwrap_or(u64::MAX)
+                }));
+            }
+        }
         Prior {
             layout,
             #[cfg(all(feature = "simd", target_arch = "x86_64"))]
             fast,
             frac,
-            emax,
             lift,
             mlp,
-            steps: quant.map(|q| BaseStep::new(q.step, gain(q))),
+            steps,
+            deltas,
+            thresholds,
             mean_at: [0, 2 * f, 2 * f + 2 * s],
             scale_at,
             adj_at: 2 * f + 2 * s + 2 * k3,
@@ -163,17 +180,14 @@ impl Prior {
     }
 
     /// §5.4 step 1: the group's step at this anchor.
-    pub fn step(&self, y: &[i32], g: Group) -> GroupStep {
+    pub fn step(&self, y: &[i32], g: Group) -> GroupStep<'_> {
         let o = self.adj_at + g as usize;
-        let factor = STEP_FACTOR[factor_index(y[o], self.frac[o])];
-        let base = &self.steps[g as usize];
+        let fi = factor_index(y[o], self.frac[o]);
+        let at = g as usize * STEP_FACTOR.len() + fi;
         GroupStep {
-            factor,
-            delta: base.delta(factor),
-            y_thresholds: {
-                let t = base.y_thresholds(factor, self.emax[g as usize], &THRESHOLD_Q16);
-                std::array::from_fn(|i| t.get(i).copied().unwrap_or(u64::MAX))
-            },
+            factor: STEP_FACTOR[fi],
+            delta: self.deltas[at],
+            y_thresholds: &self.thresholds[at],
         }
     }
 
@@ -203,7 +217,7 @@ impl Prior {
     ) {
         let o = self.scale_at[g as usize] + first;
         let (ys, lifts) = (&y[o..o + out.len()], &self.lift[o..o + out.len()]);
-        let t = &step.y_thresholds;
+        let t = step.y_thresholds;
         for ((k, &yv), &lift) in out.iter_mut().zip(ys).zip(lifts) {
             // lift <= 30 (Table 5-1 bounds the weight fraction bits) and y < 2^31, so the
             // lifted value stays below 2^61 < the sentinel.
