@@ -123,11 +123,10 @@ fn a_region_decodes_the_intersecting_tiles_only() {
     salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
 }
 
-#[test]
-fn region_decodes_rebase_spatial_quantizer_regions() {
-    let m = model(900);
-    let e = encode_full(
-        &m,
+/// 900 anchors with three spatial feature regions (§7.6), in tiles of 100.
+fn three_regions_in_tiles_of_100() -> salvq_encoder::Encoded {
+    encode_full(
+        &model(900),
         &EncodeOptions {
             fit_basis: true,
             feat_regions: 3,
@@ -135,7 +134,12 @@ fn region_decodes_rebase_spatial_quantizer_regions() {
             ..Default::default()
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn region_decodes_rebase_spatial_quantizer_regions() {
+    let e = three_regions_in_tiles_of_100();
     let full = e.expected();
     let tiles = TileTable::cut(&full.anchors.voxel, 100);
     // Tiles 2 and 3 (anchors 200..400) straddle region boundary 300.
@@ -152,17 +156,7 @@ fn region_decodes_rebase_spatial_quantizer_regions() {
 
 #[test]
 fn a_region_meeting_no_tile_outputs_no_anchors_and_keeps_region_0() {
-    let m = model(900);
-    let e = encode_full(
-        &m,
-        &EncodeOptions {
-            fit_basis: true,
-            feat_regions: 3,
-            tile_anchors: 100,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let e = three_regions_in_tiles_of_100();
     let full = e.expected();
     let far = full.origin.map(|x| f64::from(x) - 1.0e3);
     let part = decode_with_options(

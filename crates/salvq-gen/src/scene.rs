@@ -67,24 +67,7 @@ fn random_rotation(s: &mut Stream) -> [V3; 3] {
     if n < 1e-12 {
         return yaw_tilt(0.0, 0.0);
     }
-    let [w, x, y, z] = [q[0] / n, q[1] / n, q[2] / n, q[3] / n];
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
+    salvq_render::camera::rotation_of([q[0] / n, q[1] / n, q[2] / n, q[3] / n])
 }
 
 #[derive(Debug, Clone)]

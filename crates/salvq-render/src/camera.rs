@@ -189,6 +189,29 @@ fn invalid(setting: &'static str, value: f64, rule: &'static str) -> Error {
     }
 }
 
+/// The rotation matrix of the unit quaternion (w, x, y, z), row-major (COLMAP's
+/// `qvec2rotmat`).
+pub fn rotation_of(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let [w, x, y, z] = q;
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
 /// Checks an image size: each side 1 … [`MAX_IMAGE_SIDE`].
 pub fn check_image_size(width: u32, height: u32) -> Result<()> {
     for (setting, v) in [("width", width), ("height", height)] {

@@ -354,28 +354,6 @@ fn parse_cameras_txt(text: &str, path: &Path) -> Result<HashMap<u32, Intrinsics>
     Ok(cameras)
 }
 
-/// COLMAP's `qvec2rotmat`: the rotation of the unit quaternion (w, x, y, z).
-fn rotation_of(q: [f64; 4]) -> [[f64; 3]; 3] {
-    let [w, x, y, z] = q;
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
 /// The cameras of a COLMAP text model: `cameras_txt` and `images_txt` are the two files'
 /// text, `cameras_path` and `images_path` name them in errors. Sorted by image name.
 pub fn parse_colmap(
@@ -429,7 +407,7 @@ pub fn parse_colmap(
                 format!("camera {camera_id} is not in {}", cameras_path.display()),
             )
         })?;
-        let rotation = rotation_of(q.map(|v| v / norm));
+        let rotation = crate::camera::rotation_of(q.map(|v| v / norm));
         // x_cam = R x + t, so the centre, where x_cam = 0, is −Rᵀ t.
         let centre: [f64; 3] =
             std::array::from_fn(|a| -(0..3).map(|b| rotation[b][a] * t[b]).sum::<f64>());
