@@ -12,8 +12,8 @@
 //! Checks what it measures (a failure panics, so the bench exits non-zero): every
 //! configuration decodes the symbols it encoded; each body holds its tables' information plus
 //! the 32 … 64 bits of ANS state; from 10⁴ symbols on, no rate overhead against the exact
-//! model is negative; the bare coder decodes the symbols it was given. Smoke mode (CI, about a
-//! second): `SALVQ_BENCH_SYMBOLS=20000 SALVQ_BENCH_RUNS=1 cargo bench --bench entropy_precision`.
+//! model is negative; the bare coder decodes the symbols it was given. Smoke mode (CI, under a
+//! second): `SALVQ_BENCH_SYMBOLS=100000 SALVQ_BENCH_RUNS=1 cargo bench --bench entropy_precision`.
 
 use std::hint::black_box;
 use std::path::PathBuf;
