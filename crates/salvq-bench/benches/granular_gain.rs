@@ -28,6 +28,13 @@
 //!
 //! Environment: `SALVQ_BENCH_SCALE` multiplies the vector count (default 1: 4 000 000 vectors
 //! per Δ). Single-threaded.
+//!
+//! Checks what it measures (a failure panics, so the bench exits non-zero): the determinants
+//! and that the decoders' points are `B u` (above); every MSE finite and positive; at Δ ≤ 1
+//! (high rate), G of Z⁸ and E8 and the E8 gain within 3 half-widths of their 95% CIs of
+//! theory, and the MSEs in the order E8 < D8 < Z⁸; the last E8 gain above 0 with 95%
+//! confidence. The CIs widen as the count shrinks, so the checks hold at any scale. Smoke
+//! mode (CI, about a second): `SALVQ_BENCH_SCALE=0.1 cargo bench --bench granular_gain`.
 
 use std::time::Instant;
 
@@ -42,6 +49,11 @@ const T975: f64 = 2.022_690_911_734_728;
 const DELTAS: [f64; 6] = [2.0, 1.0, 0.5, 0.25, 0.1, 0.05];
 const G_Z: f64 = 1.0 / 12.0;
 const G_E8: f64 = 0.071_682_1;
+/// The high-rate regime the theory checks apply to (see the module docs).
+const HIGH_RATE_DELTA: f64 = 1.0;
+/// A measured value agrees with theory when within this many 95% half-widths (about 6
+/// standard errors: a correct quantizer fails it with a probability near 10⁻⁶ per check).
+const CI_WIDTHS: f64 = 3.0;
 
 /// The crate's seeded SplitMix64 stream (Annex B.1) with its Box–Muller normals.
 struct Rng(salvq_gen::rng::Stream);
@@ -194,6 +206,7 @@ fn main() {
     println!("theory: G(Z) = 1/12 = {G_Z:.7}, G(E8) = {G_E8:.7}, gain {theory_gain:.3} dB");
     let total = Instant::now();
     let mut last = (0.0, 0.0, 0.0);
+    let mut checked = 0;
     for &delta in &DELTAS {
         let start = Instant::now();
         let sums = measure(delta, per_batch);
@@ -210,6 +223,19 @@ fn main() {
             let gs: Vec<f64> = sums[i].iter().map(|s| s / denom).collect();
             let (g, g_ci) = mean_ci(&gs);
             let mse = g * delta * delta;
+            assert!(
+                mse.is_finite() && mse > 0.0 && g_ci.is_finite(),
+                "{} at Δ = {delta}: MSE {mse}, ±{g_ci}",
+                k.name()
+            );
+            if let Some(t) = k.theory_g().filter(|_| delta <= HIGH_RATE_DELTA) {
+                assert!(
+                    (g - t).abs() <= CI_WIDTHS * g_ci,
+                    "{} at Δ = {delta}: G = {g:.7} ± {g_ci:.7}, theory {t:.7}",
+                    k.name()
+                );
+                checked += 1;
+            }
             let theory = k.theory_g().map_or("-".into(), |t| format!("{t:.7}"));
             let (gain_s, gain_ci_s, gain_th) = if i == 0 {
                 ("-".to_string(), "-".to_string(), "-".to_string())
@@ -224,6 +250,14 @@ fn main() {
                 let th = k.theory_g().map(|t| 10.0 * (G_Z / t).log10());
                 if matches!(k, Kind::E8) {
                     last = (delta, gain, ci);
+                    if delta <= HIGH_RATE_DELTA {
+                        assert!(
+                            (gain - theory_gain).abs() <= CI_WIDTHS * ci,
+                            "E8 gain at Δ = {delta}: {gain:.4} ± {ci:.4} dB, theory \
+                             {theory_gain:.4} dB"
+                        );
+                        checked += 1;
+                    }
                 }
                 (
                     format!("{gain:.4}"),
@@ -244,6 +278,16 @@ fn main() {
                 gain_th
             );
         }
+        // Same cell volume: at high rate the better lattice has the smaller MSE, E8 < D8 < Z⁸
+        // (G(D8) = 0.0758 lies between).
+        if delta <= HIGH_RATE_DELTA {
+            let [z, d, e] = sums.each_ref().map(|v| v.iter().sum::<f64>());
+            assert!(
+                e < d && d < z,
+                "Δ = {delta}: squared errors E8 {e}, D8 {d}, Z^8 {z}: not E8 < D8 < Z^8"
+            );
+            checked += 1;
+        }
     }
     println!();
     println!("total {:.1} s", total.elapsed().as_secs_f64());
@@ -251,5 +295,14 @@ fn main() {
     println!(
         "E8 vs Z^8 granular gain: {gain:.3} dB (95% CI ±{ci:.3}), theory {theory_gain:.3} dB \
          (Δ = {delta})"
+    );
+    assert!(
+        gain - ci > 0.0,
+        "E8 gain at Δ = {delta}: {gain:.4} ± {ci:.4} dB, not above 0"
+    );
+    println!(
+        "checked: lattice determinants and decoders' points; {checked} high-rate (Δ <= \
+         {HIGH_RATE_DELTA}) values within {CI_WIDTHS} CIs of theory or in order E8 < D8 < Z^8; \
+         the E8 gain is above 0 with 95% confidence"
     );
 }

@@ -14,6 +14,13 @@
 //!
 //! Environment: `SALVQ_BENCH_REF_NODES` (default 1000000), `SALVQ_BENCH_SCALE` (multiplies the
 //! vector counts, default 1). Single-threaded, seeded: the quality columns are reproducible.
+//!
+//! Checks what it measures (a failure panics, so the bench exits non-zero): every answer is a
+//! lattice point `B u` (with the bench's own `B`) at the distance its method reports; no method
+//! finds a closer point than one a search certified closest; the complete searches (n ≤ 16)
+//! certify every vector; the fast D_n / E8 decoders' points are `B u` at their reported distance
+//! and as close as the exact search's. Smoke mode (CI, about a second):
+//! `SALVQ_BENCH_SCALE=0.02 SALVQ_BENCH_REF_NODES=10000 cargo bench --bench lattice_search`.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -64,6 +71,8 @@ struct Acc {
     secs: f64,
     vectors: usize,
     d2: Vec<f64>,
+    /// Per vector: the search proved its point a closest one.
+    proven: Vec<bool>,
     exact: usize,
     nodes: u64,
 }
@@ -86,8 +95,23 @@ impl Method {
     }
 }
 
+/// `‖y − B u‖²` from the basis the bench built (not the lattice's own copy).
+fn distance2(n: usize, b: &[f64], y: &[f64], u: &[i64]) -> f64 {
+    let u: Vec<f64> = u.iter().map(|&v| v as f64).collect();
+    let p = mat_vec(n, b, &u);
+    y.iter().zip(&p).map(|(a, c)| (a - c) * (a - c)).sum()
+}
+
+/// `a` and `b` agree to rounding (relative 10⁻⁹, absolute 10⁻⁹).
+fn agree(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
+}
+
 /// Runs one method on every target (timed as one batch), keeping per-vector results.
-fn run(lat: &Lattice, ys: &[Vec<f64>], search: Option<SearchMethod>, acc: &mut Acc) {
+/// Checks each answer (untimed): `n` integer coordinates whose lattice point `B u`, with the
+/// bench's own `B`, lies at the distance the method reports.
+fn run(lat: &Lattice, b: &[f64], ys: &[Vec<f64>], method: &Method, acc: &mut Acc) {
+    let search = method.search;
     let start = Instant::now();
     let out: Vec<Quantized> = ys
         .iter()
@@ -101,8 +125,20 @@ fn run(lat: &Lattice, ys: &[Vec<f64>], search: Option<SearchMethod>, acc: &mut A
         .collect();
     acc.secs += start.elapsed().as_secs_f64();
     acc.vectors += ys.len();
+    let n = lat.dim();
+    for (y, q) in ys.iter().zip(&out) {
+        assert_eq!(q.u.len(), n, "{}: coordinates of a point", method.name);
+        let d2 = distance2(n, b, y, &q.u);
+        assert!(
+            agree(d2, q.distance2),
+            "{}: reported distance² {} but ‖y − B u‖² = {d2}",
+            method.name,
+            q.distance2
+        );
+    }
     for q in out {
         acc.d2.push(q.distance2);
+        acc.proven.push(q.exact);
         acc.exact += usize::from(q.exact);
         acc.nodes += q.nodes;
     }
@@ -188,6 +224,7 @@ fn main() {
         "n", "cond", "method", "ns/vector", "MSE/dim", "vs best", "not opt", "exact", "nodes"
     );
     let mut rng = Rng::new(SEED, 0, 0);
+    let mut checks = Checks::default();
     for cfg in &configs {
         let n = cfg.n;
         let vectors = ((cfg.vectors as f64 * scale).round() as usize).max(1);
@@ -206,7 +243,7 @@ fn main() {
                 build[1] += t.elapsed().as_secs_f64();
                 let ys = targets(&mut rng, n, &b, vectors);
                 for (m, acc) in methods.iter().zip(accs.iter_mut()) {
-                    run(if m.delta99 { &l99 } else { &l75 }, &ys, m.search, acc);
+                    run(if m.delta99 { &l99 } else { &l75 }, &b, &ys, m, acc);
                 }
             }
             let total = accs[0].d2.len();
@@ -214,6 +251,8 @@ fn main() {
                 .map(|i| accs.iter().map(|a| a.d2[i]).fold(f64::INFINITY, f64::min))
                 .collect();
             let best_mse = best.iter().sum::<f64>() / total as f64;
+            checks.answers += total * methods.len();
+            checks.proven += check_proven(&methods, &accs, &best, reference_bound);
             for (m, acc) in methods.iter().zip(&accs) {
                 let mse = acc.d2.iter().sum::<f64>() / total as f64;
                 let not_opt = acc
@@ -244,17 +283,61 @@ fn main() {
             );
         }
     }
-    root_table(&mut rng);
+    let roots = root_table(&mut rng, scale);
     println!("total {:.1} s", t_all.elapsed().as_secs_f64());
+    println!(
+        "checked: {} answers are lattice points at their reported distance; {} certified exact \
+         ones are closest among all methods' (the complete searches for n <= 16 certify every \
+         vector); {roots} fast D_n / E8 answers equal the exact search's distance",
+        checks.answers, checks.proven
+    );
 }
 
-/// Fast D_n / E8 decoders against the generic exact search on the same lattice.
-fn root_table(rng: &mut Rng) {
+/// Counts of the answers checked.
+#[derive(Default)]
+struct Checks {
+    answers: usize,
+    proven: usize,
+}
+
+/// Checks the certified answers of one block (panics on a failure) and returns how many there
+/// were: no method finds a closer point than one a search proved closest, and a complete
+/// search (`reference_bound = u64::MAX`, the last method) proves every vector.
+fn check_proven(methods: &[Method], accs: &[Acc], best: &[f64], reference_bound: u64) -> usize {
+    let mut proven = 0;
+    for (m, acc) in methods.iter().zip(accs) {
+        for (i, (&d, &p)) in acc.d2.iter().zip(&acc.proven).enumerate() {
+            assert!(
+                !p || d <= best[i] * (1.0 + 1e-9) + 1e-12,
+                "{}: vector {i} certified closest at distance² {d}, but a method found {}",
+                m.name,
+                best[i]
+            );
+            proven += usize::from(p);
+        }
+    }
+    if reference_bound == u64::MAX {
+        let (m, acc) = (&methods[methods.len() - 1], &accs[accs.len() - 1]);
+        assert_eq!(
+            acc.exact,
+            acc.d2.len(),
+            "{}: a complete search certifies every vector",
+            m.name
+        );
+    }
+    proven
+}
+
+/// Fast D_n / E8 decoders against the generic exact search on the same lattice. Checks (panics
+/// on a failure) that each fast answer is the point `B u` at its reported distance, and that
+/// it is as close as the exact search's; returns how many answers were compared.
+fn root_table(rng: &mut Rng, scale: f64) -> usize {
     println!(
         "{:<8} {:>18} {:>18} {:>10}",
         "lattice", "fast ns/vector", "generic ns/vector", "same d2"
     );
-    let count = 20_000;
+    let count = ((20_000.0 * scale).round() as usize).max(1);
+    let mut compared = 0;
     type Fast =
         fn(
             &[f64],
@@ -279,7 +362,11 @@ fn root_table(rng: &mut Rng) {
             .collect();
         let t_fast = t.elapsed().as_secs_f64();
         // The generic search is slow for E8^6; time it on a prefix.
-        let m = if n > 16 { 200 } else { count };
+        let m = if n > 16 {
+            ((200.0 * scale).round() as usize).clamp(1, count)
+        } else {
+            count
+        };
         let t = Instant::now();
         let g: Vec<f64> = ys[..m]
             .iter()
@@ -291,6 +378,22 @@ fn root_table(rng: &mut Rng) {
             .zip(&g)
             .filter(|(a, b)| (*a - *b).abs() <= 1e-9)
             .count();
+        for y in &ys[..m] {
+            let p = fast(y).expect("decodes");
+            let u: Vec<f64> = p.u.iter().map(|&v| v as f64).collect();
+            assert_eq!(mat_vec(n, &basis, &u), p.point, "{name}: point = B u");
+            let d2 = distance2(n, &basis, y, &p.u);
+            assert!(
+                agree(d2, p.distance2),
+                "{name}: reported distance² {} but ‖y − B u‖² = {d2}",
+                p.distance2
+            );
+        }
+        assert_eq!(
+            same, m,
+            "{name}: the fast decoder is as close as the exact search on every vector"
+        );
+        compared += m;
         println!(
             "{:<8} {:>18.0} {:>18.0} {:>9.1}%",
             name,
@@ -299,4 +402,5 @@ fn root_table(rng: &mut Rng) {
             100.0 * same as f64 / m as f64
         );
     }
+    compared
 }

@@ -4,7 +4,14 @@
 //!
 //! `cargo bench --bench render_speed [-- --width W --height H --runs R --out DIR]`;
 //! `--out DIR` also writes each scene's ring views 0 … 7 as PNG files (512 × 384).
+//!
+//! Checks what it measures (a failure panics, so the bench exits non-zero): each scene's
+//! Gaussians and image are the same on 1 thread as on all of rayon's (at least 2: the
+//! renderer's tiles run in parallel and the image must not depend on the thread count), and
+//! every image draws splats and has pixels other than the background. Smoke mode (CI, a few
+//! seconds): `cargo bench --bench render_speed -- --width 160 --height 120 --runs 1`.
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -12,6 +19,7 @@ use salvq_gen::{generate, GenParams};
 use salvq_render::camera::Ring;
 use salvq_render::raster;
 use salvq_render::scene::Scene;
+use salvq_render::{Gaussians, Image};
 
 struct Options {
     width: u32,
@@ -86,7 +94,9 @@ fn main() {
     let o = options();
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     let ring = Ring::default();
-    let all = rayon::current_num_threads();
+    // At least 2, so that the 1-thread image is compared with a parallel one.
+    let all = rayon::current_num_threads().max(2);
+    let mut checked = 0;
     println!(
         "render_speed: ring view 0 of {}, {}x{} ({:.3} MP), median of {} runs",
         ring.views,
@@ -104,19 +114,21 @@ fn main() {
         let camera = ring
             .camera(&bounds, 0, o.width, o.height)
             .expect("valid ring");
+        let mut rendered: Vec<(usize, Image, Option<Gaussians>)> = Vec::new();
         for threads in [1, all] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .expect("a thread pool");
-            pool.install(|| {
+            let out = pool.install(|| {
                 let gen_ms = median_ms(o.runs, || {
                     std::hint::black_box(scene.gaussians(camera.position).expect("valid"));
                 });
                 let g = scene.gaussians(camera.position).expect("valid");
                 let mut stats = Default::default();
+                let mut image = Image::filled(0, 0, [0.0; 3]);
                 let raster_ms = median_ms(o.runs, || {
-                    stats = raster::render_with_stats(&g, &camera, [0.0; 3]).1;
+                    (image, stats) = raster::render_with_stats(&g, &camera, [0.0; 3]);
                 });
                 let per = raster_ms
                     / (f64::from(o.width * o.height) / 1e6)
@@ -135,8 +147,32 @@ fn main() {
                     raster_ms,
                     per
                 );
+                // A model's Gaussians are generated per camera (on rayon's threads too); a
+                // PLY's are the file's.
+                let generated = match g {
+                    Cow::Owned(g) => Some(g),
+                    Cow::Borrowed(_) => None,
+                };
+                (stats.splats, image, generated)
             });
+            rendered.push(out);
         }
+        let [(splats, image, gaussians), (_, image_n, gaussians_n)] =
+            <[_; 2]>::try_from(rendered).unwrap_or_else(|_| unreachable!("two thread counts"));
+        assert!(
+            gaussians == gaussians_n,
+            "{name}: the Gaussians differ between 1 and {all} threads"
+        );
+        assert!(
+            image == image_n,
+            "{name}: the image differs between 1 and {all} threads"
+        );
+        let drawn = image.rgb.chunks_exact(3).filter(|p| p != &[0.0; 3]).count();
+        assert!(
+            splats > 0 && drawn > 0,
+            "{name}: {splats} splats drawn, {drawn} pixels other than the background"
+        );
+        checked += 1;
         if let Some(dir) = &o.out {
             std::fs::create_dir_all(dir).expect("output folder");
             let stem: String = name.split(['.', ' ']).next().unwrap_or("scene").to_string();
@@ -149,4 +185,8 @@ fn main() {
             }
         }
     }
+    println!(
+        "checked: {checked} scenes: Gaussians and images on 1 thread = on {all}; each image \
+         draws splats and has pixels other than the background"
+    );
 }

@@ -25,6 +25,14 @@
 //!
 //! The quality columns are deterministic (each configuration's four reports are checked to
 //! be identical); times depend on the machine and its load, so compare ratios.
+//! `SALVQ_BENCH_RUNS` sets the timed encodes per configuration (default 3).
+//!
+//! Checks what it measures (a failure panics, so the bench exits non-zero): every
+//! configuration's stream decodes to the encoder's prediction (`salvq::decode` = `expected()`);
+//! the identity rows' features lie within half a step of their reconstructions (rounding);
+//! for E8, `closest` reports exactly what `auto` does and no E8 search has a smaller feature
+//! MSE than that exact decoder. Smoke mode (CI, about 10 s):
+//! `SALVQ_BENCH_RUNS=1 cargo bench --bench search_methods -- 300`.
 
 use std::time::Instant;
 
@@ -32,6 +40,7 @@ use salvq::model::{LatticeKind, SceneModel};
 use salvq_encoder::{encode_full, EncodeOptions, GroupStats, Search};
 use salvq_gen::{generate, GenParams};
 
+/// Timed encodes per configuration (`SALVQ_BENCH_RUNS` changes it).
 const RUNS: usize = 3;
 
 /// One configuration's measurement.
@@ -41,10 +50,16 @@ struct Row {
     feat: GroupStats,
 }
 
-/// Encodes `model` with each configuration: one untimed warm-up round, then `RUNS` timed
+/// Encodes `model` with each configuration: one untimed warm-up round, then `runs` timed
 /// rounds, each encoding every configuration once (interleaved, so a change in machine load
-/// hits every configuration alike); a row's time is the median of its `RUNS` encodes.
-fn measure(model: &SceneModel, configs: &[(LatticeKind, Search, &'static str)]) -> Vec<Row> {
+/// hits every configuration alike); a row's time is the median of its `runs` encodes.
+/// Checks (panics on a failure) that each warm-up stream decodes to the encoder's prediction
+/// and that every timed encode reports what the warm-up did.
+fn measure(
+    model: &SceneModel,
+    configs: &[(LatticeKind, Search, &'static str)],
+    runs: usize,
+) -> Vec<Row> {
     let encode = |&(kind, search, label): &(LatticeKind, Search, &'static str)| {
         let options = EncodeOptions {
             feat_lattice: Some(kind),
@@ -56,14 +71,26 @@ fn measure(model: &SceneModel, configs: &[(LatticeKind, Search, &'static str)]) 
         let secs = s.elapsed().as_secs_f64();
         let g = e.report().groups[0].clone();
         assert_eq!(g.group, "feature", "{label}");
-        std::hint::black_box(e.stream);
-        (secs, g)
+        (secs, g, e)
     };
-    let feats: Vec<GroupStats> = configs.iter().map(|c| encode(c).1).collect();
-    let mut times = vec![Vec::with_capacity(RUNS); configs.len()];
-    for _ in 0..RUNS {
+    let feats: Vec<GroupStats> = configs
+        .iter()
+        .map(|c| {
+            let (_, g, e) = encode(c);
+            let decoded = salvq::decode(&e.stream).expect("the stream decodes");
+            assert!(
+                &decoded == e.expected(),
+                "{}: the stream decodes to another model than the encoder's prediction",
+                c.2
+            );
+            g
+        })
+        .collect();
+    let mut times = vec![Vec::with_capacity(runs); configs.len()];
+    for _ in 0..runs {
         for ((c, t), feat) in configs.iter().zip(&mut times).zip(&feats) {
-            let (secs, g) = encode(c);
+            let (secs, g, e) = encode(c);
+            std::hint::black_box(e.stream);
             assert_eq!(&g, feat, "{}: encodes differ between runs", c.2);
             t.push(secs);
         }
@@ -76,7 +103,7 @@ fn measure(model: &SceneModel, configs: &[(LatticeKind, Search, &'static str)]) 
             t.sort_by(f64::total_cmp);
             Row {
                 label: c.2,
-                secs: t[RUNS / 2],
+                secs: t[runs / 2],
                 feat,
             }
         })
@@ -125,14 +152,32 @@ fn print_table(title: &str, n: u32, rows: &[Row], baseline: usize, reference: us
     }
 }
 
+/// The identity lattice codes by rounding: no feature lies more than half a step from its
+/// reconstruction (f32 arithmetic aside).
+fn check_identity(rows: &[Row]) {
+    for r in rows {
+        assert!(
+            r.feat.max_error_steps <= 0.5 + 1e-4,
+            "{}: a feature {} steps from its reconstruction, rounding gives at most 1/2",
+            r.label,
+            r.feat.max_error_steps
+        );
+    }
+}
+
 fn main() {
     let wall = Instant::now();
     let n: u32 = std::env::args()
         .skip(1)
         .find_map(|a| a.parse().ok())
         .unwrap_or(5_000);
+    let runs: usize = std::env::var("SALVQ_BENCH_RUNS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(RUNS)
+        .max(1);
     println!(
-        "search_methods: {n} anchors, rate 0, median of {RUNS} encodes, {} rayon threads; \
+        "search_methods: {n} anchors, rate 0, median of {runs} encodes, {} rayon threads; \
          `max err` = largest |x − x̂| / Δ of the feature group",
         rayon::current_num_threads()
     );
@@ -162,7 +207,9 @@ fn main() {
             ),
             (LatticeKind::Identity, Search::Auto, "identity Z^50"),
         ],
+        runs,
     );
+    check_identity(&rows[4..]);
     print_table(
         "learned basis B = U diag(s) V^T, F = 50 (reference: closest ≤ 10 000 nodes, a \
          bound-limited search, not proven optimal at n = 50)",
@@ -205,7 +252,24 @@ fn main() {
             ),
             (LatticeKind::Identity, Search::Auto, "identity Z^48"),
         ],
+        runs,
     );
+    check_identity(&rows[4..]);
+    // E8: `auto` is the exact Conway–Sloane decoder, and the encoder maps `closest` to it;
+    // per anchor it minimizes ‖t − B u‖, so no other search has a smaller feature MSE.
+    assert_eq!(
+        rows[3].feat, rows[1].feat,
+        "E8: closest codes as auto (the exact decoder)"
+    );
+    for r in &rows[..4] {
+        assert!(
+            mse(&rows[1].feat) <= mse(&r.feat) * (1.0 + 1e-6),
+            "E8: {} has feature MSE {:.6e}, below the exact decoder's {:.6e}",
+            r.label,
+            mse(&r.feat),
+            mse(&rows[1].feat)
+        );
+    }
     print_table(
         "E8 product E8^6, F = 48 (reference: auto = exact Conway–Sloane; the encoder maps \
          closest to the same exact decoder)",
@@ -224,4 +288,9 @@ fn main() {
     );
 
     println!("\ntotal wall time {:.1} s", wall.elapsed().as_secs_f64());
+    println!(
+        "checked: 10 configurations' streams decode to the encoder's prediction, each \
+         encode reports alike; identity rows within 1/2 step; E8 closest = auto, the least MSE \
+         of E8's searches"
+    );
 }

@@ -61,10 +61,12 @@ pub fn median(values: &mut [f64]) -> f64 {
 /// The bare coder's decode speed: `constriction`'s `DefaultAnsCoder` decoding `symbols` with
 /// ONE static categorical model (the symbols' own histogram, quantized to precision
 /// `precision`; a lookup decoder model when `precision ≤ 16`), no per-symbol model choice and
-/// no escapes. Returns the median over `runs` of nanoseconds per symbol.
+/// no escapes. Returns the median over `runs` of nanoseconds per symbol. One more, untimed
+/// decode checks what was timed: the coder gives back `symbols`.
 ///
 /// # Panics
-/// If `precision` is not in 12 … 24 or the symbols span 2^precision values or more.
+/// If `precision` is not in 12 … 24, the symbols span 2^precision values or more, or the bare
+/// coder decodes other symbols than `symbols`.
 pub fn bare_coder_decode_ns(symbols: &[i64], precision: u32, runs: usize) -> f64 {
     // `constriction`'s lookup model takes a u16 probability, so P ≤ 16 only (checked at
     // compile time): dispatch the two kinds of model separately.
@@ -132,6 +134,9 @@ fn bare_lookup<const P: usize>(symbols: &[i64], runs: usize) -> f64 {
             })
         })
         .collect();
+    check_decode(&words, symbols, lo, |c| {
+        Decode::<P>::decode_symbol(c, model.as_view()).unwrap_infallible()
+    });
     median(&mut times)
 }
 
@@ -150,7 +155,28 @@ fn bare_search<const P: usize>(symbols: &[i64], runs: usize) -> f64 {
             })
         })
         .collect();
+    check_decode(&words, symbols, lo, |c| {
+        Decode::<P>::decode_symbol(c, &model).unwrap_infallible()
+    });
     median(&mut times)
+}
+
+/// The bare coder's decode of `words` is `symbols` (what the timings measured was a decode).
+fn check_decode(
+    words: &[u32],
+    symbols: &[i64],
+    lo: i64,
+    mut decode: impl FnMut(&mut DefaultAnsCoder) -> usize,
+) {
+    let mut coder = DefaultAnsCoder::from_compressed(words.to_vec())
+        .expect("the encoder's output is a valid stream");
+    for (i, &u) in symbols.iter().enumerate() {
+        let got = decode(&mut coder) as i64 + lo;
+        assert_eq!(
+            got, u,
+            "bare coder: symbol {i} decodes as {got}, encoded {u}"
+        );
+    }
 }
 
 fn time_decode(
