@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use salvq::container::chunk::ChunkTag;
-use salvq::container::payload::{context_bytes, ContextPrecision};
+use salvq::container::payload::{context_bytes, ContextPrecision, ScaffoldPrecision};
 use salvq::error::Field;
 use salvq::{decode, decode_with_limits, Error, Limits};
 
@@ -135,31 +135,43 @@ fn octree_counts_that_do_not_add_up() {
 #[test]
 fn non_finite_values() {
     // MLPS: method byte, `context_precision`, the integer context MLP, `scaffold_precision`,
-    // then the Scaffold-GS MLPs (binary32 for this model, §1.6.2).
+    // then the Scaffold-GS MLPs, binary32 or binary16 (§1.6.2): an infinity in each.
     let d = small_model().dims;
-    let stream = small_stream();
-    let mlps = salvq::container::surgery::chunks(&stream)
-        .unwrap()
-        .into_iter()
-        .find(|(t, _)| *t == ChunkTag::MLPS)
-        .unwrap()
-        .1;
-    let context = match mlps[1] {
-        0 => ContextPrecision::I16,
-        _ => ContextPrecision::I8,
-    };
-    let scaffold = (1 + context_bytes(&d, context)) as usize + 1;
-    let s = edit_payload(&stream, ChunkTag::MLPS, |p| {
-        assert_eq!(p[scaffold - 1], 0, "binary32");
-        p[scaffold + 4..scaffold + 8].copy_from_slice(&f32::INFINITY.to_le_bytes());
-    });
-    assert_eq!(
-        err(&s),
-        Error::NonFiniteValue {
-            tensor: "mlp_opacity.0.weight",
-            index: vec![0, 1]
-        }
-    );
+    let stored = [
+        (ScaffoldPrecision::F32, f32::INFINITY.to_le_bytes().to_vec()),
+        (ScaffoldPrecision::F16, vec![0x00, 0x7c]),
+    ];
+    for (precision, infinity) in stored {
+        let options = salvq_encoder::EncodeOptions {
+            scaffold_precision: Some(precision),
+            ..Default::default()
+        };
+        let stream = salvq_encoder::encode_with_options(&small_model(), &options).unwrap();
+        let mlps = salvq::container::surgery::chunks(&stream)
+            .unwrap()
+            .into_iter()
+            .find(|(t, _)| *t == ChunkTag::MLPS)
+            .unwrap()
+            .1;
+        let context = match mlps[1] {
+            0 => ContextPrecision::I16,
+            _ => ContextPrecision::I8,
+        };
+        let scaffold = (1 + context_bytes(&d, context)) as usize + 1;
+        let w = infinity.len();
+        let s = edit_payload(&stream, ChunkTag::MLPS, |p| {
+            assert_eq!(p[scaffold - 1], precision.code(), "{precision:?}");
+            p[scaffold + w..scaffold + 2 * w].copy_from_slice(&infinity);
+        });
+        assert_eq!(
+            err(&s),
+            Error::NonFiniteValue {
+                tensor: "mlp_opacity.0.weight",
+                index: vec![0, 1]
+            },
+            "{precision:?}"
+        );
+    }
     // origin.x is HEAD bytes 37..41.
     let s = edit_payload(&small_stream(), ChunkTag::HEAD, |p| {
         p[37..41].copy_from_slice(&f32::NAN.to_le_bytes());

@@ -22,7 +22,7 @@ use salvq::container::payload::{ContextPrecision, ScaffoldPrecision};
 use salvq::limits::Limits;
 use salvq::model::{Mlp, SceneModel};
 use salvq_encoder::info::{inspect, ByteClass};
-use salvq_encoder::precision::{choose, PrecisionChoice};
+use salvq_encoder::precision::{max_change, rounded};
 use salvq_encoder::Result;
 use salvq_encoder::{encode_full, values_mse as mse, EncodeOptions};
 
@@ -122,9 +122,9 @@ pub fn measure(model: &SceneModel) -> Result<Vec<PrecisionPoint>> {
         let e = encode_full(model, &options)?;
         let (model_bytes, anchor_bytes) = split(&e.stream)?;
         let feature_mse = mse(&model.anchors.feat, &e.expected().anchors.feat);
-        let PrecisionChoice {
-            max_output_change, ..
-        } = choose(model, Some(ScaffoldPrecision::F16));
+        let mlps = [&model.mlp_opacity, &model.mlp_cov, &model.mlp_color];
+        let half = mlps.map(|x| rounded(x, ScaffoldPrecision::F16));
+        let max_output_change = max_change(model, mlps, [&half[0], &half[1], &half[2]]);
         out.push(PrecisionPoint {
             group: "Scaffold-GS MLPs",
             bits,

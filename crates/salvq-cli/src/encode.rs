@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use salvq_encoder::auto::{self, AutoChoice};
 use salvq_encoder::parsimony::LevelTrial;
+use salvq_encoder::precision::{PrecisionChoice, PrecisionRule};
 use salvq_encoder::Error;
 use salvq_render::interchange::read_model;
 
@@ -75,8 +76,10 @@ pub struct EncodeArgs {
     /// is encoded; prints what it chose and why).
     #[arg(long)]
     prune_grid: bool,
-    /// How to store the Scaffold-GS MLPs (spec §1.6.2): `auto` (binary16 when their
-    /// outputs on the scene's anchors move by at most 2^-9, spec Annex A.5.2), `f32`, `f16`.
+    /// How to store the Scaffold-GS MLPs (spec §1.6.2): `auto` (binary16 when the scene's
+    /// renders with binary16 MLPs match those with binary32 at 58.9 dB PSNR or more, the
+    /// PSNR of 8-bit rounding; for a model that cannot render neurally, when their outputs
+    /// move by at most 2^-9; spec Annex A.5.2), `f32`, `f16`.
     #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "f16"])]
     scaffold_precision: String,
     /// How to store the integer context MLP's weights (spec §1.6.2 Table 1-7): `auto` (i8
@@ -101,7 +104,7 @@ struct Summary<'a> {
     bytes: u64,
     bits_per_anchor: f64,
     seconds: f64,
-    scaffold: &'a salvq_encoder::precision::PrecisionChoice,
+    scaffold: &'a PrecisionChoice,
     context: &'a salvq_encoder::context_precision::ContextChoice,
     #[serde(skip_serializing_if = "Option::is_none")]
     auto: Option<&'a AutoChoice>,
@@ -204,12 +207,7 @@ pub fn run_model(
     }
     progress.stage(format!("encoding {} anchors", model.n()));
     let encoded = salvq_encoder::encode_full(&model, &options)?;
-    let sc = &encoded.scaffold;
-    progress.say(&format!(
-        "Scaffold-GS MLPs stored as {:?}: binary16 changes their outputs by at most {:.2e} \
-         (tolerance {:.2e}); {} bytes saved",
-        sc.precision, sc.max_output_change, sc.tolerance, sc.bytes_saved
-    ));
+    progress.say(&scaffold_line(&encoded.scaffold));
     let cc = &encoded.context;
     progress.say(&if cc.sample_anchors > 0 {
         format!(
@@ -244,7 +242,7 @@ pub fn run_model(
             bytes: stream.len() as u64,
             bits_per_anchor,
             seconds: secs(t),
-            scaffold: sc,
+            scaffold: &encoded.scaffold,
             context: &encoded.context,
             auto: auto_choice.as_ref(),
             pruned_levels,
@@ -268,6 +266,33 @@ pub fn run_model(
         }
     }
     Ok(())
+}
+
+/// What Annex A.5.2 chose for the Scaffold-GS MLPs, what it measured and which rule decided.
+fn scaffold_line(sc: &PrecisionChoice) -> String {
+    let why = match sc.rule {
+        PrecisionRule::Requested => "as requested".to_string(),
+        PrecisionRule::Range => "a value is beyond binary16's range".to_string(),
+        PrecisionRule::Render => format!(
+            "renders with binary16 MLPs against binary32 at {:.2} dB PSNR (threshold {:.2} dB; \
+             {} ring views of {} anchors, {} covered pixels)",
+            sc.render_psnr_db.unwrap_or(f64::NAN),
+            sc.psnr_threshold_db,
+            salvq_encoder::precision::RENDER_VIEWS,
+            sc.render_anchors,
+            sc.render_pixels
+        ),
+        PrecisionRule::Outputs => format!(
+            "the model does not render neurally, so by its outputs: binary16 changes them by \
+             at most {:.2e} (tolerance {:.2e})",
+            sc.max_output_change.unwrap_or(f64::NAN),
+            sc.tolerance
+        ),
+    };
+    format!(
+        "Scaffold-GS MLPs stored as {:?}: {why}; {} bytes saved",
+        sc.precision, sc.bytes_saved
+    )
 }
 
 fn pruned_line(tr: &LevelTrial, anchors: usize) -> String {

@@ -43,7 +43,14 @@ pub struct MustFailVector {
 /// Every must-fail vector, in a fixed order: roughly the order of the decoding process
 /// (signature, chunk framing, `HEAD`, chunk order, payloads, the layer chunks).
 pub fn must_fail_vectors() -> Vec<MustFailVector> {
-    let base = encode(&small_scene(13, false), &EncodeOptions::default());
+    // The base stream stores the Scaffold-GS MLPs in binary32 whatever the encoder's default
+    // (Annex A.5.2), so that the `MLPS` vectors can narrow them (x-scaffold-precision-length,
+    // x-scaffold-f16-not-finite).
+    let options = EncodeOptions {
+        scaffold_precision: Some(salvq::container::payload::ScaffoldPrecision::F32),
+        ..Default::default()
+    };
+    let base = encode(&small_scene(13, false), &options);
     let mut out = container_vectors(&base);
     out.extend(head::head_vectors(&base));
     out.extend(payload::payload_vectors(&base));

@@ -64,8 +64,9 @@ pub struct EncodeOptions {
     /// Refit the context MLP's feature-scale rows to the coordinates of the lattice the
     /// features are coded with ([`fit::fit_feature_scales`]).
     pub fit_scales: bool,
-    /// How to store the Scaffold-GS MLPs (§1.6.2); `None`: the least precision that keeps
-    /// their outputs within tolerance ([`precision::choose`], Annex A.5.2).
+    /// How to store the Scaffold-GS MLPs (§1.6.2); `None`: binary16 where its renders match
+    /// binary32's within 8-bit rounding, or, for a model that does not render neurally, its
+    /// outputs within tolerance ([`precision::choose`], Annex A.5.2).
     pub scaffold_precision: Option<salvq::container::payload::ScaffoldPrecision>,
     /// How to store the context MLP's weights (§1.6.2 Table 1-7); `None`: i8 when the
     /// measured symbol cost is below the model bytes saved ([`context_precision::choose`],
