@@ -83,76 +83,117 @@ const SIDE_MASKS: [u32; 8] = [
     side_mask(7),
 ];
 
-/// Morton code of `c + d` if it lies in `[0, 2^bits)^3`.
-#[inline]
-fn shifted(c: [u32; 3], d: [i64; 3], bits: u32) -> Option<u64> {
-    let mut out = [0u32; 3];
-    for a in 0..3 {
-        let v = i64::from(c[a]) + d[a];
-        if v < 0 || v >= 1i64 << bits {
-            return None;
-        }
-        out[a] = v as u32;
-    }
-    Some(morton3(out))
+/// A node's neighbours at one level: the index of the node at offset `d` in slot `nb(d)`
+/// (slot 13, the node itself, unused), `u32::MAX` where there is none; bit `nb(d)` of
+/// `present` set where there is one.
+#[derive(Clone, Copy)]
+struct Neighbours {
+    index: [u32; 27],
+    present: u32,
 }
 
-/// The 13 neighbour offsets whose first non-zero component (z, then y, then x) is positive:
-/// with their opposites, the 26 of §8.3's neighbourhood.
-const HALF_NEIGHBOURHOOD: [[i64; 3]; 13] = {
-    let mut out = [[0i64; 3]; 13];
-    let mut n = 0;
+impl Neighbours {
+    const NONE: Neighbours = Neighbours {
+        index: [u32::MAX; 27],
+        present: 0,
+    };
+}
+
+/// For child `i` of a node and neighbour slot `nb(d)`: the slot of the node's neighbour (13:
+/// the node itself) that holds the child's neighbour at `d`, and which child of it that is.
+/// A child's neighbours are children of its parent's neighbours, so no lookup is needed.
+const CHILD_NEIGHBOUR: [[(u8, u8); 27]; 8] = {
+    let mut out = [[(0u8, 0u8); 27]; 8];
     let mut i = 0;
-    while i < 27 {
-        let d = [
-            (i % 3) as i64 - 1,
-            ((i / 3) % 3) as i64 - 1,
-            (i / 9) as i64 - 1,
-        ];
-        let first = if d[2] != 0 {
-            d[2]
-        } else if d[1] != 0 {
-            d[1]
-        } else {
-            d[0]
-        };
-        if first > 0 {
-            out[n] = d;
-            n += 1;
+    while i < 8 {
+        let mut slot = 0;
+        while slot < 27 {
+            let d = [
+                (slot % 3) as i64 - 1,
+                ((slot / 3) % 3) as i64 - 1,
+                (slot / 9) as i64 - 1,
+            ];
+            let (mut parent_slot, mut child) = (0usize, 0usize);
+            let mut a = 0;
+            let mut weight = 1;
+            while a < 3 {
+                let t = ((i >> a) & 1) as i64 + d[a];
+                parent_slot += (t.div_euclid(2) + 1) as usize * weight;
+                child |= (t.rem_euclid(2) as usize) << a;
+                weight *= 3;
+                a += 1;
+            }
+            out[i][slot] = (parent_slot as u8, child as u8);
+            slot += 1;
         }
         i += 1;
     }
     out
 };
 
-/// For every node of a level (coordinates below `2^bits`): which of its 26 neighbours are
-/// nodes (bit `nb(d)`), and the index of its face neighbours (−x, +x, −y, +y, −z, +z;
-/// `u32::MAX` for none). Each pair of neighbours is looked up once, from the node whose
-/// offset to the other is in [`HALF_NEIGHBOURHOOD`].
-fn neighbourhoods(
-    nodes: &[[u32; 3]],
-    index: &FxHashMap<u64, u32>,
-    bits: u32,
-) -> (Vec<u32>, Vec<[u32; 6]>) {
-    let mut present = vec![0u32; nodes.len()];
-    let mut faces = vec![[u32::MAX; 6]; nodes.len()];
-    for (pi, &p) in nodes.iter().enumerate() {
-        for d in HALF_NEIGHBOURHOOD {
-            let Some(&q) = shifted(p, d, bits).and_then(|m| index.get(&m)) else {
-                continue;
+/// The next level's neighbours from this level's: `bytes[p]` is node `p`'s occupancy byte
+/// and its children are numbered in order (node by node, octant by octant).
+fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbours> {
+    let mut first = Vec::with_capacity(bytes.len());
+    let mut count = 0u32;
+    for &b in bytes {
+        first.push(count);
+        count += b.count_ones();
+    }
+    let mut out = Vec::with_capacity(count as usize);
+    for (p, &byte) in bytes.iter().enumerate() {
+        if byte == 0 {
+            continue;
+        }
+        if nbr[p].present == 0 {
+            // A node without neighbours (common deep in a sparse octree): its children's
+            // only neighbours are their siblings.
+            for i in 0..8 {
+                if byte >> i & 1 == 0 {
+                    continue;
+                }
+                let mut row = Neighbours::NONE;
+                for j in (0..8).filter(|&j| j != i && byte >> j & 1 == 1) {
+                    let d = [0, 1, 2].map(|a| ((j >> a) & 1) as i64 - ((i >> a) & 1) as i64);
+                    let slot = nb(d);
+                    row.index[slot] = first[p] + (byte & ((1u16 << j) - 1) as u8).count_ones();
+                    row.present |= 1 << slot;
+                }
+                out.push(row);
+            }
+            continue;
+        }
+        // The occupancy byte and first child of the node and each of its neighbours (0 and
+        // nothing where there is none): every child's neighbours are among their children.
+        let (mut near_bytes, mut near_first) = ([0u8; 27], [0u32; 27]);
+        for slot in 0..27 {
+            let q = if slot == 13 {
+                p as u32
+            } else {
+                nbr[p].index[slot]
             };
-            let back = d.map(|v| -v);
-            present[pi] |= 1 << nb(d);
-            present[q as usize] |= 1 << nb(back);
-            if d.iter().filter(|&&v| v != 0).count() == 1 {
-                let a = d.iter().position(|&v| v != 0).unwrap_or(0);
-                // `d` points up its axis (its only component is positive).
-                faces[pi][2 * a + 1] = q;
-                faces[q as usize][2 * a] = pi as u32;
+            if q != u32::MAX {
+                near_bytes[slot] = bytes[q as usize];
+                near_first[slot] = first[q as usize];
             }
         }
+        for (i, table) in CHILD_NEIGHBOUR.iter().enumerate() {
+            if byte >> i & 1 == 0 {
+                continue;
+            }
+            let mut row = Neighbours::NONE;
+            for (slot, &(parent_slot, child)) in table.iter().enumerate() {
+                let b = near_bytes[usize::from(parent_slot)];
+                if slot != 13 && b >> child & 1 == 1 {
+                    let below = b & ((1u16 << child) - 1) as u8;
+                    row.index[slot] = near_first[usize::from(parent_slot)] + below.count_ones();
+                    row.present |= 1 << slot;
+                }
+            }
+            out.push(row);
+        }
     }
-    (present, faces)
+    out
 }
 
 /// §8.2–§8.4: walks the octree of depth `depth` for `anchors` anchors. `event(freq_one,
@@ -172,17 +213,23 @@ pub fn walk(
     let n = anchors as usize;
     let mut occ = [Counts::START; OCCUPANCY_CONTEXTS];
     let mut nodes: Vec<[u32; 3]> = vec![[0, 0, 0]];
+    // The root has no neighbours; each level's follow from its parents' (§8.3's contexts
+    // need them), without a lookup by position.
+    let mut nbr: Vec<Neighbours> = vec![Neighbours::NONE];
     for k in 0..u32::from(depth) {
-        let index: FxHashMap<u64, u32> = nodes
-            .iter()
-            .enumerate()
-            .map(|(i, &p)| (morton3(p), i as u32))
-            .collect();
-        let (present, faces) = neighbourhoods(&nodes, &index, k);
         let mut bytes = vec![0u8; nodes.len()];
         let mut children: Vec<[u32; 3]> = Vec::with_capacity((nodes.len() * 2).min(n));
         for (pi, &p) in nodes.iter().enumerate() {
-            let (present, face) = (present[pi], faces[pi]);
+            let (row, present) = (&nbr[pi].index, nbr[pi].present);
+            // −x, +x, −y, +y, −z, +z.
+            let face = [
+                row[nb([-1, 0, 0])],
+                row[nb([1, 0, 0])],
+                row[nb([0, -1, 0])],
+                row[nb([0, 1, 0])],
+                row[nb([0, 0, -1])],
+                row[nb([0, 0, 1])],
+            ];
             let mut byte = 0u8;
             for (i, &side) in SIDE_MASKS.iter().enumerate() {
                 let c = [
@@ -233,6 +280,9 @@ pub fn walk(
                 }
             }
             bytes[pi] = byte;
+        }
+        if k + 1 < u32::from(depth) {
+            nbr = child_neighbours(&nbr, &bytes);
         }
         nodes = children;
     }
