@@ -32,11 +32,16 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use plotters::prelude::*;
+use salvq::container::chunk::{ChunkReader, ChunkTag};
+use salvq::container::preflight::Preflight;
+use salvq::container::signature::SIGNATURE_LEN;
 use salvq::decoder::{decode_any, decode_with_symbols, DecodeOptions, Decoded};
 use salvq::entropy::GaussianTables;
 use salvq::explicit::Gaussians;
 use salvq::model::SceneModel;
+use salvq::tiles::TileTable;
 use salvq::Decoder;
+use salvq::Limits;
 use salvq_bench::coder::{bare_coder_decode_ns, median};
 use salvq_encoder::{encode_full, EncodeOptions};
 use salvq_gen::{generate, GenParams};
@@ -241,6 +246,24 @@ fn wasm_decode(pkg: &Path, stream: &Path, runs: usize) -> Res<(Vec<f64>, Vec<u8>
     Ok((ms, std::fs::read(&dump_path)?))
 }
 
+/// The bare coder's floor for `symbols`: its median nanoseconds per symbol (`constriction`,
+/// one static model at the tables' precision P) times the count of ALL the symbols, and
+/// how many symbols the timing left out: one static model spans fewer than 2^P values, so
+/// symbols with |u| ≥ 2^(P−1) − 1 (the escapes' tails) are not timed, but still counted.
+fn floor(symbols: &[i64], rounds: usize) -> (Option<f64>, usize) {
+    let precision = GaussianTables::standard().precision();
+    let h = (1i64 << (precision - 1)) - 1;
+    let timed: Vec<i64> = symbols.iter().copied().filter(|u| u.abs() < h).collect();
+    if timed.is_empty() {
+        return (None, symbols.len());
+    }
+    let ns = bare_coder_decode_ns(&timed, precision, rounds);
+    (
+        Some(ns * 1e-9 * symbols.len() as f64),
+        symbols.len() - timed.len(),
+    )
+}
+
 /// One scene's measurements (times in seconds, medians over the rounds).
 #[derive(Default, Clone)]
 struct Row {
@@ -252,6 +275,7 @@ struct Row {
     /// coordinates, the anchors stream's attribute symbols.
     symbols: usize,
     bytes: u64,
+    tiles: usize,
     one: f64,
     two: f64,
     /// Median over rounds of (2 threads / 1 thread).
@@ -259,6 +283,8 @@ struct Row {
     /// The bare coder on the same symbols (`None`: their alphabet is wider than the tables'
     /// precision).
     floor: Option<f64>,
+    /// Symbols left out of the bare coder's timing (see [`floor`]).
+    floor_outside: usize,
     /// salvq-wasm's `decode` in Node: median of the runs after the first, and the first.
     wasm: Option<(f64, f64)>,
     /// Native equivalent of the wasm call (anchors: decode + neural Gaussians of camera 0,
@@ -293,7 +319,6 @@ fn main() -> Res<()> {
         .into());
     }
     let pkg = if a.wasm { Some(build_wasm()?) } else { None };
-    let precision = GaussianTables::standard().precision();
     let mut rows = Vec::new();
     for scene in &a.scenes {
         let ply = a.data.join(format!("{scene}.ply"));
@@ -311,7 +336,7 @@ fn main() -> Res<()> {
         )?);
     }
     for &n in &a.anchors {
-        rows.push(anchors_scene(&a, n, &cache, pkg.as_deref(), precision)?);
+        rows.push(anchors_scene(&a, n, &cache, pkg.as_deref())?);
     }
     let text = report(&a, &rows);
     print!("{text}");
@@ -378,20 +403,16 @@ fn explicit_scene(
         size: n,
         symbols: reference.symbols.coords.len(),
         bytes: stream.len() as u64,
+        tiles: reference.tiles.len(),
         ..Row::default()
     };
-    let precision = GaussianTables::standard().precision();
     let coords: Vec<i64> = reference
         .symbols
         .coords
         .iter()
         .map(|&c| i64::from(c))
         .collect();
-    let span = coords.iter().max().unwrap_or(&0) - coords.iter().min().unwrap_or(&0);
-    if span + 1 < 1 << precision {
-        row.floor =
-            Some(bare_coder_decode_ns(&coords, precision, a.rounds) * 1e-9 * coords.len() as f64);
-    }
+    (row.floor, row.floor_outside) = floor(&coords, a.rounds);
 
     // Peer files, written once from the same PLY.
     let st = a.splat_transform.as_deref();
@@ -413,8 +434,11 @@ fn explicit_scene(
 
     let d1 = Decoder::builder().threads(1).build();
     let d2 = Decoder::builder().threads(2).build();
-    let out_ply = a.out.join(format!("{scene}.decoded.ply"));
-    let peer_ply = a.out.join(format!("{scene}.peer.ply"));
+    // Scratch files stay out of `--out` (which may be docs/).
+    let work = target_dir().join("decode_speed/work");
+    std::fs::create_dir_all(&work)?;
+    let out_ply = work.join(format!("{scene}.decoded.ply"));
+    let peer_ply = work.join(format!("{scene}.peer.ply"));
     let (mut t1, mut t2, mut ratio, mut cmd) = (vec![], vec![], vec![], vec![]);
     let mut peers: [Vec<f64>; 5] = Default::default();
     for _ in 0..a.rounds {
@@ -499,7 +523,25 @@ fn wasm_times(
     Ok((median(&mut rest), first))
 }
 
-fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>, precision: u32) -> Res<Row> {
+/// The tile count of an anchors-profile stream (§10.2, its `TILS` chunk).
+fn anchors_tiles(stream: &[u8]) -> Res<usize> {
+    let limits = Limits::default();
+    let mut r = ChunkReader::new(&stream[SIGNATURE_LEN..], SIGNATURE_LEN as u64, &limits);
+    let mut head = None;
+    while let Some(c) = r.next_chunk()? {
+        match c.tag {
+            ChunkTag::HEAD => head = Some(Preflight::parse(c.payload, &limits)?),
+            ChunkTag::TILS => {
+                let h = head.as_ref().ok_or("TILS before HEAD")?;
+                return Ok(TileTable::parse(c.payload, h.dims.anchors, h.coord_bits)?.len());
+            }
+            _ => {}
+        }
+    }
+    Err("no TILS chunk".into())
+}
+
+fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) -> Res<Row> {
     let path = cache.join(format!("anchors_{n}.salvq"));
     let mut encoder_symbols = None;
     let mut expected = None;
@@ -554,11 +596,10 @@ fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>, precision: 
         size: n as usize,
         symbols: symbols.len(),
         bytes: stream.len() as u64,
-        floor: Some(
-            bare_coder_decode_ns(&symbols, precision, a.rounds) * 1e-9 * symbols.len() as f64,
-        ),
+        tiles: anchors_tiles(&stream)?,
         ..Row::default()
     };
+    (row.floor, row.floor_outside) = floor(&symbols, a.rounds);
     let d1 = Decoder::builder().threads(1).build();
     let d2 = Decoder::builder().threads(2).build();
     let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
@@ -611,13 +652,14 @@ fn report(a: &Args, rows: &[Row]) -> String {
         std::thread::available_parallelism().map_or(0, usize::from),
         if a.smoke { ", smoke" } else { "" }
     );
-    t += "| profile | scene | size | symbols | bytes | 1 thread s | 2 threads s | size/s 1T | size/s 2T | 2T/1T | bare coder s | decode 2T / receive | receive 50 Mbit/s s |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    t += "| profile | scene | size | tiles | symbols | bytes | 1 thread s | 2 threads s | size/s 1T | size/s 2T | 2T/1T | bare coder s (untimed symbols) | receive 50 Mbit/s s | decode 2T / receive |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         t += &format!(
-            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.3e} | {:.3e} | {:.2} | {} | {:.3} | {:.4} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.3e} | {:.3e} | {:.2} | {} | {:.4} | {:.3} |\n",
             r.profile,
             r.scene,
             r.size,
+            r.tiles,
             r.symbols,
             r.bytes,
             r.one,
@@ -625,9 +667,10 @@ fn report(a: &Args, rows: &[Row]) -> String {
             r.size as f64 / r.one,
             r.size as f64 / r.two,
             r.two_over_one,
-            r.floor.map_or("-".into(), |f| format!("{f:.4}")),
-            r.two / r.receive(),
-            r.receive()
+            r.floor
+                .map_or("-".into(), |f| format!("{f:.4} ({})", r.floor_outside)),
+            r.receive(),
+            r.two / r.receive()
         );
     }
     let explicit: Vec<&Row> = rows.iter().filter(|r| r.profile == "explicit").collect();
@@ -653,10 +696,11 @@ fn report(a: &Args, rows: &[Row]) -> String {
         for r in rows {
             if let Some((w, first)) = r.wasm {
                 t += &format!(
-                    "  {} {}: wasm {:.1} ms (first run {:.1} ms), native 1 thread {:.1} ms{}: wasm/native {:.2}\n",
+                    "  {} {}: wasm {:.1} ms = {:.3e} per s (first run {:.1} ms), native 1 thread {:.1} ms{}: wasm/native {:.2}\n",
                     r.profile,
                     r.scene,
                     w * 1e3,
+                    r.size as f64 / w,
                     first * 1e3,
                     r.wasm_native * 1e3,
                     if r.profile == "anchors" {
@@ -691,22 +735,24 @@ fn report(a: &Args, rows: &[Row]) -> String {
 
 fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "profile,scene,size,symbols,bytes,decode_1t_s,decode_2t_s,two_over_one,bare_coder_s,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
+        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6}"));
     for r in rows {
         let p = |i: usize| o(r.peers.map(|p| p[i]));
         s += &format!(
-            "{},{},{},{},{},{:.6},{:.6},{:.4},{},{:.6},{},{},{:.6},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{:.6},{:.6},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{}\n",
             r.profile,
             r.scene,
             r.size,
+            r.tiles,
             r.symbols,
             r.bytes,
             r.one,
             r.two,
             r.two_over_one,
             o(r.floor),
+            r.floor_outside,
             r.receive(),
             o(r.wasm.map(|w| w.0)),
             o(r.wasm.map(|w| w.1)),
@@ -732,7 +778,7 @@ type Series = (
 );
 
 fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
-    let series: [Series; 10] = [
+    let series: [Series; 11] = [
         (
             "explicit, native, 1 thread",
             RGBColor(0, 114, 178),
@@ -790,6 +836,13 @@ fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
             |r| r.wasm.map(|w| w.0),
         ),
         (
+            "anchors, native, 1 thread, decode + neural Gaussians (as the wasm call)",
+            RGBColor(204, 121, 167),
+            true,
+            "anchors",
+            |r| r.wasm.map(|_| r.wasm_native),
+        ),
+        (
             "anchors, bare ANS coder on its symbols",
             RGBColor(213, 94, 0),
             true,
@@ -824,7 +877,7 @@ fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
     let (y0, y1) = (
         fold(f64::min, f64::INFINITY, |p| p.1).max(1e-6) * 0.6,
         // Headroom above the data for the legend (upper left).
-        fold(f64::max, 1e-5, |p| p.1) * 40.0,
+        fold(f64::max, 1e-5, |p| p.1) * 15.0,
     );
     let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -842,6 +895,7 @@ fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
     c.configure_mesh()
         .x_desc("scene size: Gaussians (explicit, real scenes) or anchors (anchors, generated)")
         .y_desc("seconds (median)")
+        .x_label_formatter(&|x| format!("{x:.0}"))
         .draw()?;
     for s in &series {
         let xy = points(s);
@@ -876,6 +930,14 @@ fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
         }
         c.draw_series(xy.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
     }
+    // The real scenes' names under their 1-thread points.
+    c.draw_series(rows.iter().filter(|r| r.profile == "explicit").map(|r| {
+        Text::new(
+            r.scene.clone(),
+            (r.size as f64, r.one * 0.8),
+            ("sans-serif", 12).into_font().color(&RGBColor(0, 114, 178)),
+        )
+    }))?;
     c.configure_series_labels()
         .border_style(BLACK)
         .background_style(WHITE.mix(0.9))
