@@ -16,7 +16,8 @@
 //! with cargo into `target/decode_speed/wasm-target` and `wasm-bindgen --target nodejs`).
 //! Options: `--data DIR` (default `../shared/data`), `--scenes a,b`, `--anchors 10000,…`,
 //! `--rounds N`, `--no-wasm`, `--fresh` (re-encode instead of reusing the streams cached in
-//! `target/decode_speed/cache`). `--smoke`: fruit_drops and a 2 000-anchor scene, 3 rounds,
+//! `target/decode_speed/cache`). Relative `--out` and `--data` are taken from the workspace
+//! root. `--smoke`: fruit_drops and a 2 000-anchor scene, 3 rounds,
 //! wasm only with `SALVQ_BENCH_WASM=1`.
 //!
 //! Checks what it measures (any difference fails): every timed decode (1 and 2 threads, the
@@ -93,8 +94,10 @@ fn args() -> Args {
     while let Some(arg) = it.next() {
         match arg.as_str() {
             "--smoke" => a.smoke = true,
-            "--out" => a.out = it.next().expect("--out DIR").into(),
-            "--data" => a.data = it.next().expect("--data DIR").into(),
+            // cargo runs a bench in its package's folder: relative paths are taken from the
+            // workspace root instead.
+            "--out" => a.out = root.join(it.next().expect("--out DIR")),
+            "--data" => a.data = root.join(it.next().expect("--data DIR")),
             "--scenes" => a.scenes = list(it.next()),
             "--anchors" => {
                 a.anchors = list(it.next())
