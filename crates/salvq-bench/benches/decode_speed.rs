@@ -1,0 +1,960 @@
+//! Decode speed against scene size, both profiles, native and WebAssembly (issue 22, items 3
+//! and 4). For each real scene (explicit profile): the stream `salvq encode` writes with its
+//! default settings, rate 0 extracted (`salvq extract --rate 0`, what a viewer receives for
+//! the best rate), decoded in process with `salvq::Decoder::builder().threads(1 | 2)`; the
+//! same stream decoded by salvq-wasm's `decode` in Node; the whole `salvq decode s.salvq -o
+//! out.ply` command; splat-transform reading the scene's SPZ and SOG (written by it from the
+//! same PLY) into a PLY and into `null`; the time to receive the stream's bytes at 50 Mbit/s.
+//! For generated anchors-profile scenes (`GenParams::new(N, 1)` without a feature basis,
+//! `EncodeOptions::default()`, as `decode_throughput`): the native decode on 1 and 2 threads,
+//! and the bare ANS coder (one static model, [`salvq_bench::coder`]) on the stream's own
+//! symbols as the floor. Writes `speed.svg` (decode time vs scene size, log-log),
+//! `speed.csv` and `speed.txt` to `--out`.
+//!
+//! Run: `cargo bench -p salvq-bench --bench decode_speed -- --out DIR [--splat-transform CMD]`
+//! (needs `target/release/salvq`: `cargo build --release` first; the wasm package is built
+//! with cargo into `target/decode_speed/wasm-target` and `wasm-bindgen --target nodejs`).
+//! Options: `--data DIR` (default `../shared/data`), `--scenes a,b`, `--anchors 10000,…`,
+//! `--rounds N`, `--no-wasm`, `--fresh` (re-encode instead of reusing the streams cached in
+//! `target/decode_speed/cache`). Relative `--out` and `--data` are taken from the workspace
+//! root. `--smoke`: fruit_drops and a 2 000-anchor scene, 3 rounds,
+//! wasm only with `SALVQ_BENCH_WASM=1`.
+//!
+//! Checks what it measures (any difference fails): every timed decode (1 and 2 threads, the
+//! wasm package, the CLI's PLY) equals the reference decode of the same stream (one thread);
+//! the explicit stream holds N · (sum of its groups' dimensions) lattice coordinates; the
+//! anchors stream's symbols are N · (F + S) plus 3 per set offset mask bit, and equal the
+//! encoder's count when it was encoded in this run; splat-transform's PLYs hold N Gaussians.
+//! Times are medians over rounds in one process; the rounds interleave the measurements so
+//! that load on a shared machine reaches each alike.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use plotters::prelude::*;
+use salvq::container::chunk::{ChunkReader, ChunkTag};
+use salvq::container::preflight::Preflight;
+use salvq::container::signature::SIGNATURE_LEN;
+use salvq::decoder::{decode_any, decode_with_symbols, DecodeOptions, Decoded};
+use salvq::entropy::GaussianTables;
+use salvq::explicit::Gaussians;
+use salvq::model::SceneModel;
+use salvq::tiles::TileTable;
+use salvq::Decoder;
+use salvq::Limits;
+use salvq_bench::coder::{bare_coder_decode_ns, median};
+use salvq_encoder::{encode_full, EncodeOptions};
+use salvq_gen::{generate, GenParams};
+use salvq_render::camera::{Bounds, Ring};
+use salvq_render::neural;
+
+/// The link a viewer receives the stream over (issue 22): 50 Mbit/s.
+const LINK_BITS_PER_S: f64 = 50e6;
+/// The issue's goal: the native decode on 2 threads at least this many Gaussians per second.
+const GOAL_GAUSSIANS_PER_S: f64 = 2e6;
+
+type Res<T> = Result<T, Box<dyn std::error::Error>>;
+
+struct Args {
+    smoke: bool,
+    out: PathBuf,
+    data: PathBuf,
+    scenes: Vec<String>,
+    anchors: Vec<u32>,
+    rounds: usize,
+    splat_transform: Option<String>,
+    wasm: bool,
+    fresh: bool,
+}
+
+fn args() -> Args {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let mut a = Args {
+        smoke: false,
+        out: target_dir().join("decode_speed/out"),
+        data: root.join("../shared/data"),
+        scenes: ["fruit_drops", "donut", "alti", "guitar"]
+            .map(String::from)
+            .to_vec(),
+        anchors: vec![10_000, 30_000, 100_000, 300_000],
+        rounds: 0,
+        splat_transform: std::env::var("SALVQ_SPLAT_TRANSFORM").ok(),
+        wasm: true,
+        fresh: false,
+    };
+    let list = |s: Option<String>| -> Vec<String> {
+        s.unwrap_or_default()
+            .split(',')
+            .filter(|x| !x.is_empty())
+            .map(String::from)
+            .collect()
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(arg) = it.next() {
+        match arg.as_str() {
+            "--smoke" => a.smoke = true,
+            // cargo runs a bench in its package's folder: relative paths are taken from the
+            // workspace root instead.
+            "--out" => a.out = root.join(it.next().expect("--out DIR")),
+            "--data" => a.data = root.join(it.next().expect("--data DIR")),
+            "--scenes" => a.scenes = list(it.next()),
+            "--anchors" => {
+                a.anchors = list(it.next())
+                    .iter()
+                    .map(|s| s.parse().expect("--anchors N,N,…"))
+                    .collect();
+            }
+            "--rounds" => a.rounds = it.next().and_then(|s| s.parse().ok()).expect("--rounds N"),
+            "--splat-transform" => a.splat_transform = it.next(),
+            "--no-wasm" => a.wasm = false,
+            "--fresh" => a.fresh = true,
+            // cargo bench passes `--bench` to a harness-less bench.
+            "--bench" => {}
+            other => panic!("unknown argument {other}"),
+        }
+    }
+    if a.smoke {
+        a.scenes = vec!["fruit_drops".into()];
+        a.anchors = vec![2_000];
+        a.wasm = std::env::var("SALVQ_BENCH_WASM").is_ok_and(|v| v == "1");
+        a.out = target_dir().join("decode_speed/smoke");
+    }
+    if a.rounds == 0 {
+        a.rounds = if a.smoke { 3 } else { 7 };
+    }
+    a
+}
+
+/// The target folder this bench runs from (`target/release/deps/decode_speed-…`).
+fn target_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("the bench's path");
+    exe.ancestors()
+        .nth(3)
+        .map(Path::to_path_buf)
+        .expect("target/<profile>/deps/<bench>")
+}
+
+fn secs(f: impl FnOnce()) -> f64 {
+    timed(f).0
+}
+
+/// `f`'s wall time and its result (dropped by the caller, outside the timing).
+fn timed<T>(f: impl FnOnce() -> T) -> (f64, T) {
+    let t = Instant::now();
+    let r = f();
+    (t.elapsed().as_secs_f64(), r)
+}
+
+/// Runs a command with its output discarded; the wall time of the whole process.
+fn run_timed(cmd: &mut Command) -> Res<f64> {
+    let t = Instant::now();
+    let out = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).output()?;
+    let s = t.elapsed().as_secs_f64();
+    if !out.status.success() {
+        return Err(format!(
+            "{cmd:?} failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        )
+        .into());
+    }
+    Ok(s)
+}
+
+/// The command line of `st` (e.g. `node path/cli.mjs` or a path).
+fn st_command(st: &str) -> Command {
+    let mut parts = st.split_whitespace();
+    let mut c = Command::new(parts.next().unwrap_or("splat-transform"));
+    c.args(parts);
+    c
+}
+
+/// A decode's Gaussians as the wasm package hands them out, float32 little-endian (see
+/// `wasm/decode_time.cjs`).
+fn dump(g: &Gaussians) -> Vec<u8> {
+    let mut v = Vec::new();
+    let mut put = |x: &f32| v.extend_from_slice(&x.to_le_bytes());
+    g.positions.iter().flatten().for_each(&mut put);
+    g.log_scales.iter().flatten().for_each(&mut put);
+    g.rotations.iter().flatten().for_each(&mut put);
+    g.opacity_logit.iter().for_each(&mut put);
+    g.f_dc.iter().flatten().for_each(&mut put);
+    g.f_rest.iter().for_each(&mut put);
+    v
+}
+
+/// What an anchors-profile stream is in salvq-wasm: the neural Gaussians of ring camera 0
+/// (Annex C.1, C.2), as `crates/salvq-wasm`'s `decode` computes them.
+fn camera0_gaussians(m: &SceneModel) -> Gaussians {
+    let bounds = Bounds::of_points(&neural::anchor_positions(m));
+    let camera = Ring::default()
+        .camera(&bounds, 0, 64, 48)
+        .expect("ring camera 0");
+    neural::neural_gaussians(m, camera.position).expect("neural Gaussians")
+}
+
+/// The wasm package (`wasm-bindgen --target nodejs`) and the timing script beside it.
+fn build_wasm() -> Res<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = target_dir().join("decode_speed");
+    // Its own target folder: the cargo running this bench may hold the lock on target/.
+    let wasm_target = dir.join("wasm-target");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(&root)
+        .args(["build", "-q", "--release", "-p", "salvq-wasm"])
+        .args(["--target", "wasm32-unknown-unknown", "--target-dir"])
+        .arg(&wasm_target)
+        .status()?;
+    if !status.success() {
+        return Err("cargo build of salvq-wasm failed".into());
+    }
+    let pkg = dir.join("pkg");
+    let wasm = wasm_target.join("wasm32-unknown-unknown/release/salvq_wasm.wasm");
+    let status = Command::new("wasm-bindgen")
+        .args(["--target", "nodejs", "--out-dir"])
+        .arg(&pkg)
+        .arg(&wasm)
+        .status()?;
+    if !status.success() {
+        return Err("wasm-bindgen failed".into());
+    }
+    std::fs::write(
+        pkg.join("decode_time.cjs"),
+        include_str!("../wasm/decode_time.cjs"),
+    )?;
+    Ok(pkg)
+}
+
+/// Decodes `stream` `runs` times in Node: each run's milliseconds and the last output's
+/// arrays (see [`dump`]).
+fn wasm_decode(pkg: &Path, stream: &Path, runs: usize) -> Res<(Vec<f64>, Vec<u8>)> {
+    let dump_path = pkg.join("dump.bin");
+    let out = Command::new("node")
+        .arg(pkg.join("decode_time.cjs"))
+        .arg(pkg.join("salvq_wasm.js"))
+        .arg(stream)
+        .arg(runs.to_string())
+        .arg(&dump_path)
+        .output()?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .ok_or_else(|| format!("node: {}", String::from_utf8_lossy(&out.stderr)))?;
+    // `{"ms":[a,b,…],"count":N}`
+    let ms = line
+        .split('[')
+        .nth(1)
+        .and_then(|s| s.split(']').next())
+        .ok_or("node: no times")?
+        .split(',')
+        .map(|x| x.parse::<f64>())
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((ms, std::fs::read(&dump_path)?))
+}
+
+/// The bare coder's floor for `symbols`: its median nanoseconds per symbol (`constriction`,
+/// one static model at the tables' precision P) times the count of ALL the symbols, and
+/// how many symbols the timing left out: one static model spans fewer than 2^P values, so
+/// symbols with |u| ≥ 2^(P−1) − 1 (the escapes' tails) are not timed, but still counted.
+fn floor(symbols: &[i64], rounds: usize) -> (Option<f64>, usize) {
+    let precision = GaussianTables::standard().precision();
+    let h = (1i64 << (precision - 1)) - 1;
+    let timed: Vec<i64> = symbols.iter().copied().filter(|u| u.abs() < h).collect();
+    if timed.is_empty() {
+        return (None, symbols.len());
+    }
+    let ns = bare_coder_decode_ns(&timed, precision, rounds);
+    (
+        Some(ns * 1e-9 * symbols.len() as f64),
+        symbols.len() - timed.len(),
+    )
+}
+
+/// One scene's measurements (times in seconds, medians over the rounds).
+#[derive(Default, Clone)]
+struct Row {
+    profile: &'static str,
+    scene: String,
+    /// Gaussians (explicit) or anchors (anchors profile).
+    size: usize,
+    /// Entropy-coded symbols the bare coder's floor counts: the explicit stream's lattice
+    /// coordinates, the anchors stream's attribute symbols.
+    symbols: usize,
+    bytes: u64,
+    tiles: usize,
+    one: f64,
+    two: f64,
+    /// Median over rounds of (2 threads / 1 thread).
+    two_over_one: f64,
+    /// The bare coder on the same symbols (`None`: their alphabet is wider than the tables'
+    /// precision).
+    floor: Option<f64>,
+    /// Symbols left out of the bare coder's timing (see [`floor`]).
+    floor_outside: usize,
+    /// salvq-wasm's `decode` in Node: median of the runs after the first, and the first.
+    wasm: Option<(f64, f64)>,
+    /// Native equivalent of the wasm call (anchors: decode + neural Gaussians of camera 0,
+    /// one thread; explicit: = `one`).
+    wasm_native: f64,
+    /// `salvq decode s.salvq -o out.ply`, whole process.
+    command: Option<f64>,
+    /// splat-transform, whole process: SPZ → PLY, SOG → PLY, SPZ → null, SOG → null,
+    /// `--version` (node startup).
+    peers: Option<[f64; 5]>,
+}
+
+impl Row {
+    fn receive(&self) -> f64 {
+        self.bytes as f64 * 8.0 / LINK_BITS_PER_S
+    }
+}
+
+fn main() -> Res<()> {
+    let a = args();
+    std::fs::create_dir_all(&a.out)?;
+    let cache = target_dir().join("decode_speed/cache");
+    std::fs::create_dir_all(&cache)?;
+    let salvq = std::env::var_os("SALVQ")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| target_dir().join("release/salvq"));
+    if !a.scenes.is_empty() && !salvq.exists() {
+        return Err(format!(
+            "{} not found: run `cargo build --release` first (or set SALVQ)",
+            salvq.display()
+        )
+        .into());
+    }
+    let pkg = if a.wasm { Some(build_wasm()?) } else { None };
+    let mut rows = Vec::new();
+    for scene in &a.scenes {
+        let ply = a.data.join(format!("{scene}.ply"));
+        if !ply.exists() {
+            println!("{scene}: {} not found, skipped", ply.display());
+            continue;
+        }
+        rows.push(explicit_scene(
+            &a,
+            scene,
+            &ply,
+            &salvq,
+            &cache,
+            pkg.as_deref(),
+        )?);
+    }
+    for &n in &a.anchors {
+        rows.push(anchors_scene(&a, n, &cache, pkg.as_deref())?);
+    }
+    let text = report(&a, &rows);
+    print!("{text}");
+    std::fs::write(a.out.join("speed.txt"), &text)?;
+    std::fs::write(a.out.join("speed.csv"), csv(&rows))?;
+    chart(&a.out.join("speed.svg"), &rows, a.wasm)?;
+    println!(
+        "wrote speed.svg, speed.csv, speed.txt to {}",
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// The rate-0 stream of `scene` with default settings, from the cache or encoded now.
+fn explicit_stream(a: &Args, scene: &str, ply: &Path, salvq: &Path, cache: &Path) -> Res<PathBuf> {
+    let all = cache.join(format!("{scene}.salvq"));
+    let r0 = cache.join(format!("{scene}.r0.salvq"));
+    if a.fresh || !r0.exists() {
+        println!("{scene}: salvq encode (default settings) …");
+        let t = run_timed(
+            Command::new(salvq)
+                .arg("encode")
+                .arg(ply)
+                .arg("-o")
+                .arg(&all),
+        )?;
+        run_timed(
+            Command::new(salvq)
+                .arg("extract")
+                .arg(&all)
+                .args(["--rate", "0", "-o"])
+                .arg(&r0),
+        )?;
+        println!("{scene}: encoded in {t:.1} s");
+    }
+    Ok(r0)
+}
+
+fn explicit_scene(
+    a: &Args,
+    scene: &str,
+    ply: &Path,
+    salvq: &Path,
+    cache: &Path,
+    pkg: Option<&Path>,
+) -> Res<Row> {
+    let path = explicit_stream(a, scene, ply, salvq, cache)?;
+    let stream = std::fs::read(&path)?;
+    let one_opts = DecodeOptions::default().with_threads(Some(1));
+    let Decoded::Gaussians(reference) = decode_any(&stream, &one_opts)? else {
+        return Err(format!("{}: not an explicit-profile stream", path.display()).into());
+    };
+    let n = reference.gaussians.len();
+    // §3.3: every Gaussian codes each group's `dim` lattice coordinates.
+    let per: usize = reference.groups.iter().map(|g| g.dim).sum();
+    assert_eq!(
+        reference.symbols.coords.len(),
+        n * per,
+        "{scene}: lattice coordinates = N · Σ dims"
+    );
+    let mut row = Row {
+        profile: "explicit",
+        scene: scene.into(),
+        size: n,
+        symbols: reference.symbols.coords.len(),
+        bytes: stream.len() as u64,
+        tiles: reference.tiles.len(),
+        ..Row::default()
+    };
+    let coords: Vec<i64> = reference
+        .symbols
+        .coords
+        .iter()
+        .map(|&c| i64::from(c))
+        .collect();
+    (row.floor, row.floor_outside) = floor(&coords, a.rounds);
+
+    // Peer files, written once from the same PLY.
+    let st = a.splat_transform.as_deref();
+    let mut peer_files = Vec::new();
+    if let Some(st) = st {
+        for format in ["spz", "sog"] {
+            let f = cache.join(format!("{scene}.{format}"));
+            if a.fresh || !f.exists() {
+                let mut c = st_command(st);
+                c.args(["-q", "-w"]);
+                if format == "sog" {
+                    c.args(["-g", "cpu"]);
+                }
+                run_timed(c.arg(ply).arg(&f))?;
+            }
+            peer_files.push(f);
+        }
+    }
+
+    let d1 = Decoder::builder().threads(1).build();
+    let d2 = Decoder::builder().threads(2).build();
+    // Scratch files stay out of `--out` (which may be docs/).
+    let work = target_dir().join("decode_speed/work");
+    std::fs::create_dir_all(&work)?;
+    let out_ply = work.join(format!("{scene}.decoded.ply"));
+    let peer_ply = work.join(format!("{scene}.peer.ply"));
+    let (mut t1, mut t2, mut ratio, mut cmd) = (vec![], vec![], vec![], vec![]);
+    let mut peers: [Vec<f64>; 5] = Default::default();
+    for _ in 0..a.rounds {
+        // Each output is checked, then dropped, outside the timing.
+        let (s1, got) = timed(|| d1.decode(&stream));
+        assert!(
+            matches!(got, Ok(Decoded::Gaussians(ref g)) if **g == *reference),
+            "{scene}: the 1-thread decode equals the reference"
+        );
+        drop(got);
+        let (s2, got) = timed(|| d2.decode(&stream));
+        assert!(
+            matches!(got, Ok(Decoded::Gaussians(ref g)) if **g == *reference),
+            "{scene}: the 2-thread decode equals the reference"
+        );
+        drop(got);
+        t1.push(s1);
+        t2.push(s2);
+        ratio.push(s2 / s1);
+        cmd.push(run_timed(
+            Command::new(salvq)
+                .arg("decode")
+                .arg(&path)
+                .arg("-o")
+                .arg(&out_ply),
+        )?);
+        if let Some(st) = st {
+            for (i, f) in peer_files.iter().enumerate() {
+                peers[i].push(run_timed(
+                    st_command(st).args(["-q", "-w"]).arg(f).arg(&peer_ply),
+                )?);
+                let written = salvq_render::ply::read_ply_lenient(&std::fs::read(&peer_ply)?)?;
+                assert_eq!(written.len(), n, "{scene}: splat-transform's PLY holds N");
+                peers[2 + i].push(run_timed(st_command(st).arg("-q").arg(f).arg("null"))?);
+            }
+            peers[4].push(run_timed(st_command(st).arg("--version"))?);
+        }
+    }
+    let written = salvq_render::ply::read_ply(&std::fs::read(&out_ply)?)?;
+    assert!(
+        written == reference.gaussians,
+        "{scene}: salvq decode's PLY holds the reference decode"
+    );
+    row.one = median(&mut t1);
+    row.two = median(&mut t2);
+    row.two_over_one = median(&mut ratio);
+    row.wasm_native = row.one;
+    row.command = Some(median(&mut cmd));
+    if st.is_some() {
+        row.peers = Some(peers.map(|mut v| median(&mut v)));
+    }
+    if let Some(pkg) = pkg {
+        row.wasm = Some(wasm_times(
+            pkg,
+            &path,
+            a.rounds,
+            &dump(&reference.gaussians),
+            scene,
+        )?);
+    }
+    println!(
+        "{scene}: {n} Gaussians, {} B; 1 thread {:.4} s, 2 threads {:.4} s",
+        row.bytes, row.one, row.two
+    );
+    Ok(row)
+}
+
+/// The wasm decode's median (runs after the first) and first run, seconds; checks its
+/// output against `expected`.
+fn wasm_times(
+    pkg: &Path,
+    stream: &Path,
+    rounds: usize,
+    expected: &[u8],
+    what: &str,
+) -> Res<(f64, f64)> {
+    let (ms, out) = wasm_decode(pkg, stream, rounds + 1)?;
+    assert!(
+        out == expected,
+        "{what}: the wasm decode equals the native one"
+    );
+    let first = ms[0] * 1e-3;
+    let mut rest: Vec<f64> = ms[1..].iter().map(|m| m * 1e-3).collect();
+    Ok((median(&mut rest), first))
+}
+
+/// The tile count of an anchors-profile stream (§10.2, its `TILS` chunk).
+fn anchors_tiles(stream: &[u8]) -> Res<usize> {
+    let limits = Limits::default();
+    let mut r = ChunkReader::new(&stream[SIGNATURE_LEN..], SIGNATURE_LEN as u64, &limits);
+    let mut head = None;
+    while let Some(c) = r.next_chunk()? {
+        match c.tag {
+            ChunkTag::HEAD => head = Some(Preflight::parse(c.payload, &limits)?),
+            ChunkTag::TILS => {
+                let h = head.as_ref().ok_or("TILS before HEAD")?;
+                return Ok(TileTable::parse(c.payload, h.dims.anchors, h.coord_bits)?.len());
+            }
+            _ => {}
+        }
+    }
+    Err("no TILS chunk".into())
+}
+
+fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) -> Res<Row> {
+    let path = cache.join(format!("anchors_{n}.salvq"));
+    let mut encoder_symbols = None;
+    let mut expected = None;
+    if a.fresh || a.smoke || !path.exists() {
+        let model = generate(&GenParams {
+            feat_basis: false,
+            ..GenParams::new(n, 1)
+        });
+        let t = Instant::now();
+        let e = encode_full(&model, &EncodeOptions::default())?;
+        println!("{n} anchors: encoded in {:.1} s", t.elapsed().as_secs_f64());
+        std::fs::write(&path, &e.stream)?;
+        encoder_symbols = Some(e.report().groups.iter().map(|g| g.symbols).sum::<u64>());
+        expected = Some(e.expected().clone());
+    }
+    let stream = std::fs::read(&path)?;
+    let one_opts = DecodeOptions::default().with_threads(Some(1));
+    let (reference, sy) = decode_with_symbols(&stream, &one_opts)?;
+    if let Some(expected) = &expected {
+        assert!(
+            reference == *expected,
+            "{n} anchors: the decode is the encoder's prediction"
+        );
+    }
+    let mut symbols: Vec<i64> = sy.feat.clone();
+    symbols.extend_from_slice(&sy.scaling);
+    for (slot, &m) in reference.anchors.mask.iter().enumerate() {
+        if m != 0 {
+            symbols.extend_from_slice(&sy.offsets[slot * 3..][..3]);
+        }
+    }
+    let set = reference.anchors.mask.iter().filter(|&&m| m != 0).count();
+    let (f, s) = (
+        sy.feat.len() / reference.n(),
+        sy.scaling.len() / reference.n(),
+    );
+    assert_eq!(
+        symbols.len(),
+        reference.n() * (f + s) + 3 * set,
+        "{n} anchors: symbol count"
+    );
+    if let Some(c) = encoder_symbols {
+        assert_eq!(
+            symbols.len() as u64,
+            c,
+            "{n} anchors: symbols = the encoder's"
+        );
+    }
+    let mut row = Row {
+        profile: "anchors",
+        scene: format!("generated {n}"),
+        size: n as usize,
+        symbols: symbols.len(),
+        bytes: stream.len() as u64,
+        tiles: anchors_tiles(&stream)?,
+        ..Row::default()
+    };
+    (row.floor, row.floor_outside) = floor(&symbols, a.rounds);
+    let d1 = Decoder::builder().threads(1).build();
+    let d2 = Decoder::builder().threads(2).build();
+    let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let (mut t1, mut t2, mut ratio, mut tw) = (vec![], vec![], vec![], vec![]);
+    let mut neural = None;
+    for _ in 0..a.rounds {
+        // Each output is checked, then dropped, outside the timing.
+        let (s1, got) = timed(|| d1.decode(&stream));
+        assert!(
+            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
+            "{n} anchors: the 1-thread decode equals the reference"
+        );
+        drop(got);
+        let (s2, got) = timed(|| d2.decode(&stream));
+        assert!(
+            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
+            "{n} anchors: the 2-thread decode equals the reference"
+        );
+        drop(got);
+        t1.push(s1);
+        t2.push(s2);
+        ratio.push(s2 / s1);
+        if pkg.is_some() {
+            tw.push(secs(|| {
+                pool1.install(|| {
+                    let Ok(Decoded::Anchors(m)) = d1.decode(&stream) else {
+                        panic!("decodes")
+                    };
+                    neural = Some(camera0_gaussians(&m));
+                });
+            }));
+        }
+    }
+    row.one = median(&mut t1);
+    row.two = median(&mut t2);
+    row.two_over_one = median(&mut ratio);
+    if let (Some(pkg), Some(g)) = (pkg, &neural) {
+        row.wasm_native = median(&mut tw);
+        row.wasm = Some(wasm_times(pkg, &path, a.rounds, &dump(g), &row.scene)?);
+    }
+    println!(
+        "{n} anchors: {} B; 1 thread {:.4} s, 2 threads {:.4} s",
+        row.bytes, row.one, row.two
+    );
+    Ok(row)
+}
+
+fn report(a: &Args, rows: &[Row]) -> String {
+    let mut t = format!(
+        "decode speed, medians of {} rounds (interleaved), {} logical CPUs{}\n\n",
+        a.rounds,
+        std::thread::available_parallelism().map_or(0, usize::from),
+        if a.smoke { ", smoke" } else { "" }
+    );
+    t += "| profile | scene | size | tiles | symbols | bytes | 1 thread s | 2 threads s | size/s 1T | size/s 2T | 2T/1T | bare coder s (untimed symbols) | receive 50 Mbit/s s | decode 2T / receive |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    for r in rows {
+        t += &format!(
+            "| {} | {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.3e} | {:.3e} | {:.2} | {} | {:.4} | {:.3} |\n",
+            r.profile,
+            r.scene,
+            r.size,
+            r.tiles,
+            r.symbols,
+            r.bytes,
+            r.one,
+            r.two,
+            r.size as f64 / r.one,
+            r.size as f64 / r.two,
+            r.two_over_one,
+            r.floor
+                .map_or("-".into(), |f| format!("{f:.4} ({})", r.floor_outside)),
+            r.receive(),
+            r.two / r.receive()
+        );
+    }
+    let explicit: Vec<&Row> = rows.iter().filter(|r| r.profile == "explicit").collect();
+    if !explicit.is_empty() {
+        t += "\nexplicit profile: goal >= 2 M Gaussians/s on 2 threads\n";
+        for r in &explicit {
+            let rate = r.size as f64 / r.two;
+            t += &format!(
+                "  {}: {:.2} M Gaussians/s on 2 threads ({:.2} M on 1): {}\n",
+                r.scene,
+                rate * 1e-6,
+                r.size as f64 / r.one * 1e-6,
+                if rate >= GOAL_GAUSSIANS_PER_S {
+                    "met"
+                } else {
+                    "NOT met"
+                }
+            );
+        }
+    }
+    if rows.iter().any(|r| r.wasm.is_some()) {
+        t += "\nWebAssembly (salvq-wasm `decode` in Node's V8, one thread, no SIMD; median of the runs after the first)\n";
+        for r in rows {
+            if let Some((w, first)) = r.wasm {
+                t += &format!(
+                    "  {} {}: wasm {:.1} ms = {:.3e} per s (first run {:.1} ms), native 1 thread {:.1} ms{}: wasm/native {:.2}\n",
+                    r.profile,
+                    r.scene,
+                    w * 1e3,
+                    r.size as f64 / w,
+                    first * 1e3,
+                    r.wasm_native * 1e3,
+                    if r.profile == "anchors" {
+                        " (decode + neural Gaussians of ring camera 0, as the wasm call does)"
+                    } else {
+                        ""
+                    },
+                    w / r.wasm_native
+                );
+            }
+        }
+    }
+    if explicit.iter().any(|r| r.command.is_some()) {
+        t += "\nwhole process (wall clock, output written; splat-transform runs in Node, its startup included)\n";
+        t += "| scene | salvq decode -o out.ply | splat-transform SPZ -> PLY | SOG -> PLY | SPZ -> null | SOG -> null | splat-transform --version |\n|---|---:|---:|---:|---:|---:|---:|\n";
+        for r in &explicit {
+            let p = |i: usize| r.peers.map_or("-".into(), |p| format!("{:.3} s", p[i]));
+            t += &format!(
+                "| {} | {:.3} s | {} | {} | {} | {} | {} |\n",
+                r.scene,
+                r.command.unwrap_or(f64::NAN),
+                p(0),
+                p(1),
+                p(2),
+                p(3),
+                p(4)
+            );
+        }
+    }
+    t
+}
+
+fn csv(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
+    );
+    let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6}"));
+    for r in rows {
+        let p = |i: usize| o(r.peers.map(|p| p[i]));
+        s += &format!(
+            "{},{},{},{},{},{},{:.6},{:.6},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{}\n",
+            r.profile,
+            r.scene,
+            r.size,
+            r.tiles,
+            r.symbols,
+            r.bytes,
+            r.one,
+            r.two,
+            r.two_over_one,
+            o(r.floor),
+            r.floor_outside,
+            r.receive(),
+            o(r.wasm.map(|w| w.0)),
+            o(r.wasm.map(|w| w.1)),
+            r.wasm_native,
+            o(r.command),
+            p(0),
+            p(1),
+            p(2),
+            p(3),
+            p(4)
+        );
+    }
+    s
+}
+
+/// A chart series: label, colour, dashed, profile, and the value it plots.
+type Series = (
+    &'static str,
+    RGBColor,
+    bool,
+    &'static str,
+    fn(&Row) -> Option<f64>,
+);
+
+fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
+    let series: [Series; 11] = [
+        (
+            "explicit, native, 1 thread",
+            RGBColor(0, 114, 178),
+            false,
+            "explicit",
+            |r| Some(r.one),
+        ),
+        (
+            "explicit, native, 2 threads",
+            RGBColor(86, 180, 233),
+            false,
+            "explicit",
+            |r| Some(r.two),
+        ),
+        (
+            "explicit, wasm (Node V8, 1 thread)",
+            RGBColor(0, 158, 115),
+            false,
+            "explicit",
+            |r| r.wasm.map(|w| w.0),
+        ),
+        (
+            "explicit, bare ANS coder on its lattice coordinates",
+            RGBColor(0, 114, 178),
+            true,
+            "explicit",
+            |r| r.floor,
+        ),
+        (
+            "explicit, receive at 50 Mbit/s",
+            RGBColor(120, 120, 120),
+            true,
+            "explicit",
+            |r| Some(r.receive()),
+        ),
+        (
+            "anchors, native, 1 thread",
+            RGBColor(213, 94, 0),
+            false,
+            "anchors",
+            |r| Some(r.one),
+        ),
+        (
+            "anchors, native, 2 threads",
+            RGBColor(230, 159, 0),
+            false,
+            "anchors",
+            |r| Some(r.two),
+        ),
+        (
+            "anchors, wasm (decode + neural Gaussians, camera 0)",
+            RGBColor(204, 121, 167),
+            false,
+            "anchors",
+            |r| r.wasm.map(|w| w.0),
+        ),
+        (
+            "anchors, native, 1 thread, decode + neural Gaussians (as the wasm call)",
+            RGBColor(204, 121, 167),
+            true,
+            "anchors",
+            |r| r.wasm.map(|_| r.wasm_native),
+        ),
+        (
+            "anchors, bare ANS coder on its symbols",
+            RGBColor(213, 94, 0),
+            true,
+            "anchors",
+            |r| r.floor,
+        ),
+        (
+            "anchors, receive at 50 Mbit/s",
+            RGBColor(0, 0, 0),
+            true,
+            "anchors",
+            |r| Some(r.receive()),
+        ),
+    ];
+    let points = |s: &Series| -> Vec<(f64, f64)> {
+        let mut v: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| r.profile == s.3)
+            .filter_map(|r| s.4(r).map(|y| (r.size as f64, y)))
+            .collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        v
+    };
+    let all: Vec<(f64, f64)> = series.iter().flat_map(points).collect();
+    let fold = |f: fn(f64, f64) -> f64, init: f64, sel: fn(&(f64, f64)) -> f64| {
+        all.iter().map(sel).fold(init, f)
+    };
+    let (x0, x1) = (
+        fold(f64::min, f64::INFINITY, |p| p.0) * 0.7,
+        fold(f64::max, 1.0, |p| p.0) * 1.4,
+    );
+    let (y0, y1) = (
+        fold(f64::min, f64::INFINITY, |p| p.1).max(1e-6) * 0.6,
+        // Headroom above the data for the legend (upper left).
+        fold(f64::max, 1e-5, |p| p.1) * 15.0,
+    );
+    let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let caption = if wasm {
+        "Decode time vs scene size (log-log): both profiles, native and wasm"
+    } else {
+        "Decode time vs scene size (log-log): both profiles, native (wasm not measured in this run)"
+    };
+    let mut c = ChartBuilder::on(&root)
+        .caption(caption, ("sans-serif", 18))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(65)
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
+    c.configure_mesh()
+        .x_desc("scene size: Gaussians (explicit, real scenes) or anchors (anchors, generated)")
+        .y_desc("seconds (median)")
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .draw()?;
+    for s in &series {
+        let xy = points(s);
+        if xy.is_empty() {
+            continue;
+        }
+        let color = s.1;
+        let style = color.stroke_width(2);
+        if s.2 {
+            // Dashed: short segments along each line.
+            let mut dashes = Vec::new();
+            for w in xy.windows(2) {
+                let (a, b) = (w[0], w[1]);
+                for i in 0..12 {
+                    let (t0, t1) = (i as f64 / 12.0, (i as f64 + 0.5) / 12.0);
+                    let lerp = |t: f64| {
+                        (
+                            (a.0.ln() + t * (b.0.ln() - a.0.ln())).exp(),
+                            (a.1.ln() + t * (b.1.ln() - a.1.ln())).exp(),
+                        )
+                    };
+                    dashes.push(PathElement::new(vec![lerp(t0), lerp(t1)], style));
+                }
+            }
+            c.draw_series(dashes)?
+                .label(s.0)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 8, y)], color));
+        } else {
+            c.draw_series(LineSeries::new(xy.clone(), style))?
+                .label(s.0)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        c.draw_series(xy.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
+    }
+    // The real scenes' names under their 1-thread points.
+    c.draw_series(rows.iter().filter(|r| r.profile == "explicit").map(|r| {
+        Text::new(
+            r.scene.clone(),
+            (r.size as f64, r.one * 0.8),
+            ("sans-serif", 12).into_font().color(&RGBColor(0, 114, 178)),
+        )
+    }))?;
+    c.configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.9))
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
