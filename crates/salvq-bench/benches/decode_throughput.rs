@@ -250,7 +250,7 @@ fn main() {
     );
     println!(
         "ratio full decode / bare coder = {:.2} (medians above); per-round median {:.2} \
-         (min {:.2}, max {:.2}, {rounds} rounds; goal <= 4.0); prior / full = {:.2}",
+         (min {:.2}, max {:.2}, {rounds} rounds; goal <= 3.0, issue 22); prior / full = {:.2}",
         t_full / t_bare,
         ratios[rounds / 2],
         ratios[0],
