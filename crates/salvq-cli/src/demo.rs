@@ -109,7 +109,7 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
         total / input_bytes.max(1) as f64
     );
     crate::print_text(&salvq_encoder::info::groups_text(report));
-    // Verify: geometry and masks exact, attributes within half a step.
+    // Verify: geometry and masks exact, the MLPs as stored, attributes within half a step.
     // The quantizer is lossless but for the base step the encoder may refine to hold the
     // distortion with i8 context-MLP weights (spec Annex A.5.4).
     let feat_quantizer = salvq::model::GroupQuantizer {
@@ -118,7 +118,9 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
     };
     let exact = decoded.anchors.voxel == model.anchors.voxel
         && decoded.anchors.mask == model.anchors.mask
-        && decoded.mlp_opacity == model.mlp_opacity
+        // Stored as Annex A.5.2 chose (binary16 where its renders match binary32's).
+        && decoded.mlp_opacity
+            == salvq_encoder::precision::rounded(&model.mlp_opacity, encoded.scaffold.precision)
         && decoded.quant_feat == feat_quantizer;
     let bounded = report
         .groups

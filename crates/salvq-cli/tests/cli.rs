@@ -321,3 +321,13 @@ fn a_region_that_is_no_box_is_refused_before_the_stream_is_read() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("intersects no tile"));
     assert!(!Path::new(out).exists());
 }
+
+#[test]
+fn demo_checks_pass_with_the_default_encoder_choices() {
+    // The demo's own check (geometry, masks and the MLPs as stored exact; every value within
+    // half a step) fails it with status 1; CI's demo run once did after a default changed.
+    let o = salvq(&["demo", "--anchors", "3000"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("quantizers exact; every coded value within half a step: yes"));
+}
