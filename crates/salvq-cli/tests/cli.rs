@@ -328,6 +328,10 @@ fn demo_checks_pass_with_the_default_encoder_choices() {
     // half a step) fails it with status 1; CI's demo run once did after a default changed.
     let o = salvq(&["demo", "--anchors", "3000"]);
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{text}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(text.contains("quantizers exact; every coded value within half a step: yes"));
 }
