@@ -27,9 +27,13 @@ struct Counts {
 impl Counts {
     const START: Counts = Counts { c0: 1, c1: 1 };
 
-    /// P(1) in units of 2^−p, clamped to 1 … 2^p − 1.
+    /// P(1) in units of 2^−p, clamped to 1 … 2^p − 1: ⌊c1 · 2^p / (c0 + c1)⌋, computed as
+    /// a product with a reciprocal (exact, see [`RECIPROCAL`]) rather than a division, which
+    /// costs more than the rest of an event.
+    #[inline]
     fn freq_one(self, p: u32) -> u32 {
-        let f = (u64::from(self.c1) << p) / u64::from(self.c0 + self.c1);
+        let sum = (self.c0 + self.c1) as usize;
+        let f = (u64::from(self.c1) * RECIPROCAL[sum]) >> (RECIPROCAL_BITS - p);
         (f as u32).clamp(1, (1 << p) - 1)
     }
 
@@ -45,6 +49,23 @@ impl Counts {
         }
     }
 }
+
+/// Bits of [`RECIPROCAL`]'s fixed point.
+const RECIPROCAL_BITS: u32 = 48;
+
+/// `⌈2^48 / s⌉` for every count sum `s` (2 … 256; the rest unused): for `c1 < s ≤ 256` and
+/// `p ≤ 24`, `(c1 · ⌈2^48 / s⌉) >> (48 − p)` equals `⌊c1 · 2^p / s⌋` exactly. The product
+/// exceeds `c1 · 2^p / s` by less than `c1 / 2^(48 − p) ≤ 2^−16`, and a quotient that is not
+/// an integer is at least `1 / s ≥ 2^−8` below the next one. `c1 · ⌈2^48 / s⌉ < 2^56`.
+const RECIPROCAL: [u64; ADAPT_LIMIT as usize + 1] = {
+    let mut out = [0u64; ADAPT_LIMIT as usize + 1];
+    let mut s = 1;
+    while s <= ADAPT_LIMIT as usize {
+        out[s] = (1u64 << RECIPROCAL_BITS).div_ceil(s as u64);
+        s += 1;
+    }
+    out
+};
 
 /// Why a geometry payload is invalid (spec §8.2, §8.4).
 pub const MORE_NODES_THAN_ANCHORS: &str = "more nodes than anchors";
@@ -131,63 +152,101 @@ const CHILD_NEIGHBOUR: [[(u8, u8); 27]; 8] = {
     out
 };
 
+/// Set bits of every byte value: a table, since the portable x86-64 baseline has no
+/// `popcnt` instruction and this is on the octree's hot path.
+const POPCOUNT: [u8; 256] = {
+    let mut out = [0u8; 256];
+    let mut b = 0;
+    while b < 256 {
+        out[b] = (b as u8).count_ones() as u8;
+        b += 1;
+    }
+    out
+};
+
+/// For child `i` and a slot `ps` of its parent's neighbourhood: the child's neighbour slots
+/// that fall in the node at `ps`, each with its child index there (the inverse of
+/// [`CHILD_NEIGHBOUR`], the child itself left out). Only the parent itself and the 7
+/// neighbours on the child's side ([`SIDE_MASKS`]) have entries.
+#[derive(Clone, Copy)]
+struct FromParent {
+    len: u8,
+    cells: [(u8, u8); 8],
+}
+
+const FROM_PARENT: [[FromParent; 27]; 8] = {
+    let empty = FromParent {
+        len: 0,
+        cells: [(0, 0); 8],
+    };
+    let mut out = [[empty; 27]; 8];
+    let mut i = 0;
+    while i < 8 {
+        let mut slot = 0;
+        while slot < 27 {
+            if slot != 13 {
+                let (ps, child) = CHILD_NEIGHBOUR[i][slot];
+                let f = &mut out[i][ps as usize];
+                f.cells[f.len as usize] = (slot as u8, child);
+                f.len += 1;
+            }
+            slot += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
 /// The next level's neighbours from this level's: `bytes[p]` is node `p`'s occupancy byte
 /// and its children are numbered in order (node by node, octant by octant).
+///
+/// A child's neighbours lie in its parent and the parent's 7 neighbours on the child's side,
+/// so only the neighbours the parent has are visited: deep in a sparse octree most nodes
+/// have none or few.
 fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbours> {
     let mut first = Vec::with_capacity(bytes.len());
     let mut count = 0u32;
     for &b in bytes {
         first.push(count);
-        count += b.count_ones();
+        count += u32::from(POPCOUNT[usize::from(b)]);
     }
     let mut out = Vec::with_capacity(count as usize);
     for (p, &byte) in bytes.iter().enumerate() {
         if byte == 0 {
             continue;
         }
-        if nbr[p].present == 0 {
-            // A node without neighbours (common deep in a sparse octree): its children's
-            // only neighbours are their siblings.
-            for i in 0..8 {
-                if byte >> i & 1 == 0 {
-                    continue;
-                }
-                let mut row = Neighbours::NONE;
-                for j in (0..8).filter(|&j| j != i && byte >> j & 1 == 1) {
-                    let d = [0, 1, 2].map(|a| ((j >> a) & 1) as i64 - ((i >> a) & 1) as i64);
-                    let slot = nb(d);
-                    row.index[slot] = first[p] + (byte & ((1u16 << j) - 1) as u8).count_ones();
-                    row.present |= 1 << slot;
-                }
-                out.push(row);
-            }
-            continue;
+        // The occupancy byte and first child of the node (slot 13) and of each neighbour it
+        // has; 32 entries so that a 5-bit index needs no bounds check.
+        let present = nbr[p].present;
+        let (mut near_bytes, mut near_first) = ([0u8; 32], [0u32; 32]);
+        near_bytes[13] = byte;
+        near_first[13] = first[p];
+        let mut rest = present;
+        while rest != 0 {
+            let slot = rest.trailing_zeros() as usize & 31;
+            rest &= rest - 1;
+            let q = nbr[p].index[slot] as usize;
+            near_bytes[slot] = bytes[q];
+            near_first[slot] = first[q];
         }
-        // The occupancy byte and first child of the node and each of its neighbours (0 and
-        // nothing where there is none): every child's neighbours are among their children.
-        let (mut near_bytes, mut near_first) = ([0u8; 27], [0u32; 27]);
-        for slot in 0..27 {
-            let q = if slot == 13 {
-                p as u32
-            } else {
-                nbr[p].index[slot]
-            };
-            if q != u32::MAX {
-                near_bytes[slot] = bytes[q as usize];
-                near_first[slot] = first[q as usize];
-            }
-        }
-        for (i, table) in CHILD_NEIGHBOUR.iter().enumerate() {
+        for (i, (&side, from)) in SIDE_MASKS.iter().zip(&FROM_PARENT).enumerate() {
             if byte >> i & 1 == 0 {
                 continue;
             }
             let mut row = Neighbours::NONE;
-            for (slot, &(parent_slot, child)) in table.iter().enumerate() {
-                let b = near_bytes[usize::from(parent_slot)];
-                if slot != 13 && b >> child & 1 == 1 {
-                    let below = b & ((1u16 << child) - 1) as u8;
-                    row.index[slot] = near_first[usize::from(parent_slot)] + below.count_ones();
-                    row.present |= 1 << slot;
+            let mut sources = (present & side) | (1 << 13);
+            while sources != 0 {
+                let ps = sources.trailing_zeros() as usize & 31;
+                sources &= sources - 1;
+                let (b, base) = (near_bytes[ps], near_first[ps]);
+                let f = &from[ps.min(26)];
+                for &(slot, child) in &f.cells[..usize::from(f.len).min(8)] {
+                    let child = child & 7;
+                    if b >> child & 1 == 1 {
+                        let below = POPCOUNT[usize::from(b & LOW[usize::from(child)])];
+                        row.index[usize::from(slot).min(26)] = base + u32::from(below);
+                        row.present |= 1 << slot;
+                    }
                 }
             }
             out.push(row);
@@ -195,6 +254,19 @@ fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbours> {
     }
     out
 }
+
+/// The cell of child `i` (octant bits x, y, z) of the node at cell `p`, one level down.
+#[inline]
+fn child_cell(p: [u32; 3], i: usize) -> [u32; 3] {
+    [
+        2 * p[0] + (i & 1) as u32,
+        2 * p[1] + ((i >> 1) & 1) as u32,
+        2 * p[2] + ((i >> 2) & 1) as u32,
+    ]
+}
+
+/// `LOW[j]`: the bits below bit `j` of an occupancy byte.
+const LOW: [u8; 8] = [0x00, 0x01, 0x03, 0x07, 0x0f, 0x1f, 0x3f, 0x7f];
 
 /// §8.2–§8.4: walks the octree of depth `depth` for `anchors` anchors. `event(freq_one,
 /// what)` returns each event's bit (occupancy events first, in traversal order, then count
@@ -221,23 +293,24 @@ pub fn walk(
         let mut children: Vec<[u32; 3]> = Vec::with_capacity((nodes.len() * 2).min(n));
         for (pi, &p) in nodes.iter().enumerate() {
             let (row, present) = (&nbr[pi].index, nbr[pi].present);
-            // −x, +x, −y, +y, −z, +z.
-            let face = [
-                row[nb([-1, 0, 0])],
-                row[nb([1, 0, 0])],
-                row[nb([0, -1, 0])],
-                row[nb([0, 1, 0])],
-                row[nb([0, 0, -1])],
-                row[nb([0, 0, 1])],
+            // The occupancy bytes of the face neighbours −x, +x, −y, +y, −z, +z (0 where there
+            // is none or it is not walked yet: `bytes` is filled in walking order). They do
+            // not change while this node's children are decided.
+            let last = bytes.len() - 1;
+            let face = |slot: usize| {
+                let q = row[slot];
+                bytes[(q as usize).min(last)] & 0u8.wrapping_sub(u8::from(q != u32::MAX))
+            };
+            let face_bytes = [
+                face(nb([-1, 0, 0])),
+                face(nb([1, 0, 0])),
+                face(nb([0, -1, 0])),
+                face(nb([0, 1, 0])),
+                face(nb([0, 0, -1])),
+                face(nb([0, 0, 1])),
             ];
-            let mut byte = 0u8;
+            let (mut byte, mut occupied) = (0u8, 0usize);
             for (i, &side) in SIDE_MASKS.iter().enumerate() {
-                let c = [
-                    2 * p[0] + (i & 1) as u32,
-                    2 * p[1] + ((i >> 1) & 1) as u32,
-                    2 * p[2] + ((i >> 2) & 1) as u32,
-                ];
-                let occupied = byte.count_ones();
                 let bit = if i == 7 && occupied == 0 {
                     true
                 } else {
@@ -245,22 +318,18 @@ pub fn walk(
                     let mut kf = 0usize;
                     for a in 0..3 {
                         let j = i ^ (1 << a);
-                        let high = (i >> a) & 1 == 1;
-                        // Inside the node: the sibling across this face, if decoded (j < i).
-                        if j < i && byte >> j & 1 == 1 {
-                            kf += 1;
-                        }
+                        let high = (i >> a) & 1;
+                        // Inside the node: the sibling across this face, if decoded (j < i,
+                        // which is when bit a of i is set).
+                        kf += high & usize::from(byte >> j & 1);
                         // Across the node's face on the child's side: child j of that
                         // neighbour, if the neighbour has been walked.
-                        let q = face[2 * a + usize::from(high)];
-                        if q != u32::MAX && bytes[q as usize] >> j & 1 == 1 {
-                            kf += 1;
-                        }
+                        kf += usize::from(face_bytes[2 * a + high] >> j & 1);
                     }
-                    let ctx = ((i * 8 + n7) * 4 + kf.min(3)) * 4 + (occupied as usize).min(3);
+                    let ctx = ((i * 8 + n7) * 4 + kf.min(3)) * 4 + occupied.min(3);
                     let what = Event::Occupancy {
                         depth: k + 1,
-                        cell: c,
+                        cell: child_cell(p, i),
                     };
                     let bit = event(occ[ctx].freq_one(precision), what)?;
                     occ[ctx].update(bit);
@@ -275,8 +344,9 @@ pub fn walk(
                             anchors,
                         });
                     }
-                    children.push(c);
+                    children.push(child_cell(p, i));
                     byte |= 1 << i;
+                    occupied += 1;
                 }
             }
             bytes[pi] = byte;
@@ -413,4 +483,29 @@ pub fn order0_occupancy_bits(voxels: &[[u32; 3]], depth: u8) -> f64 {
             .sum::<f64>();
     }
     total
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::entropy::ans::{MAX_PRECISION, MIN_PRECISION};
+
+    /// The reciprocal product is the §8.3 quotient for every reachable count pair and every
+    /// precision the tables allow.
+    #[test]
+    fn reciprocal_product_is_the_exact_quotient() {
+        for p in MIN_PRECISION..=MAX_PRECISION {
+            for sum in 2..=ADAPT_LIMIT {
+                for c1 in 1..sum {
+                    let counts = Counts { c0: sum - c1, c1 };
+                    let exact = ((u64::from(c1) << p) / u64::from(sum)) as u32;
+                    assert_eq!(
+                        counts.freq_one(p),
+                        exact.clamp(1, (1 << p) - 1),
+                        "c1 {c1}, sum {sum}, P {p}"
+                    );
+                }
+            }
+        }
+    }
 }

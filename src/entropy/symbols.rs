@@ -9,7 +9,7 @@ use super::ans::{
     self, clamp_freq_one, encode_intervals, with_precision, AnsReader, BinaryModel, Interval,
 };
 use super::scale::SCALE_COUNT;
-use super::tables::GaussianTables;
+use super::tables::{GaussianTables, PRECISION};
 pub use super::tables::{ESCAPE_MAX_PREFIX, ESCAPE_MAX_W};
 use crate::container::chunk::ChunkTag;
 use crate::error::{AnsFault, Error, Result};
@@ -164,11 +164,13 @@ impl<'a> SymbolReader<'a> {
         self.ans.remaining_words()
     }
 
+    #[cold]
     fn fail(&mut self, err: Error) -> Error {
         self.broken = Some(err.clone());
         err
     }
 
+    #[cold]
     fn ans_fault(&mut self, fault: AnsFault) -> Error {
         let tag = self.tag;
         self.fail(Error::AnsStreamInvalid { tag, fault })
@@ -178,8 +180,23 @@ impl<'a> SymbolReader<'a> {
     ///
     /// Errors: `ScaleIndexOutOfRange` if `k ≥ SCALE_COUNT` (nothing is read);
     /// `AnsStreamInvalid { OutOfWords }`; `EscapeOverflow` if an escape's prefix exceeds 30 bits.
-    #[inline]
+    #[inline(always)]
     pub fn symbol(&mut self, k: u8) -> Result<i64> {
+        // The format's precision with nothing broken: the common case, inlined into the
+        // caller's loop; the rest (other precisions for experiments, errors) out of line.
+        if self.tables.precision() == PRECISION
+            && self.broken.is_none()
+            && usize::from(k) < SCALE_COUNT
+        {
+            let u = self.symbol_p::<{ PRECISION as usize }>(k)?;
+            self.symbols += 1;
+            return Ok(u);
+        }
+        self.symbol_any(k)
+    }
+
+    #[inline(never)]
+    fn symbol_any(&mut self, k: u8) -> Result<i64> {
         if let Some(err) = &self.broken {
             return Err(err.clone());
         }
@@ -242,8 +259,24 @@ impl<'a> SymbolReader<'a> {
 
     /// Reads a binary event with P(1) = `freq_one` / 2^P, `freq_one` clamped to 1 … 2^P − 1
     /// (§6.2.1). Errors: `AnsStreamInvalid { OutOfWords }`.
-    #[inline]
+    #[inline(always)]
     pub fn bit(&mut self, freq_one: u32) -> Result<bool> {
+        // As in `symbol`: the format's precision inlined, the rest out of line.
+        if self.tables.precision() == PRECISION && self.broken.is_none() {
+            const P: usize = PRECISION as usize;
+            let model = BinaryModel {
+                freq_zero: (1u32 << P) - clamp_freq_one(P as u32, freq_one),
+            };
+            return match self.ans.decode_binary::<P>(model) {
+                Ok(bit) => Ok(bit),
+                Err(fault) => Err(self.ans_fault(fault)),
+            };
+        }
+        self.bit_any(freq_one)
+    }
+
+    #[inline(never)]
+    fn bit_any(&mut self, freq_one: u32) -> Result<bool> {
         if let Some(err) = &self.broken {
             return Err(err.clone());
         }

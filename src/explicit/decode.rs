@@ -96,27 +96,47 @@ pub(crate) fn decode_tile(
     Ok(symbols)
 }
 
-/// §3.5: decodes `GATT` of a layer whose geometry is `voxels` cut by `tiles`.
+/// A decoded tile: its symbols (§3.5) and its Gaussians (§3.6).
+pub type DecodedTile = (TileSymbols, Gaussians);
+
+/// §3.5, §3.6: decodes `GATT` of a layer whose geometry is `voxels` cut by `tiles`, and
+/// reconstructs each selected tile's Gaussians in the same task (tiles are independent, so
+/// the reconstruction runs on every thread rather than after the last tile).
+#[allow(clippy::too_many_arguments)]
 pub fn read_gatt(
     payload: &[u8],
+    header: &GaussianHeader,
+    rate: u8,
     layer: &Layer,
     groups: &[Group],
     tiles: &TileTable,
     voxels: &[[u32; 3]],
     selected: &[bool],
     tables: &GaussianTables,
-) -> Result<Vec<Option<TileSymbols>>> {
+) -> Result<Vec<Option<DecodedTile>>> {
     let tag = ChunkTag::GATT;
     let words = body(tag, payload, METHOD_CODED)?;
     let bodies = split_bodies(tag, 1, words, tiles.len())?;
-    let decoded: Vec<Result<Option<TileSymbols>>> = bodies
+    let decoded: Vec<Result<Option<DecodedTile>>> = bodies
         .into_par_iter()
         .enumerate()
         .map(|(t, b)| {
             if !selected.get(t).copied().unwrap_or(true) {
                 return Ok(None);
             }
-            decode_tile(layer, groups, &voxels[tiles.range(t)], b, tables).map(Some)
+            let tile_voxels = &voxels[tiles.range(t)];
+            let symbols = decode_tile(layer, groups, tile_voxels, b, tables)?;
+            let mut gaussians = Gaussians::with_capacity(header.sh_degree, tile_voxels.len());
+            reconstruct_tile(
+                header.origin,
+                layer,
+                groups,
+                rate,
+                tile_voxels,
+                &symbols,
+                &mut gaussians,
+            );
+            Ok(Some((symbols, gaussians)))
         })
         .collect();
     // §10.3: the lowest tile's error is reported.
@@ -186,6 +206,8 @@ pub(crate) struct ExplicitDecoder {
     selected: Vec<bool>,
     /// Every tile's symbols once `GATT` is decoded (`None`: not selected).
     per_tile: Option<Vec<Option<TileSymbols>>>,
+    /// The selected tiles' Gaussians, in order, where `GATT` was decoded whole.
+    reconstructed: Option<Gaussians>,
 }
 
 fn missing(tag: ChunkTag) -> Error {
@@ -216,6 +238,7 @@ impl ExplicitDecoder {
             voxels: None,
             selected: Vec::new(),
             per_tile: None,
+            reconstructed: None,
         }
     }
 
@@ -287,8 +310,22 @@ impl ExplicitDecoder {
             ChunkTag::GATT => {
                 self.select_tiles()?;
                 let (l, g, t, v) = self.tile_inputs()?;
-                let per_tile = read_gatt(bytes, l, g, t, v, &self.selected, tables)?;
+                let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+                let rate = self.rate_chosen;
+                let decoded = read_gatt(bytes, h, rate, l, g, t, v, &self.selected, tables)?;
+                let mut gaussians = Gaussians {
+                    sh_degree: h.sh_degree,
+                    ..Gaussians::default()
+                };
+                let mut per_tile = Vec::with_capacity(decoded.len());
+                for tile in decoded {
+                    per_tile.push(tile.map(|(symbols, g)| {
+                        gaussians.append(g);
+                        symbols
+                    }));
+                }
                 self.per_tile = Some(per_tile);
+                self.reconstructed = Some(gaussians);
             }
             _ => {
                 // SEND: empty, last, nothing after it.
@@ -350,8 +387,9 @@ impl ExplicitDecoder {
     }
 
     /// §3.6, after `SEND`: the Gaussians of every decoded tile, in stream order.
-    pub(crate) fn finish(self) -> Result<DecodedGaussians> {
-        self.finish_with(None)
+    pub(crate) fn finish(mut self) -> Result<DecodedGaussians> {
+        let reconstructed = self.reconstructed.take();
+        self.finish_with(reconstructed)
     }
 
     /// [`Self::finish`] with the Gaussians already reconstructed tile by tile, in order

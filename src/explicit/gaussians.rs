@@ -23,6 +23,29 @@ pub struct Gaussians {
 }
 
 impl Gaussians {
+    /// No Gaussians yet, with room for `n` of SH degree `sh_degree`.
+    pub fn with_capacity(sh_degree: u8, n: usize) -> Gaussians {
+        Gaussians {
+            positions: Vec::with_capacity(n),
+            sh_degree,
+            f_dc: Vec::with_capacity(n),
+            f_rest: Vec::with_capacity(n * 3 * rest_per_channel(sh_degree)),
+            opacity_logit: Vec::with_capacity(n),
+            log_scales: Vec::with_capacity(n),
+            rotations: Vec::with_capacity(n),
+        }
+    }
+
+    /// Moves `other`'s Gaussians (of the same SH degree) after these.
+    pub fn append(&mut self, mut other: Gaussians) {
+        self.positions.append(&mut other.positions);
+        self.f_dc.append(&mut other.f_dc);
+        self.f_rest.append(&mut other.f_rest);
+        self.opacity_logit.append(&mut other.opacity_logit);
+        self.log_scales.append(&mut other.log_scales);
+        self.rotations.append(&mut other.rotations);
+    }
+
     /// Number of Gaussians.
     pub fn len(&self) -> usize {
         self.positions.len()
