@@ -17,36 +17,38 @@ pub const COUNT_CONTEXTS: usize = 4;
 /// §8.3: counts are halved once their sum exceeds this.
 pub const ADAPT_LIMIT: u32 = 256;
 
-/// One adaptive binary context (§8.3): counts of 0s and 1s, both starting at 1.
+/// One adaptive binary context (§8.3): counts of 0s and 1s, both starting at 1, packed as
+/// `c0 | c1 << 16` (both ≤ 256) so that an event reads and writes it whole.
 #[derive(Debug, Clone, Copy)]
-struct Counts {
-    c0: u32,
-    c1: u32,
-}
+struct Counts(u32);
 
 impl Counts {
-    const START: Counts = Counts { c0: 1, c1: 1 };
+    const START: Counts = Counts::new(1, 1);
+
+    const fn new(c0: u32, c1: u32) -> Counts {
+        Counts(c0 | c1 << 16)
+    }
 
     /// P(1) in units of 2^−p, clamped to 1 … 2^p − 1: ⌊c1 · 2^p / (c0 + c1)⌋, computed as
     /// a product with a reciprocal (exact, see [`RECIPROCAL`]) rather than a division, which
     /// costs more than the rest of an event.
     #[inline]
     fn freq_one(self, p: u32) -> u32 {
-        let sum = (self.c0 + self.c1) as usize;
-        let f = (u64::from(self.c1) * RECIPROCAL[sum]) >> (RECIPROCAL_BITS - p);
+        let (c0, c1) = (self.0 & 0xffff, self.0 >> 16);
+        let sum = ((c0 + c1) as usize).min(ADAPT_LIMIT as usize);
+        let f = (u64::from(c1) * RECIPROCAL[sum]) >> (RECIPROCAL_BITS - p);
         (f as u32).clamp(1, (1 << p) - 1)
     }
 
+    #[inline]
     fn update(&mut self, bit: bool) {
-        if bit {
-            self.c1 += 1;
+        let v = self.0 + (1 << (16 * u32::from(bit)));
+        let (c0, c1) = (v & 0xffff, v >> 16);
+        *self = if c0 + c1 > ADAPT_LIMIT {
+            Counts::new((c0 + 1) >> 1, (c1 + 1) >> 1)
         } else {
-            self.c0 += 1;
-        }
-        if self.c0 + self.c1 > ADAPT_LIMIT {
-            self.c0 = (self.c0 + 1) >> 1;
-            self.c1 = (self.c1 + 1) >> 1;
-        }
+            Counts(v)
+        };
     }
 }
 
@@ -497,7 +499,7 @@ mod tests {
         for p in MIN_PRECISION..=MAX_PRECISION {
             for sum in 2..=ADAPT_LIMIT {
                 for c1 in 1..sum {
-                    let counts = Counts { c0: sum - c1, c1 };
+                    let counts = Counts::new(sum - c1, c1);
                     let exact = ((u64::from(c1) << p) / u64::from(sum)) as u32;
                     assert_eq!(
                         counts.freq_one(p),
