@@ -272,25 +272,38 @@ pub fn read_apos(
     tiles: &TileTable,
     tables: &GaussianTables,
 ) -> Result<Vec<[u32; 3]>> {
-    let tag = ChunkTag::APOS;
-    let body = body(tag, payload, METHOD_CODED)?;
-    let bodies = split_bodies(tag, 1, body, tiles.len())?;
+    let bodies = apos_bodies(payload, tiles)?;
     let decoded: Vec<Result<Vec<[u32; 3]>>> = bodies
         .into_par_iter()
         .enumerate()
-        .map(|(t, b)| {
-            let (level, cell) = tiles.cells[t];
-            let local = crate::geometry::decode(b, level, tiles.count(t), tables)?;
-            Ok(local
-                .into_iter()
-                .map(|v| [0, 1, 2].map(|k| v[k] + (cell[k] << level)))
-                .collect())
-        })
+        .map(|(t, b)| read_apos_tile(b, t, tiles, tables))
         .collect();
     let mut voxels = Vec::with_capacity(tiles.anchors as usize);
     for d in decoded {
         voxels.extend_from_slice(&d?);
     }
     tiles.check_geometry(&voxels)?;
+    Ok(voxels)
+}
+
+/// §8.1, §10: the body of each tile in `APOS`.
+pub fn apos_bodies<'a>(payload: &'a [u8], tiles: &TileTable) -> Result<Vec<&'a [u8]>> {
+    let tag = ChunkTag::APOS;
+    let body = body(tag, payload, METHOD_CODED)?;
+    split_bodies(tag, 1, body, tiles.len())
+}
+
+/// §8.1, §10: the voxels of tile `t` from its `APOS` body, in world voxel coordinates.
+pub fn read_apos_tile(
+    body: &[u8],
+    t: usize,
+    tiles: &TileTable,
+    tables: &GaussianTables,
+) -> Result<Vec<[u32; 3]>> {
+    let (level, cell) = tiles.cells[t];
+    let mut voxels = crate::geometry::decode(body, level, tiles.count(t), tables)?;
+    for v in &mut voxels {
+        *v = [0, 1, 2].map(|k| v[k] + (cell[k] << level));
+    }
     Ok(voxels)
 }

@@ -4,7 +4,7 @@
 use crate::par::*;
 
 use crate::container::chunk::{ChunkReader, ChunkTag};
-use crate::container::payload::{body, read_apos, METHOD_CODED};
+use crate::container::payload::{apos_bodies, body, read_apos, read_apos_tile, METHOD_CODED};
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::{GaussianTables, SymbolReader};
 use crate::error::{Error, Result};
@@ -125,22 +125,49 @@ pub fn read_gatt(
                 return Ok(None);
             }
             let tile_voxels = &voxels[tiles.range(t)];
-            let symbols = decode_tile(layer, groups, tile_voxels, b, tables)?;
-            let mut gaussians = Gaussians::with_capacity(header.sh_degree, tile_voxels.len());
-            reconstruct_tile(
-                header.origin,
-                layer,
-                groups,
-                rate,
-                tile_voxels,
-                &symbols,
-                &mut gaussians,
-            );
-            Ok(Some((symbols, gaussians)))
+            decode_and_reconstruct(header, rate, layer, groups, tile_voxels, b, tables)
         })
         .collect();
     // §10.3: the lowest tile's error is reported.
     decoded.into_iter().collect()
+}
+
+/// §3.5, §3.6: one tile's symbols from its `GATT` body and its Gaussians from them.
+fn decode_and_reconstruct(
+    header: &GaussianHeader,
+    rate: u8,
+    layer: &Layer,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    body: &[u8],
+    tables: &GaussianTables,
+) -> Result<Option<DecodedTile>> {
+    let symbols = decode_tile(layer, groups, voxels, body, tables)?;
+    let mut gaussians = Gaussians::with_capacity(header.sh_degree, voxels.len());
+    reconstruct_tile(
+        header.origin,
+        layer,
+        groups,
+        rate,
+        voxels,
+        &symbols,
+        &mut gaussians,
+    );
+    Ok(Some((symbols, gaussians)))
+}
+
+/// The payload of the next critical chunk in `rest` if it is `GATT` and every chunk before it
+/// is framed and CRC-checked (`None` otherwise, or where `rest` ends first: the chunks are
+/// then decoded one at a time, and report their own errors at their own positions).
+fn next_gatt<'a>(rest: &'a [u8], limits: &Limits) -> Option<&'a [u8]> {
+    let mut reader = ChunkReader::new(rest, 0, limits);
+    // Every chunk read takes at least its 12 bytes of framing, so this ends.
+    while let Ok(Some(chunk)) = reader.next_chunk() {
+        if chunk.tag.is_critical() {
+            return (chunk.tag == ChunkTag::GATT).then_some(chunk.payload);
+        }
+    }
+    None
 }
 
 /// Decodes an explicit-profile stream at `rate` (default: the lowest coded rate), §3.7.
@@ -208,6 +235,9 @@ pub(crate) struct ExplicitDecoder {
     per_tile: Option<Vec<Option<TileSymbols>>>,
     /// The selected tiles' Gaussians, in order, where `GATT` was decoded whole.
     reconstructed: Option<Gaussians>,
+    /// `GATT`'s outcome where it was decoded with `APOS` (see [`ExplicitDecoder::fused`]),
+    /// reported when its own position in the stream is reached.
+    early_gatt: Option<Result<Vec<Option<DecodedTile>>>>,
 }
 
 fn missing(tag: ChunkTag) -> Error {
@@ -239,6 +269,7 @@ impl ExplicitDecoder {
             selected: Vec::new(),
             per_tile: None,
             reconstructed: None,
+            early_gatt: None,
         }
     }
 
@@ -303,16 +334,25 @@ impl ExplicitDecoder {
                 let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
                 self.tiles = Some(TileTable::parse(bytes, h.count, l.coord_bits)?);
             }
-            ChunkTag::APOS => {
-                let t = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-                self.voxels = Some(read_apos(bytes, t, tables)?);
-            }
+            ChunkTag::APOS => match next_gatt(rest, &self.limits) {
+                Some(gatt) => self.fused(bytes, gatt, tables)?,
+                None => {
+                    let t = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+                    self.voxels = Some(read_apos(bytes, t, tables)?);
+                }
+            },
             ChunkTag::GATT => {
-                self.select_tiles()?;
-                let (l, g, t, v) = self.tile_inputs()?;
+                let decoded = match self.early_gatt.take() {
+                    Some(decoded) => decoded?,
+                    None => {
+                        self.select_tiles()?;
+                        let (l, g, t, v) = self.tile_inputs()?;
+                        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+                        let rate = self.rate_chosen;
+                        read_gatt(bytes, h, rate, l, g, t, v, &self.selected, tables)?
+                    }
+                };
                 let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-                let rate = self.rate_chosen;
-                let decoded = read_gatt(bytes, h, rate, l, g, t, v, &self.selected, tables)?;
                 let mut gaussians = Gaussians {
                     sh_degree: h.sh_degree,
                     ..Gaussians::default()
@@ -334,6 +374,58 @@ impl ExplicitDecoder {
             }
         }
         Ok(false)
+    }
+
+    /// `APOS` and the `GATT` that follows it (`gatt`, already framed and CRC-checked) decoded
+    /// together: each tile's geometry, attributes and Gaussians in one task, so that no
+    /// thread waits for the slowest tile's geometry before starting on attributes. The
+    /// outcome is the two chunks' in stream order: `APOS`'s errors (the lowest tile's), then
+    /// the tiles' boxes and order (§10), are reported now; `GATT`'s outcome is kept for its
+    /// own position, after whatever chunks come between.
+    fn fused(&mut self, apos: &[u8], gatt: &[u8], tables: &GaussianTables) -> Result<()> {
+        let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+        let geometry = apos_bodies(apos, tiles)?;
+        self.select_tiles()?;
+        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+        let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
+        let g = self.groups.as_deref().ok_or(missing(ChunkTag::GQUA))?;
+        let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+        let attributes = body(ChunkTag::GATT, gatt, METHOD_CODED)
+            .and_then(|words| split_bodies(ChunkTag::GATT, 1, words, tiles.len()));
+        let (rate, selected) = (self.rate_chosen, &self.selected);
+        type Fused = (Result<Vec<[u32; 3]>>, Option<Result<Option<DecodedTile>>>);
+        let decoded: Vec<Fused> = geometry
+            .into_par_iter()
+            .enumerate()
+            .map(|(t, b)| {
+                let voxels = read_apos_tile(b, t, tiles, tables);
+                let tile = match (&voxels, &attributes) {
+                    (Ok(v), Ok(bodies)) if selected.get(t).copied().unwrap_or(true) => {
+                        Some(decode_and_reconstruct(h, rate, l, g, v, bodies[t], tables))
+                    }
+                    (Ok(_), Ok(_)) => Some(Ok(None)),
+                    _ => None,
+                };
+                (voxels, tile)
+            })
+            .collect();
+        let mut voxels = Vec::with_capacity(tiles.anchors as usize);
+        let mut per_tile = Vec::with_capacity(decoded.len());
+        for (v, tile) in decoded {
+            voxels.extend_from_slice(&v?);
+            per_tile.push(tile);
+        }
+        tiles.check_geometry(&voxels)?;
+        self.voxels = Some(voxels);
+        // Every tile's geometry decoded, so every tile has an outcome where `GATT` was
+        // framed; the lowest tile's error is reported (§10.3).
+        self.early_gatt = Some(attributes.and_then(|_| {
+            per_tile
+                .into_iter()
+                .map(|tile| tile.unwrap_or(Ok(None)))
+                .collect()
+        }));
+        Ok(())
     }
 
     /// The tiles the region keeps, fixed when the selected layer's `GATT` begins (§10.3).
