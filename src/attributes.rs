@@ -120,31 +120,44 @@ impl PriorBlock {
         let cout = prior.mlp.cout;
         let width = f + s + 3 * k;
         let m = voxels.len();
+        // Runs of anchors, each walked in order so that the next anchor's grid entries are
+        // requested while this one is computed.
+        const RUN: usize = 64;
         self.ys[..m * cout]
-            .par_chunks_mut(cout.max(1))
-            .zip(self.ks[..m * width].par_chunks_mut(width.max(1)))
-            .zip(self.deltas[..m].par_iter_mut())
-            .zip(voxels.par_iter())
-            .zip(masks.par_chunks(k.max(1)))
+            .par_chunks_mut(RUN * cout.max(1))
+            .zip(self.ks[..m * width].par_chunks_mut(RUN * width.max(1)))
+            .zip(self.deltas[..m].par_chunks_mut(RUN))
+            .zip(voxels.par_chunks(RUN))
+            .zip(masks.par_chunks(RUN * k.max(1)))
             .for_each_init(
                 || prior.context(),
-                |ctx, ((((y, kk), delta), &v), mask)| {
-                    prior.eval_into(grid, v, ctx, y);
-                    for (gi, (g, w)) in [(Group::Feature, f), (Group::Scaling, s)]
-                        .into_iter()
-                        .enumerate()
-                    {
-                        let step = prior.step(y, g);
-                        delta[gi] = step.delta;
-                        let at = gi * f;
-                        prior.scale_indices(y, g, 0, &step, &mut kk[at..at + w]);
-                    }
-                    let step = prior.step(y, Group::Offsets);
-                    delta[2] = step.delta;
-                    for (slot, _) in mask.iter().enumerate().filter(|(_, &m)| m != 0) {
-                        let at = f + s + 3 * slot;
-                        let out = &mut kk[at..at + 3];
-                        prior.scale_indices(y, Group::Offsets, 3 * slot, &step, out);
+                |ctx, ((((ys, kks), deltas), vs), run_masks)| {
+                    let anchors = ys
+                        .chunks_mut(cout.max(1))
+                        .zip(kks.chunks_mut(width.max(1)))
+                        .zip(deltas.iter_mut())
+                        .zip(run_masks.chunks(k.max(1)));
+                    for (a, (((y, kk), delta), mask)) in anchors.enumerate() {
+                        if let Some(&next) = vs.get(a + 1) {
+                            prior.prefetch(grid, next);
+                        }
+                        prior.eval_into(grid, vs[a], ctx, y);
+                        for (gi, (g, w)) in [(Group::Feature, f), (Group::Scaling, s)]
+                            .into_iter()
+                            .enumerate()
+                        {
+                            let step = prior.step(y, g);
+                            delta[gi] = step.delta;
+                            let at = gi * f;
+                            prior.scale_indices(y, g, 0, &step, &mut kk[at..at + w]);
+                        }
+                        let step = prior.step(y, Group::Offsets);
+                        delta[2] = step.delta;
+                        for (slot, _) in mask.iter().enumerate().filter(|(_, &m)| m != 0) {
+                            let at = f + s + 3 * slot;
+                            let out = &mut kk[at..at + 3];
+                            prior.scale_indices(y, Group::Offsets, 3 * slot, &step, out);
+                        }
                     }
                 },
             );

@@ -78,9 +78,13 @@ pub fn rescale(u: i64, from: i8, to: i8) -> i64 {
     debug_assert!((-32..=32).contains(&(i32::from(from) - i32::from(to))));
     let d = i32::from(from) - i32::from(to);
     if d >= 0 {
-        // Exact: a symbol reaches 2^31 + 127 and d 32, past i64 (§3.5 clamps the exact
-        // product).
-        (i128::from(u) << d).clamp(-i128::from(MAX_COORDINATE), i128::from(MAX_COORDINATE)) as i64
+        // §3.5 clamps the exact product. A symbol reaches 2^31 + 127, so for d ≤ 24 the
+        // product stays below 2^56 in i64; from d = 25 on, any u ≠ 0 is past 2^24.
+        if d > 24 {
+            u.signum() * MAX_COORDINATE
+        } else {
+            (u << d).clamp(-MAX_COORDINATE, MAX_COORDINATE)
+        }
     } else {
         let s = -d;
         (u + (1 << (s - 1))) >> s
@@ -189,6 +193,25 @@ mod tests {
         assert_eq!(rescale((1 << 31) + 127, 16, -16), MAX_COORDINATE);
         assert_eq!(rescale(-(1 << 31) - 127, 16, -16), -MAX_COORDINATE);
         assert_eq!(rescale(3, 1, 0), 6);
+        // Every shift against the exact product, at the edges of the clamp.
+        for d in 0i8..=32 {
+            for u in [
+                0i64,
+                1,
+                -1,
+                2,
+                7,
+                -7,
+                1 << 12,
+                (1 << 24) - 1,
+                (1 << 31) + 127,
+            ] {
+                for u in [u, -u] {
+                    let exact = (i128::from(u) << d).clamp(-(1 << 24), 1 << 24) as i64;
+                    assert_eq!(rescale(u, d - 16, -16), exact, "u {u}, d {d}");
+                }
+            }
+        }
         // rshr rounds ties toward +∞.
         assert_eq!(rescale(3, 0, 1), 2);
         assert_eq!(rescale(-3, 0, 1), -1);

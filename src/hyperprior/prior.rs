@@ -156,6 +156,12 @@ impl Prior {
         self.eval_parts(grid, v, x, h, y);
     }
 
+    /// Starts loading the grid entries that evaluating the anchor at voxel `v` reads (see
+    /// [`GridLayout::prefetch`]).
+    pub fn prefetch(&self, grid: &HashGrid, v: [u32; 3]) {
+        self.layout.prefetch(grid, v);
+    }
+
     /// [`Prior::eval`] with the outputs written to `y` (length `cout`) instead of `ctx.y`.
     pub fn eval_into(&self, grid: &HashGrid, v: [u32; 3], ctx: &mut AnchorContext, y: &mut [i32]) {
         self.eval_parts(grid, v, &mut ctx.x, &mut ctx.h, y);

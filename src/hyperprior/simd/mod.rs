@@ -12,7 +12,10 @@
 //!
 //! - [`sse2::dot`]: one dot product, 8 lanes (every x86-64 CPU);
 //! - [`avx2::Avx2Mlp`]: the whole MLP, 16 lanes, 8 rows at a time, selected once per stream
-//!   when the CPU has AVX2.
+//!   when the CPU has AVX2;
+//! - [`prefetch`]: a hint to load a hash-grid entry ahead of its use (§5.1's corners are
+//!   scattered over megabytes of tables, and waiting for them was most of the
+//!   interpolation's time). A hint changes no result.
 
 #![allow(unsafe_code)]
 
@@ -23,6 +26,21 @@ pub mod sse2;
 
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub use sse2::dot;
+
+/// Asks the CPU to bring the cache line of `data[index]` into its caches, where the index is
+/// in bounds; nothing otherwise, and nothing on other targets or without the `simd` feature.
+#[inline(always)]
+pub fn prefetch(data: &[i8], index: usize) {
+    #[cfg(all(feature = "simd", target_arch = "x86_64"))]
+    if let Some(p) = data.get(index) {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // SAFETY: `p` points into `data`; a prefetch reads nothing the program sees, cannot
+        // fault, and needs only SSE, which every x86-64 CPU has.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(p)) }
+    }
+    #[cfg(not(all(feature = "simd", target_arch = "x86_64")))]
+    let _ = (data, index);
+}
 
 /// For tests of the AVX2 kernel: whether this CPU has AVX2. Where it has none, the test
 /// cannot compare the kernel with anything, so it says that it skipped on stderr (written
