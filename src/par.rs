@@ -24,16 +24,12 @@ mod sequential {
     /// The slice methods rayon adds, as the plain ones.
     pub(crate) trait ParallelSlice<T> {
         fn par_iter(&self) -> std::slice::Iter<'_, T>;
-        fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T>;
         fn par_chunks(&self, n: usize) -> std::slice::Chunks<'_, T>;
         fn par_chunks_mut(&mut self, n: usize) -> std::slice::ChunksMut<'_, T>;
     }
     impl<T> ParallelSlice<T> for [T] {
         fn par_iter(&self) -> std::slice::Iter<'_, T> {
             self.iter()
-        }
-        fn par_iter_mut(&mut self) -> std::slice::IterMut<'_, T> {
-            self.iter_mut()
         }
         fn par_chunks(&self, n: usize) -> std::slice::Chunks<'_, T> {
             self.chunks(n)

@@ -152,16 +152,18 @@ impl GridLayout {
     /// Starts loading the grid entries [`GridLayout::interpolate`] will read for voxel `v`
     /// (a hint: it changes no result). Called for the next anchor while this one is
     /// computed, it overlaps the waits for scattered table entries with work.
+    #[cfg(feature = "simd")]
     pub fn prefetch(&self, g: &HashGrid, v: [u32; 3]) {
+        use crate::hyperprior::simd::prefetch;
         let c = self.channels;
-        self.corners3(v, |_, e, _| {
-            crate::hyperprior::simd::prefetch(&g.grid_3d, e as usize * c)
-        });
+        self.corners3(v, |_, e, _| prefetch(&g.grid_3d, e as usize * c));
         let planes = [&g.grid_xy, &g.grid_xz, &g.grid_yz];
-        self.corners2(v, |pi, _, e, _| {
-            crate::hyperprior::simd::prefetch(planes[pi], e as usize * c)
-        });
+        self.corners2(v, |pi, _, e, _| prefetch(planes[pi], e as usize * c));
     }
+
+    /// Without the `simd` feature there is no prefetch hint: nothing to do.
+    #[cfg(not(feature = "simd"))]
+    pub fn prefetch(&self, _: &HashGrid, _: [u32; 3]) {}
 
     /// §5.1: the integer grid features of voxel `v` (units of 2^-8), written to `out`
     /// (length [`GridLayout::features`]) in the order 3D levels, xy, xz, yz levels, C each.
