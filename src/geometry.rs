@@ -187,10 +187,12 @@ const FROM_PARENT: [[FromParent; 27]; 8] = {
         let mut slot = 0;
         while slot < 27 {
             if slot != 13 {
+                // Indexing, not a `&mut` binding: the decoder's minimum Rust (1.80) allows
+                // no mutable references in constants.
                 let (ps, child) = CHILD_NEIGHBOUR[i][slot];
-                let f = &mut out[i][ps as usize];
-                f.cells[f.len as usize] = (slot as u8, child);
-                f.len += 1;
+                let at = out[i][ps as usize].len as usize;
+                out[i][ps as usize].cells[at] = (slot as u8, child);
+                out[i][ps as usize].len += 1;
             }
             slot += 1;
         }
