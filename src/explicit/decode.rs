@@ -428,7 +428,8 @@ impl ExplicitDecoder {
         Ok(())
     }
 
-    /// The tiles the region keeps, fixed when the selected layer's `GATT` begins (§10.3).
+    /// The tiles the region keeps (§10.3), fixed before the selected layer's `GATT` is decoded
+    /// (with `APOS` where the two are decoded together).
     pub(crate) fn select_tiles(&mut self) -> Result<&[bool]> {
         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
         let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
