@@ -165,6 +165,31 @@ fn seeds_replay_clean_and_the_stream_seeds_decode() {
     assert!(count >= 8, "only {count} seeds");
 }
 
+/// The `geometry` target's seeds: each tile's `APOS` body of a tiled stream, after its depth
+/// and anchor count (`salvq_conformance::fuzzing::geometry_input`'s layout).
+fn write_geometry_seeds(dir: &Path, stream: &[u8]) {
+    use salvq::container::chunk::ChunkTag;
+    use salvq::container::surgery::chunks;
+    let all = chunks(stream).unwrap();
+    let payload = |tag| &all.iter().find(|(t, _)| *t == tag).unwrap().1;
+    let (tils, apos) = (payload(ChunkTag::TILS), payload(ChunkTag::APOS));
+    let word = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap());
+    let tiles = word(tils, 1) as usize;
+    let bodies = salvq::tiles::split_bodies(ChunkTag::APOS, 1, &apos[1..], tiles).unwrap();
+    for old in files(dir) {
+        std::fs::remove_file(old).unwrap();
+    }
+    for (t, body) in bodies.iter().enumerate() {
+        // §10.1: each tile entry is 41 bytes (anchors, level, cell, box) after 5.
+        let entry = 5 + 41 * t;
+        let anchors = word(tils, entry) as u16;
+        let mut seed = vec![tils[entry + 4]];
+        seed.extend_from_slice(&(anchors - 1).to_le_bytes());
+        seed.extend_from_slice(body);
+        std::fs::write(dir.join(format!("tile{t}.bin")), seed).unwrap();
+    }
+}
+
 /// Writes the seeds of the `decode` and `extract` targets (five small streams), and of the
 /// `payload` and `preflight` targets (each payload of the base stream, and the `HEAD`
 /// payloads of the conformance vectors); run after a format change:
@@ -241,6 +266,9 @@ fn write_seeds() {
         let mut e = vec![rate];
         e.extend_from_slice(&stream);
         std::fs::write(root.join(format!("fuzz/seeds/extract/{name}.bin")), e).unwrap();
+        if name == "e8_tiles" {
+            write_geometry_seeds(&root.join("fuzz/seeds/geometry"), &stream);
+        }
     }
     // An explicit-profile stream (spec §3): the payload target's explicit base.
     let explicit = salvq_conformance::fuzzing::explicit_payload_base();

@@ -67,6 +67,20 @@ class AnsDecoder:
             self._refill()
         return bit
 
+    def decode_uniform(self, b: int) -> int:
+        """A uniform value of b bits (§6.2.1 item 4, since 0.12): value v owns
+        [v·2^(P−b), (v + 1)·2^(P−b)); §6.2.4 step 2 is v = floor(q / 2^(P−b))."""
+        if not 1 <= b <= 12:
+            raise ValueError(f"uniform value of {b} bits: §6.2.1 item 4 allows 1 … 12")
+        shift = P - b
+        x = self.x
+        q = x & _MASK_P
+        v = q >> shift
+        self.x = (x >> P << shift) + (q - (v << shift))    # f·floor(x/2^P) + (q − c)
+        if self.x < _L:
+            self._refill()
+        return v
+
     def decode_escape_bit(self) -> int:
         """An escape bit (§6.2.1 item 2): two halves of probability 1/2."""
         x = self.x

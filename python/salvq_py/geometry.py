@@ -1,5 +1,6 @@
 """Anchor geometry (§8, `APOS` coding method 1, §1.6.4): an octree per tile with adaptive
-contexts (§8.2, §8.3) and a count per voxel (§8.4)."""
+contexts (§8.2, §8.3), direct nodes (§8.2, since 0.12: an isolated node's flag, then its
+single voxel's octants as uniform 3-bit values) and a count per voxel (§8.4)."""
 from __future__ import annotations
 
 import numpy as np
@@ -35,22 +36,71 @@ def _event(dec: AnsDecoder, ctx: _Ctx, i: int) -> int:
     return bit
 
 
-_N7 = None
+# The 26 neighbour offsets of §8.2's isolation test, d ∈ {−1, 0, 1}³ \ {(0, 0, 0)}.
+_NEIGHBOURS = tuple((dx, dy, dz) for dz in (-1, 0, 1) for dy in (-1, 0, 1) for dx in (-1, 0, 1)
+                    if (dx, dy, dz) != (0, 0, 0))
+
+_OCTANT_BITS = 3                                # §8.2: one uniform 3-bit value per depth
 
 
-def decode_tile(body: bytes, tile: Tile) -> list[tuple]:
-    """One tile's APOS body: returns its anchors' absolute voxels, in order (§8.2 - §8.4)."""
-    dec = AnsDecoder(body)                      # §6.2.6 steps 1-3
+def _too_many(tile: Tile, depth: int, n: int) -> SalvqError:
+    return SalvqError("OctreeInvalid",
+                      f"chunk APOS, tile {tile.index}: more nodes than anchors at depth {depth} "
+                      f"({n} > {tile.count}) [§8.2]")
+
+
+def _isolated(px: int, py: int, pz: int, node_set: set) -> bool:
+    """§8.2: none of the 26 neighbours is in the depth-k list (a cell outside [0, 2^k)^3
+    never is: `node_set` holds only cells inside it)."""
+    for (dx, dy, dz) in _NEIGHBOURS:
+        if (px + dx, py + dy, pz + dz) in node_set:
+            return False
+    return True
+
+
+def _octree(dec: AnsDecoder, tile: Tile) -> list[tuple]:
+    """§8.2 with §8.3's contexts: the tile's occupied voxels (cell-relative), in Morton order.
+
+    `direct[j]` is None for an ordinary node, or the voxel v (depth-D cell) a direct node
+    holds. Every loop is bounded: D levels, at most N_t nodes per level (checked before each
+    append), 8 children or D − k octants per node."""
     D = tile.level
     Nt = tile.count
-    occ = _Ctx(1024)
-    nodes = [(0, 0, 0)]
+    occ = _Ctx(1024)                            # occupancy contexts (§8.3)
+    dctx = _Ctx(4)                              # direct-flag contexts (§8.3, since 0.12)
+    nodes: list[tuple] = [(0, 0, 0)]
+    direct: list = [None]                       # the root is not direct
     for k in range(D):
         node_set = set(nodes)
         lim = 1 << k
+        left = D - k                            # levels left below a depth-k node
         children: list[tuple] = []
+        child_direct: list = []
         child_set: set = set()
-        for (px, py, pz) in nodes:
+        for (px, py, pz), dv in zip(nodes, direct):
+            if dv is not None:                  # a direct node: its one child, no events
+                if len(children) >= Nt:
+                    raise _too_many(tile, k + 1, len(children) + 1)
+                sh = left - 1
+                c = (dv[0] >> sh, dv[1] >> sh, dv[2] >> sh)
+                children.append(c)
+                child_direct.append(dv)
+                child_set.add(c)
+                continue
+            if _isolated(px, py, pz, node_set) and _event(dec, dctx, min(left, 4) - 1):
+                vx, vy, vz = px, py, pz         # v = p, then one octant per depth k+1 … D
+                for _ in range(left):
+                    o = dec.decode_uniform(_OCTANT_BITS)
+                    vx, vy, vz = 2 * vx + (o & 1), 2 * vy + ((o >> 1) & 1), 2 * vz + (o >> 2)
+                if len(children) >= Nt:         # after the octants (§8.2)
+                    raise _too_many(tile, k + 1, len(children) + 1)
+                sh = left - 1
+                dv = (vx, vy, vz)
+                c = (vx >> sh, vy >> sh, vz >> sh)
+                children.append(c)
+                child_direct.append(dv)
+                child_set.add(c)
+                continue
             occupied = 0
             for i in range(8):
                 b0, b1, b2 = i & 1, (i >> 1) & 1, (i >> 2) & 1
@@ -76,14 +126,23 @@ def decode_tile(body: bytes, tile: Tile) -> list[tuple]:
                     ctx = ((i * 8 + n7) * 4 + kf) * 4 + sib
                     bit = _event(dec, occ, ctx)
                 if bit:
+                    if len(children) >= Nt:
+                        raise _too_many(tile, k + 1, len(children) + 1)
                     children.append(c)
+                    child_direct.append(None)
                     child_set.add(c)
                     occupied += 1
-                    if len(children) > Nt:
-                        raise SalvqError("OctreeInvalid",
-                                         f"chunk APOS, tile {tile.index}: more nodes than anchors at depth {k + 1} "
-                                         f"({len(children)} > {Nt}) [§8.2]")
         nodes = children
+        direct = child_direct
+    return nodes
+
+
+def decode_tile(body: bytes, tile: Tile) -> list[tuple]:
+    """One tile's APOS body: returns its anchors' absolute voxels, in order (§8.2 - §8.4)."""
+    dec = AnsDecoder(body)                      # §6.2.6 steps 1-3
+    D = tile.level
+    Nt = tile.count
+    nodes = _octree(dec, tile)
     counts = _Ctx(4)
     total = 0
     out = []

@@ -155,6 +155,41 @@ def test_ans_golden_vector():                          # §6.2.8
     d.finish()
 
 
+def test_ans_uniform_values():                         # §6.2.1 item 4 (0.12)
+    """Uniform values of 1 … 12 bits between binary events and symbols, encoded by §6.2.3
+    (tools/reencode.py) and decoded back; no vector has b other than 3 (§8.2's octants)."""
+    import random
+    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
+    from reencode import binary_interval, encode_body, symbol_intervals, uniform_interval
+    rng = random.Random(12)
+    for trial in range(40):
+        events = []
+        for _ in range(rng.randrange(0, 400)):
+            kind = rng.randrange(3)
+            if kind == 0:
+                b = rng.randrange(1, 13)
+                events.append(("u", b, rng.randrange(1 << b)))
+            elif kind == 1:
+                f = rng.choice((1, 2, 1 << 15, 65535, rng.randrange(1, 1 << 16)))
+                events.append(("b", f, int(rng.random() < f / 65536)))
+            else:
+                events.append(("s", rng.randrange(64), rng.randrange(-200, 201)))
+        intervals = []
+        for kind, p, v in events:
+            if kind == "u":
+                intervals.append(uniform_interval(v, p))
+            elif kind == "b":
+                intervals.append(binary_interval(v, p))
+            else:
+                intervals += symbol_intervals(v, p)
+        d = AnsDecoder(encode_body(intervals))
+        for kind, p, v in events:
+            got = (d.decode_uniform(p) if kind == "u" else
+                   d.decode_binary(p) if kind == "b" else d.decode_symbol(p))
+            assert got == v, f"trial {trial}: {kind} {p}: {got} != {v}"
+        d.finish()
+
+
 def _mlps_edit(data: bytes, body_fn) -> bytes:
     """Replace the MLPS payload by body_fn(payload), CRC recomputed (§1.3)."""
     pos = 12
@@ -320,7 +355,8 @@ def _chunk_insert(data: bytes, after: str, tag: str, payload: bytes) -> bytes:
 def explicit_cases() -> list[tuple[str, bytes, int, str]]:
     """Edited explicit-profile streams (§3) that no vector covers, as (label, stream, rate,
     expected): a class, "ok", or "ok:<integer-domain hash>:<float hash>". Each expectation is
-    the reference decoder's (that wrote the 0.11 vectors), which salvq_py matched;
+    the reference decoder's (that wrote the 0.11 vectors), which salvq_py matched; they
+    still hold on the 0.12 vectors (0.12 changed only the octree's events, §8.2), and
     `tools/probe_reference.py` reruns them on both."""
     import struct
     sys.path.insert(0, os.path.join(HERE, "..", "tools"))
@@ -499,7 +535,8 @@ def test_must_fail_vectors():
 def main() -> int:
     failed = 0
     for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector,
-              test_mlps_precision_checks, test_explicit_profile_checks, test_region_decodes):
+              test_ans_uniform_values, test_mlps_precision_checks, test_explicit_profile_checks,
+              test_region_decodes):
         try:
             t()
             print(f"pass  {t.__name__}")

@@ -110,6 +110,12 @@ def binary_interval(bit: int, freq_one: int) -> tuple[int, int]:
     return ((1 << P) - f1, f1) if bit else (0, (1 << P) - f1)
 
 
+def uniform_interval(v: int, b: int) -> tuple[int, int]:
+    """§6.2.1 item 4 (since 0.12): a uniform value v of b bits owns [v·2^(P−b), (v + 1)·2^(P−b))."""
+    assert 1 <= b <= 12 and 0 <= v < (1 << b)
+    return (v << (P - b), 1 << (P - b))
+
+
 def gatt_intervals(h, lay, tile, voxels, coords, rot_index, size_class, refinement):
     """The intervals of one tile's GATT body for the given decoded values, by §3.5 as salvq_py
     reads it (the encoder's side of `salvq_py.gatt._tile`)."""

@@ -275,6 +275,42 @@ impl<const P: usize> DecoderModel<P> for BinaryModel {
     }
 }
 
+/// A uniform value of `bits` bits (§6.2.1 kind 4, 1 ≤ `bits` ≤ P): value v is
+/// [v · 2^(P − bits), (v + 1) · 2^(P − bits)).
+#[derive(Debug, Clone, Copy)]
+pub struct UniformModel {
+    pub bits: u32,
+}
+
+impl UniformModel {
+    /// The coded interval of `value` (below 2^bits) at precision `precision`.
+    pub fn interval(self, precision: u32, value: u32) -> Interval {
+        let shift = precision - self.bits;
+        Interval {
+            cum: value << shift,
+            freq: NonZeroU32::new(1 << shift).unwrap_or(NonZeroU32::MIN),
+        }
+    }
+}
+
+impl<const P: usize> EntropyModel<P> for UniformModel {
+    type Symbol = u32;
+    type Probability = u32;
+}
+
+impl<const P: usize> DecoderModel<P> for UniformModel {
+    #[inline(always)]
+    fn quantile_function(&self, quantile: u32) -> (u32, u32, NonZeroU32) {
+        let shift = P as u32 - self.bits;
+        let value = quantile >> shift;
+        (
+            value,
+            value << shift,
+            NonZeroU32::new(1 << shift).unwrap_or(NonZeroU32::MIN),
+        )
+    }
+}
+
 /// The decoder side of §6.2: `constriction`'s coder over a chunk body, plus the checks that
 /// turn a word sequence the encoder could not have written into an [`AnsFault`].
 #[derive(Clone)]
@@ -352,6 +388,14 @@ impl<'a> AnsReader<'a> {
         let bit = Decode::<P>::decode_symbol(&mut self.coder, model).unwrap_infallible();
         self.check_state()?;
         Ok(bit)
+    }
+
+    /// Decodes one uniform value at precision `P` (§6.2.4); `model.bits` must be 1 … P.
+    #[inline(always)]
+    pub fn decode_uniform<const P: usize>(&mut self, model: UniformModel) -> Result<u32, AnsFault> {
+        let value = Decode::<P>::decode_symbol(&mut self.coder, model).unwrap_infallible();
+        self.check_state()?;
+        Ok(value)
     }
 
     /// §6.2.6 step 5: every word used, and the state back at 2^32.

@@ -7,9 +7,13 @@
 
 use super::ans::{
     self, clamp_freq_one, encode_intervals, with_precision, AnsReader, BinaryModel, Interval,
+    UniformModel,
 };
 use super::scale::SCALE_COUNT;
 use super::tables::{GaussianTables, PRECISION};
+
+/// The widest uniform value a call reads or writes (at most the lowest precision, 12).
+pub const UNIFORM_MAX_BITS: u32 = 12;
 pub use super::tables::{ESCAPE_MAX_PREFIX, ESCAPE_MAX_W};
 use crate::container::chunk::ChunkTag;
 use crate::error::{AnsFault, Error, Result};
@@ -114,6 +118,15 @@ impl<'t> SymbolWriter<'t> {
         let p = self.tables.precision();
         let f = clamp_freq_one(p, freq_one);
         self.intervals.push(BinaryModel::interval(p, f, bit));
+    }
+
+    /// Writes the low `bits` bits of `value` as one uniform value (§6.2.1 kind 4); `bits` is
+    /// 1 … 12, which every precision the tables allow holds.
+    pub fn uniform(&mut self, value: u32, bits: u32) {
+        let p = self.tables.precision();
+        let bits = bits.clamp(1, UNIFORM_MAX_BITS);
+        let v = value & ((1 << bits) - 1);
+        self.intervals.push(UniformModel { bits }.interval(p, v));
     }
 
     /// Encodes everything in reverse and returns the chunk body: the coder's words as u32
@@ -286,6 +299,24 @@ impl<'a> SymbolReader<'a> {
         };
         with_precision!(p, P => self.ans.decode_binary::<P>(model))
             .map_err(|fault| self.ans_fault(fault))
+    }
+
+    /// Reads one uniform value of `bits` bits (§6.2.1 kind 4), `bits` clamped to 1 … 12.
+    /// Errors: `AnsStreamInvalid { OutOfWords }`.
+    #[inline(always)]
+    pub fn uniform(&mut self, bits: u32) -> Result<u32> {
+        if let Some(err) = &self.broken {
+            return Err(err.clone());
+        }
+        let model = UniformModel {
+            bits: bits.clamp(1, UNIFORM_MAX_BITS),
+        };
+        let value = if self.tables.precision() == PRECISION {
+            self.ans.decode_uniform::<{ PRECISION as usize }>(model)
+        } else {
+            with_precision!(self.tables.precision(), P => self.ans.decode_uniform::<P>(model))
+        };
+        value.map_err(|fault| self.ans_fault(fault))
     }
 
     /// Ends the chunk (§6.2.6 step 5). Errors: `AnsStreamInvalid` with `WordsLeftOver` if words

@@ -485,7 +485,7 @@ mod tests {
                         ..
                     }
                 ),
-                "x-octree-too-many-nodes" => {
+                "x-octree-too-many-nodes" | "x-octree-direct-too-many-nodes" => {
                     octree_rule(&e) == Some(geometry::MORE_NODES_THAN_ANCHORS)
                 }
                 "x-octree-counts-above" => octree_rule(&e) == Some(geometry::COUNTS_ABOVE),

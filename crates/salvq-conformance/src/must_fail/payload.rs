@@ -172,6 +172,21 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
             }),
         ),
         vector(
+            "x-octree-direct-too-many-nodes",
+            "OctreeInvalid",
+            &["§8.2", "§6.2.1"],
+            "APOS codes one voxel more than the anchor count, the extra one last in Morton order and isolated: the bound is broken by a direct node's child, after its octants",
+            {
+                let stream = with_voxels(base, |v, cell, level| {
+                    let corner = cell.map(|c| c + (1 << level) - 1);
+                    assert!(!v.contains(&corner), "the cell's last voxel is free");
+                    v.push(corner);
+                });
+                last_event_is_an_octant(&stream);
+                stream
+            },
+        ),
+        vector(
             "x-octree-counts-above",
             "OctreeInvalid",
             &["§8.4"],
@@ -402,4 +417,41 @@ fn escape_overflow(base: &[u8]) -> Vec<u8> {
         p.extend_from_slice(&(body.len() as u32).to_le_bytes());
         p.extend_from_slice(&body);
     })
+}
+
+/// Checks that the `APOS` body of a one-tile stream fails on a direct node's child: the last
+/// event read before the error is a direct octant (§8.2), not an occupancy event.
+fn last_event_is_an_octant(stream: &[u8]) {
+    use salvq::entropy::SymbolReader;
+    use salvq::geometry::{self, DirectOctant, Event, Events};
+    struct Last<'a> {
+        reader: SymbolReader<'a>,
+        octant_last: bool,
+    }
+    impl Events for Last<'_> {
+        fn bit(&mut self, freq_one: u32, _: Event) -> salvq::Result<bool> {
+            self.octant_last = false;
+            self.reader.bit(freq_one)
+        }
+        fn octant(&mut self, _: DirectOctant) -> salvq::Result<u32> {
+            self.octant_last = true;
+            self.reader.uniform(3)
+        }
+    }
+    let tils = payload_of(stream, ChunkTag::TILS);
+    let anchors = u32::from_le_bytes([tils[5], tils[6], tils[7], tils[8]]);
+    let level = tils[9];
+    let apos = payload_of(stream, ChunkTag::APOS);
+    let tables = GaussianTables::standard();
+    let mut last = Last {
+        reader: SymbolReader::new(ChunkTag::APOS, &apos[5..], tables).expect("a framed body"),
+        octant_last: false,
+    };
+    let err = geometry::walk(level, anchors, tables.precision(), &mut last)
+        .expect_err("one voxel too many");
+    assert!(
+        matches!(err, salvq::Error::OctreeInvalid { rule, .. } if rule == geometry::MORE_NODES_THAN_ANCHORS),
+        "{err}"
+    );
+    assert!(last.octant_last, "the bound broke on an occupancy event");
 }

@@ -3,7 +3,10 @@
 //! decoder: it asks a callback for each event's bit (the encoder knows it and records the
 //! event, the decoder reads it), so both evolve the contexts identically.
 
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
+
+mod neighbours;
+use neighbours::{child_neighbours, nb, Neighbours, SIDE_MASKS};
 
 use crate::container::chunk::ChunkTag;
 use crate::entropy::{GaussianTables, SymbolReader, SymbolWriter};
@@ -14,6 +17,8 @@ use crate::model::morton3;
 pub const OCCUPANCY_CONTEXTS: usize = 1024;
 /// §8.4: voxel-count contexts.
 pub const COUNT_CONTEXTS: usize = 4;
+/// §8.2: direct-flag contexts, by the levels left below the node (1, 2, 3, 4 or more).
+pub const DIRECT_CONTEXTS: usize = 4;
 /// §8.3: counts are halved once their sum exceeds this.
 pub const ADAPT_LIMIT: u32 = 256;
 
@@ -52,6 +57,37 @@ impl Counts {
     }
 }
 
+/// A set of adaptive binary contexts, each one's current P(1) kept beside its counts: an
+/// event reads its probability with one load, and the product that computes it runs at the
+/// update, off the chain from one event's bit to the next event's context.
+struct Contexts<const N: usize> {
+    counts: [Counts; N],
+    freq_one: [u32; N],
+    precision: u32,
+}
+
+impl<const N: usize> Contexts<N> {
+    fn new(precision: u32) -> Self {
+        Contexts {
+            counts: [Counts::START; N],
+            freq_one: [Counts::START.freq_one(precision); N],
+            precision,
+        }
+    }
+
+    #[inline(always)]
+    fn freq_one(&self, ctx: usize) -> u32 {
+        self.freq_one[ctx]
+    }
+
+    #[inline(always)]
+    fn update(&mut self, ctx: usize, bit: bool) {
+        let c = &mut self.counts[ctx];
+        c.update(bit);
+        self.freq_one[ctx] = c.freq_one(self.precision);
+    }
+}
+
 /// Bits of [`RECIPROCAL`]'s fixed point.
 const RECIPROCAL_BITS: u32 = 48;
 
@@ -74,191 +110,6 @@ pub const MORE_NODES_THAN_ANCHORS: &str = "more nodes than anchors";
 pub const COUNTS_ABOVE: &str = "counts above the anchor count";
 pub const COUNTS_BELOW: &str = "counts below the anchor count";
 
-/// Index of offset `d ∈ {−1, 0, 1}³` in a node's 27-cell neighbourhood.
-const fn nb(d: [i64; 3]) -> usize {
-    ((d[0] + 1) + 3 * (d[1] + 1) + 9 * (d[2] + 1)) as usize
-}
-
-/// For child `i`, the mask of the 7 neighbourhood cells on its side (§8.3's `n7`).
-const fn side_mask(i: usize) -> u32 {
-    let s = [
-        if i & 1 == 1 { 1 } else { -1 },
-        if i & 2 == 2 { 1 } else { -1 },
-        if i & 4 == 4 { 1 } else { -1 },
-    ];
-    (1 << nb([s[0], 0, 0]))
-        | (1 << nb([0, s[1], 0]))
-        | (1 << nb([0, 0, s[2]]))
-        | (1 << nb([s[0], s[1], 0]))
-        | (1 << nb([s[0], 0, s[2]]))
-        | (1 << nb([0, s[1], s[2]]))
-        | (1 << nb([s[0], s[1], s[2]]))
-}
-
-const SIDE_MASKS: [u32; 8] = [
-    side_mask(0),
-    side_mask(1),
-    side_mask(2),
-    side_mask(3),
-    side_mask(4),
-    side_mask(5),
-    side_mask(6),
-    side_mask(7),
-];
-
-/// A node's neighbours at one level: the index of the node at offset `d` in slot `nb(d)`
-/// (slot 13, the node itself, unused), `u32::MAX` where there is none; bit `nb(d)` of
-/// `present` set where there is one.
-#[derive(Clone, Copy)]
-struct Neighbours {
-    index: [u32; 27],
-    present: u32,
-}
-
-impl Neighbours {
-    const NONE: Neighbours = Neighbours {
-        index: [u32::MAX; 27],
-        present: 0,
-    };
-}
-
-/// For child `i` of a node and neighbour slot `nb(d)`: the slot of the node's neighbour (13:
-/// the node itself) that holds the child's neighbour at `d`, and which child of it that is.
-/// A child's neighbours are children of its parent's neighbours, so no lookup is needed.
-const CHILD_NEIGHBOUR: [[(u8, u8); 27]; 8] = {
-    let mut out = [[(0u8, 0u8); 27]; 8];
-    let mut i = 0;
-    while i < 8 {
-        let mut slot = 0;
-        while slot < 27 {
-            let d = [
-                (slot % 3) as i64 - 1,
-                ((slot / 3) % 3) as i64 - 1,
-                (slot / 9) as i64 - 1,
-            ];
-            let (mut parent_slot, mut child) = (0usize, 0usize);
-            let mut a = 0;
-            let mut weight = 1;
-            while a < 3 {
-                let t = ((i >> a) & 1) as i64 + d[a];
-                parent_slot += (t.div_euclid(2) + 1) as usize * weight;
-                child |= (t.rem_euclid(2) as usize) << a;
-                weight *= 3;
-                a += 1;
-            }
-            out[i][slot] = (parent_slot as u8, child as u8);
-            slot += 1;
-        }
-        i += 1;
-    }
-    out
-};
-
-/// Set bits of every byte value: a table, since the portable x86-64 baseline has no
-/// `popcnt` instruction and this is on the octree's hot path.
-const POPCOUNT: [u8; 256] = {
-    let mut out = [0u8; 256];
-    let mut b = 0;
-    while b < 256 {
-        out[b] = (b as u8).count_ones() as u8;
-        b += 1;
-    }
-    out
-};
-
-/// For child `i` and a slot `ps` of its parent's neighbourhood: the child's neighbour slots
-/// that fall in the node at `ps`, each with its child index there (the inverse of
-/// [`CHILD_NEIGHBOUR`], the child itself left out). Only the parent itself and the 7
-/// neighbours on the child's side ([`SIDE_MASKS`]) have entries.
-#[derive(Clone, Copy)]
-struct FromParent {
-    len: u8,
-    cells: [(u8, u8); 8],
-}
-
-const FROM_PARENT: [[FromParent; 27]; 8] = {
-    let empty = FromParent {
-        len: 0,
-        cells: [(0, 0); 8],
-    };
-    let mut out = [[empty; 27]; 8];
-    let mut i = 0;
-    while i < 8 {
-        let mut slot = 0;
-        while slot < 27 {
-            if slot != 13 {
-                // Indexing, not a `&mut` binding: the decoder's minimum Rust (1.80) allows
-                // no mutable references in constants.
-                let (ps, child) = CHILD_NEIGHBOUR[i][slot];
-                let at = out[i][ps as usize].len as usize;
-                out[i][ps as usize].cells[at] = (slot as u8, child);
-                out[i][ps as usize].len += 1;
-            }
-            slot += 1;
-        }
-        i += 1;
-    }
-    out
-};
-
-/// The next level's neighbours from this level's: `bytes[p]` is node `p`'s occupancy byte
-/// and its children are numbered in order (node by node, octant by octant).
-///
-/// A child's neighbours lie in its parent and the parent's 7 neighbours on the child's side,
-/// so only the neighbours the parent has are visited: deep in a sparse octree most nodes
-/// have none or few.
-fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbours> {
-    let mut first = Vec::with_capacity(bytes.len());
-    let mut count = 0u32;
-    for &b in bytes {
-        first.push(count);
-        count += u32::from(POPCOUNT[usize::from(b)]);
-    }
-    let mut out = Vec::with_capacity(count as usize);
-    for (p, &byte) in bytes.iter().enumerate() {
-        if byte == 0 {
-            continue;
-        }
-        // The occupancy byte and first child of the node (slot 13) and of each neighbour it
-        // has; 32 entries so that a 5-bit index needs no bounds check.
-        let present = nbr[p].present;
-        let (mut near_bytes, mut near_first) = ([0u8; 32], [0u32; 32]);
-        near_bytes[13] = byte;
-        near_first[13] = first[p];
-        let mut rest = present;
-        while rest != 0 {
-            let slot = rest.trailing_zeros() as usize & 31;
-            rest &= rest - 1;
-            let q = nbr[p].index[slot] as usize;
-            near_bytes[slot] = bytes[q];
-            near_first[slot] = first[q];
-        }
-        for (i, (&side, from)) in SIDE_MASKS.iter().zip(&FROM_PARENT).enumerate() {
-            if byte >> i & 1 == 0 {
-                continue;
-            }
-            let mut row = Neighbours::NONE;
-            let mut sources = (present & side) | (1 << 13);
-            while sources != 0 {
-                let ps = sources.trailing_zeros() as usize & 31;
-                sources &= sources - 1;
-                let (b, base) = (near_bytes[ps], near_first[ps]);
-                let f = &from[ps.min(26)];
-                for &(slot, child) in &f.cells[..usize::from(f.len).min(8)] {
-                    let child = child & 7;
-                    if b >> child & 1 == 1 {
-                        let below = POPCOUNT[usize::from(b & LOW[usize::from(child)])];
-                        row.index[usize::from(slot).min(26)] = base + u32::from(below);
-                        row.present |= 1 << slot;
-                    }
-                }
-            }
-            out.push(row);
-        }
-    }
-    out
-}
-
 /// The cell of child `i` (octant bits x, y, z) of the node at cell `p`, one level down.
 #[inline]
 fn child_cell(p: [u32; 3], i: usize) -> [u32; 3] {
@@ -269,34 +120,122 @@ fn child_cell(p: [u32; 3], i: usize) -> [u32; 3] {
     ]
 }
 
-/// `LOW[j]`: the bits below bit `j` of an occupancy byte.
-const LOW: [u8; 8] = [0x00, 0x01, 0x03, 0x07, 0x0f, 0x1f, 0x3f, 0x7f];
+/// What [`walk`] asks for: the encoder knows each answer and records it, the decoder reads it,
+/// so both evolve the contexts identically.
+pub trait Events {
+    /// A binary event (§6.2.1 kind 3) with P(1) = `freq_one` / 2^P.
+    fn bit(&mut self, freq_one: u32, what: Event) -> Result<bool>;
+    /// A direct node's octant at one depth (§8.2): a uniform 3-bit value (§6.2.1 kind 4).
+    fn octant(&mut self, what: DirectOctant) -> Result<u32>;
+}
 
-/// §8.2–§8.4: walks the octree of depth `depth` for `anchors` anchors. `event(freq_one,
-/// what)` returns each event's bit (occupancy events first, in traversal order, then count
-/// events). Returns the anchors' voxels in canonical order.
+/// What a binary event of [`walk`] decides.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Event {
+    /// Whether depth-`depth` cell `cell` is occupied (§8.2).
+    Occupancy { depth: u32, cell: [u32; 3] },
+    /// Whether the isolated depth-`depth` node `cell` holds a single voxel (§8.2).
+    Direct { depth: u32, cell: [u32; 3] },
+    /// Whether leaf `leaf` holds more than `extra + 1` anchors (§8.4).
+    Count { leaf: usize, extra: usize },
+}
+
+/// A direct node's octant (§8.2): the child index, at depth `level`, of the cell that holds
+/// the single voxel below the depth-`depth` node `cell`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DirectOctant {
+    pub depth: u32,
+    pub cell: [u32; 3],
+    pub level: u32,
+}
+
+/// The octant (child index) of voxel `v` at the depth where `shift` more levels remain.
+#[inline]
+fn octant_of(v: [u32; 3], shift: u32) -> usize {
+    ((v[0] >> shift & 1) | (v[1] >> shift & 1) << 1 | (v[2] >> shift & 1) << 2) as usize
+}
+
+/// §8.2's bound: a depth holds at most `N_t` cells.
+#[inline]
+fn check_room(children: usize, k: u32, anchors: u32) -> Result<()> {
+    if children == anchors as usize {
+        return Err(Error::OctreeInvalid {
+            rule: MORE_NODES_THAN_ANCHORS,
+            depth: (k + 1) as u8,
+            count: u64::from(anchors) + 1,
+            anchors,
+        });
+    }
+    Ok(())
+}
+
+/// §8.2–§8.4: walks the octree of depth `depth` for `anchors` anchors, asking `events` for
+/// each event in coding order (occupancy, direct flags and octants in traversal order, then
+/// the counts). Returns the anchors' voxels in canonical order.
 ///
-/// Per node, the 26 neighbours at its depth are looked up once: their occupancy gives `n7`
-/// for every child, and the occupancy bytes of the face neighbours already walked give the
-/// children's face neighbours across the node's faces (`kf`); neighbours inside the node are
-/// the siblings decoded so far.
-pub fn walk(
+/// Per node, the 26 neighbours at its depth are looked up once: none present makes the node
+/// isolated (a direct-flag candidate); otherwise their occupancy gives `n7` for every child,
+/// and the occupancy bytes of the face neighbours already walked give the children's face
+/// neighbours across the node's faces (`kf`); neighbours inside the node are the siblings
+/// decoded so far.
+pub fn walk<E: Events>(
     depth: u8,
     anchors: u32,
     precision: u32,
-    mut event: impl FnMut(u32, Event) -> Result<bool>,
+    events: &mut E,
 ) -> Result<Vec<[u32; 3]>> {
+    let d = u32::from(depth);
     let n = anchors as usize;
-    let mut occ = [Counts::START; OCCUPANCY_CONTEXTS];
+    let mut occ = Contexts::<OCCUPANCY_CONTEXTS>::new(precision);
+    let mut single = Contexts::<DIRECT_CONTEXTS>::new(precision);
+    // A node is a cell of the current depth, or, once coded directly, the voxel it holds
+    // (marked in `direct`): its one child at every later depth holds the same voxel.
     let mut nodes: Vec<[u32; 3]> = vec![[0, 0, 0]];
+    let mut direct: Vec<bool> = vec![false];
     // The root has no neighbours; each level's follow from its parents' (§8.3's contexts
     // need them), without a lookup by position.
     let mut nbr: Vec<Neighbours> = vec![Neighbours::NONE];
-    for k in 0..u32::from(depth) {
+    for k in 0..d {
+        // Levels below depth k + 1: the shift from a voxel to its depth-(k + 1) cell.
+        let below = d - k - 1;
         let mut bytes = vec![0u8; nodes.len()];
-        let mut children: Vec<[u32; 3]> = Vec::with_capacity((nodes.len() * 2).min(n));
+        let capacity = (nodes.len() * 2).min(n);
+        let mut children: Vec<[u32; 3]> = Vec::with_capacity(capacity);
+        let mut child_direct: Vec<bool> = Vec::with_capacity(capacity);
         for (pi, &p) in nodes.iter().enumerate() {
+            if direct[pi] {
+                // §8.2: no events below a direct node.
+                check_room(children.len(), k, anchors)?;
+                bytes[pi] = 1 << octant_of(p, below);
+                children.push(p);
+                child_direct.push(true);
+                continue;
+            }
             let (row, present) = (&nbr[pi].index, nbr[pi].present);
+            if present == 0 {
+                // §8.2: an isolated node says whether it holds a single voxel; if so, that
+                // voxel's octant at every depth below follows at once.
+                let ctx = (d - k).min(DIRECT_CONTEXTS as u32) as usize - 1;
+                let what = Event::Direct { depth: k, cell: p };
+                let is_single = events.bit(single.freq_one(ctx), what)?;
+                single.update(ctx, is_single);
+                if is_single {
+                    let mut v = p;
+                    for level in k + 1..=d {
+                        let what = DirectOctant {
+                            depth: k,
+                            cell: p,
+                            level,
+                        };
+                        v = child_cell(v, (events.octant(what)? & 7) as usize);
+                    }
+                    check_room(children.len(), k, anchors)?;
+                    bytes[pi] = 1 << octant_of(v, below);
+                    children.push(v);
+                    child_direct.push(true);
+                    continue;
+                }
+            }
             // The occupancy bytes of the face neighbours −x, +x, −y, +y, −z, +z (0 where there
             // is none or it is not walked yet: `bytes` is filled in walking order). They do
             // not change while this node's children are decided.
@@ -335,33 +274,28 @@ pub fn walk(
                         depth: k + 1,
                         cell: child_cell(p, i),
                     };
-                    let bit = event(occ[ctx].freq_one(precision), what)?;
-                    occ[ctx].update(bit);
+                    let bit = events.bit(occ.freq_one(ctx), what)?;
+                    occ.update(ctx, bit);
                     bit
                 };
                 if bit {
-                    if children.len() == n {
-                        return Err(Error::OctreeInvalid {
-                            rule: MORE_NODES_THAN_ANCHORS,
-                            depth: (k + 1) as u8,
-                            count: n as u64 + 1,
-                            anchors,
-                        });
-                    }
+                    check_room(children.len(), k, anchors)?;
                     children.push(child_cell(p, i));
+                    child_direct.push(false);
                     byte |= 1 << i;
                     occupied += 1;
                 }
             }
             bytes[pi] = byte;
         }
-        if k + 1 < u32::from(depth) {
+        if k + 1 < d {
             nbr = child_neighbours(&nbr, &bytes);
         }
         nodes = children;
+        direct = child_direct;
     }
     // §8.4: counts.
-    let mut counts = [Counts::START; COUNT_CONTEXTS];
+    let mut counts = Contexts::<COUNT_CONTEXTS>::new(precision);
     let mut out = Vec::with_capacity(n);
     for (j, &leaf) in nodes.iter().enumerate() {
         let mut extra = 0usize;
@@ -375,11 +309,9 @@ pub fn walk(
                 });
             }
             let ctx = extra.min(COUNT_CONTEXTS - 1);
-            let more = event(
-                counts[ctx].freq_one(precision),
-                Event::Count { leaf: j, extra },
-            )?;
-            counts[ctx].update(more);
+            let what = Event::Count { leaf: j, extra };
+            let more = events.bit(counts.freq_one(ctx), what)?;
+            counts.update(ctx, more);
             if !more {
                 break;
             }
@@ -398,28 +330,53 @@ pub fn walk(
     Ok(out)
 }
 
-/// What an event of [`walk`] decides.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Event {
-    /// Whether depth-`depth` cell `cell` is occupied (§8.2).
-    Occupancy { depth: u32, cell: [u32; 3] },
-    /// Whether leaf `leaf` holds more than `extra + 1` anchors (§8.4).
-    Count { leaf: usize, extra: usize },
+/// The encoder's answers: each depth's occupied cells, with the number of distinct voxels
+/// below each (up to 2) and one of them; and each voxel's anchor count.
+struct KnownVoxels {
+    depth: u32,
+    cells: Vec<FxHashMap<u64, (u8, [u32; 3])>>,
+    runs: Vec<usize>,
+}
+
+impl KnownVoxels {
+    fn below(&self, depth: u32, cell: [u32; 3]) -> Option<(u8, [u32; 3])> {
+        self.cells[depth as usize].get(&morton3(cell)).copied()
+    }
+}
+
+/// The encoder records every event as the intervals of its body.
+struct Recorder<'w, 't> {
+    known: KnownVoxels,
+    writer: &'w mut SymbolWriter<'t>,
+}
+
+impl Events for Recorder<'_, '_> {
+    fn bit(&mut self, freq_one: u32, what: Event) -> Result<bool> {
+        let bit = match what {
+            Event::Occupancy { depth, cell } => self.known.below(depth, cell).is_some(),
+            Event::Direct { depth, cell } => {
+                matches!(self.known.below(depth, cell), Some((1, _)))
+            }
+            Event::Count { leaf, extra } => {
+                extra + 1 < self.known.runs.get(leaf).copied().unwrap_or(1)
+            }
+        };
+        self.writer.bit(bit, freq_one);
+        Ok(bit)
+    }
+
+    fn octant(&mut self, what: DirectOctant) -> Result<u32> {
+        let (_, voxel) = self.known.below(what.depth, what.cell).unwrap_or_default();
+        let value = octant_of(voxel, self.known.depth - what.level) as u32;
+        self.writer.uniform(value, 3);
+        Ok(value)
+    }
 }
 
 /// §8.1: the `APOS` body of canonical-order voxels (coordinates below `2^depth`).
 pub fn encode(voxels: &[[u32; 3]], depth: u8, tables: &GaussianTables) -> Result<Vec<u8>> {
-    // The occupied cells of every depth, and each voxel's anchor count (voxels are sorted,
-    // so equal ones are adjacent).
-    let occupied: Vec<FxHashSet<u64>> = (0..=u32::from(depth))
-        .map(|k| {
-            let shift = u32::from(depth) - k;
-            voxels
-                .iter()
-                .map(|v| morton3(v.map(|c| c >> shift)))
-                .collect()
-        })
-        .collect();
+    // The occupied cells of every depth with their distinct voxels, and each voxel's anchor
+    // count (voxels are sorted, so equal ones are adjacent).
     let mut runs: Vec<usize> = Vec::new();
     for (i, v) in voxels.iter().enumerate() {
         match runs.last_mut() {
@@ -427,24 +384,51 @@ pub fn encode(voxels: &[[u32; 3]], depth: u8, tables: &GaussianTables) -> Result
             _ => runs.push(1),
         }
     }
+    let cells = (0..=u32::from(depth))
+        .map(|k| {
+            let shift = u32::from(depth) - k;
+            let mut at: FxHashMap<u64, (u8, [u32; 3])> = FxHashMap::default();
+            for (i, v) in voxels.iter().enumerate() {
+                if i > 0 && voxels[i - 1] == *v {
+                    continue;
+                }
+                let e = at.entry(morton3(v.map(|c| c >> shift))).or_insert((0, *v));
+                e.0 = (e.0 + 1).min(2);
+            }
+            at
+        })
+        .collect();
+    let known = KnownVoxels {
+        depth: u32::from(depth),
+        cells,
+        runs,
+    };
     let mut writer = SymbolWriter::new(ChunkTag::APOS, tables);
+    let mut recorder = Recorder {
+        known,
+        writer: &mut writer,
+    };
     let decoded = walk(
         depth,
         voxels.len() as u32,
         tables.precision(),
-        |freq, what| {
-            let bit = match what {
-                Event::Occupancy { depth, cell } => {
-                    occupied[depth as usize].contains(&morton3(cell))
-                }
-                Event::Count { leaf, extra } => extra + 1 < runs.get(leaf).copied().unwrap_or(1),
-            };
-            writer.bit(bit, freq);
-            Ok(bit)
-        },
+        &mut recorder,
     )?;
     debug_assert_eq!(decoded, voxels);
     Ok(writer.finish())
+}
+
+/// The decoder reads every event from the body.
+impl Events for SymbolReader<'_> {
+    #[inline(always)]
+    fn bit(&mut self, freq_one: u32, _: Event) -> Result<bool> {
+        SymbolReader::bit(self, freq_one)
+    }
+
+    #[inline(always)]
+    fn octant(&mut self, _: DirectOctant) -> Result<u32> {
+        self.uniform(3)
+    }
 }
 
 /// §8.1: decodes an `APOS` body into canonical-order voxels.
@@ -455,9 +439,7 @@ pub fn decode(
     tables: &GaussianTables,
 ) -> Result<Vec<[u32; 3]>> {
     let mut reader = SymbolReader::new(ChunkTag::APOS, body, tables)?;
-    let voxels = walk(depth, anchors, tables.precision(), |freq, _| {
-        reader.bit(freq)
-    })?;
+    let voxels = walk(depth, anchors, tables.precision(), &mut reader)?;
     reader.finish()?;
     Ok(voxels)
 }

@@ -1,0 +1,195 @@
+//! §8.3's neighbourhoods: each node's 26 neighbours at its depth, found from its parent's
+//! without a lookup by position (a child's neighbours are children of its parent's).
+
+/// Index of offset `d ∈ {−1, 0, 1}³` in a node's 27-cell neighbourhood.
+pub(super) const fn nb(d: [i64; 3]) -> usize {
+    ((d[0] + 1) + 3 * (d[1] + 1) + 9 * (d[2] + 1)) as usize
+}
+
+/// For child `i`, the mask of the 7 neighbourhood cells on its side (§8.3's `n7`).
+const fn side_mask(i: usize) -> u32 {
+    let s = [
+        if i & 1 == 1 { 1 } else { -1 },
+        if i & 2 == 2 { 1 } else { -1 },
+        if i & 4 == 4 { 1 } else { -1 },
+    ];
+    (1 << nb([s[0], 0, 0]))
+        | (1 << nb([0, s[1], 0]))
+        | (1 << nb([0, 0, s[2]]))
+        | (1 << nb([s[0], s[1], 0]))
+        | (1 << nb([s[0], 0, s[2]]))
+        | (1 << nb([0, s[1], s[2]]))
+        | (1 << nb([s[0], s[1], s[2]]))
+}
+
+pub(super) const SIDE_MASKS: [u32; 8] = [
+    side_mask(0),
+    side_mask(1),
+    side_mask(2),
+    side_mask(3),
+    side_mask(4),
+    side_mask(5),
+    side_mask(6),
+    side_mask(7),
+];
+
+/// A node's neighbours at one level: the index of the node at offset `d` in slot `nb(d)`
+/// (slot 13, the node itself, unused), `u32::MAX` where there is none; bit `nb(d)` of
+/// `present` set where there is one.
+#[derive(Clone, Copy)]
+pub(super) struct Neighbours {
+    pub(super) index: [u32; 27],
+    pub(super) present: u32,
+}
+
+impl Neighbours {
+    pub(super) const NONE: Neighbours = Neighbours {
+        index: [u32::MAX; 27],
+        present: 0,
+    };
+}
+
+/// For child `i` of a node and neighbour slot `nb(d)`: the slot of the node's neighbour (13:
+/// the node itself) that holds the child's neighbour at `d`, and which child of it that is.
+/// A child's neighbours are children of its parent's neighbours, so no lookup is needed.
+const CHILD_NEIGHBOUR: [[(u8, u8); 27]; 8] = {
+    let mut out = [[(0u8, 0u8); 27]; 8];
+    let mut i = 0;
+    while i < 8 {
+        let mut slot = 0;
+        while slot < 27 {
+            let d = [
+                (slot % 3) as i64 - 1,
+                ((slot / 3) % 3) as i64 - 1,
+                (slot / 9) as i64 - 1,
+            ];
+            let (mut parent_slot, mut child) = (0usize, 0usize);
+            let mut a = 0;
+            let mut weight = 1;
+            while a < 3 {
+                let t = ((i >> a) & 1) as i64 + d[a];
+                parent_slot += (t.div_euclid(2) + 1) as usize * weight;
+                child |= (t.rem_euclid(2) as usize) << a;
+                weight *= 3;
+                a += 1;
+            }
+            out[i][slot] = (parent_slot as u8, child as u8);
+            slot += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
+/// Set bits of every byte value: a table, since the portable x86-64 baseline has no
+/// `popcnt` instruction and this is on the octree's hot path.
+const POPCOUNT: [u8; 256] = {
+    let mut out = [0u8; 256];
+    let mut b = 0;
+    while b < 256 {
+        out[b] = (b as u8).count_ones() as u8;
+        b += 1;
+    }
+    out
+};
+
+/// For child `i` and a slot `ps` of its parent's neighbourhood: the child's neighbour slots
+/// that fall in the node at `ps`, each with its child index there (the inverse of
+/// [`CHILD_NEIGHBOUR`], the child itself left out). Only the parent itself and the 7
+/// neighbours on the child's side ([`SIDE_MASKS`]) have entries.
+#[derive(Clone, Copy)]
+struct FromParent {
+    len: u8,
+    cells: [(u8, u8); 8],
+}
+
+const FROM_PARENT: [[FromParent; 27]; 8] = {
+    let empty = FromParent {
+        len: 0,
+        cells: [(0, 0); 8],
+    };
+    let mut out = [[empty; 27]; 8];
+    let mut i = 0;
+    while i < 8 {
+        let mut slot = 0;
+        while slot < 27 {
+            if slot != 13 {
+                // Indexing, not a `&mut` binding: the decoder's minimum Rust (1.80) allows
+                // no mutable references in constants.
+                let (ps, child) = CHILD_NEIGHBOUR[i][slot];
+                let at = out[i][ps as usize].len as usize;
+                out[i][ps as usize].cells[at] = (slot as u8, child);
+                out[i][ps as usize].len += 1;
+            }
+            slot += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
+/// The next level's neighbours from this level's: `bytes[p]` is node `p`'s occupancy byte
+/// and its children are numbered in order (node by node, octant by octant).
+///
+/// A child's neighbours lie in its parent and the parent's 7 neighbours on the child's side,
+/// so only the neighbours the parent has are visited: deep in a sparse octree most nodes
+/// have none or few.
+pub(super) fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbours> {
+    let mut first = Vec::with_capacity(bytes.len());
+    let mut count = 0u32;
+    for &b in bytes {
+        first.push(count);
+        count += u32::from(POPCOUNT[usize::from(b)]);
+    }
+    let mut out = Vec::with_capacity(count as usize);
+    for (p, &byte) in bytes.iter().enumerate() {
+        if byte == 0 {
+            continue;
+        }
+        let present = nbr[p].present;
+        if present == 0 && byte & (byte - 1) == 0 {
+            // An only child of an isolated node (a direct node's, most often) is isolated.
+            out.push(Neighbours::NONE);
+            continue;
+        }
+        // The occupancy byte and first child of the node (slot 13) and of each neighbour it
+        // has; 32 entries so that a 5-bit index needs no bounds check.
+        let (mut near_bytes, mut near_first) = ([0u8; 32], [0u32; 32]);
+        near_bytes[13] = byte;
+        near_first[13] = first[p];
+        let mut rest = present;
+        while rest != 0 {
+            let slot = rest.trailing_zeros() as usize & 31;
+            rest &= rest - 1;
+            let q = nbr[p].index[slot] as usize;
+            near_bytes[slot] = bytes[q];
+            near_first[slot] = first[q];
+        }
+        for (i, (&side, from)) in SIDE_MASKS.iter().zip(&FROM_PARENT).enumerate() {
+            if byte >> i & 1 == 0 {
+                continue;
+            }
+            let mut row = Neighbours::NONE;
+            let mut sources = (present & side) | (1 << 13);
+            while sources != 0 {
+                let ps = sources.trailing_zeros() as usize & 31;
+                sources &= sources - 1;
+                let (b, base) = (near_bytes[ps], near_first[ps]);
+                let f = &from[ps.min(26)];
+                for &(slot, child) in &f.cells[..usize::from(f.len).min(8)] {
+                    let child = child & 7;
+                    if b >> child & 1 == 1 {
+                        let below = POPCOUNT[usize::from(b & LOW[usize::from(child)])];
+                        row.index[usize::from(slot).min(26)] = base + u32::from(below);
+                        row.present |= 1 << slot;
+                    }
+                }
+            }
+            out.push(row);
+        }
+    }
+    out
+}
+
+/// `LOW[j]`: the bits below bit `j` of an occupancy byte.
+const LOW: [u8; 8] = [0x00, 0x01, 0x03, 0x07, 0x0f, 0x1f, 0x3f, 0x7f];
