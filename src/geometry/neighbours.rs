@@ -93,20 +93,22 @@ const POPCOUNT: [u8; 256] = {
     out
 };
 
-/// For child `i` and a slot `ps` of its parent's neighbourhood: the child's neighbour slots
-/// that fall in the node at `ps`, each with its child index there (the inverse of
-/// [`CHILD_NEIGHBOUR`], the child itself left out). Only the parent itself and the 7
-/// neighbours on the child's side ([`SIDE_MASKS`]) have entries.
+/// For child `i` and a slot `ps` of its parent's neighbourhood: which children of the node at
+/// `ps` are neighbours of child `i` (a mask over that node's occupancy byte; the child itself
+/// left out), and for each such child `c`, the slot it fills in child `i`'s neighbourhood
+/// (the inverse of [`CHILD_NEIGHBOUR`]). Only the parent itself and the 7 neighbours on the
+/// child's side ([`SIDE_MASKS`]) have any. With the mask, a row visits only the neighbour
+/// cells that are occupied.
 #[derive(Clone, Copy)]
 struct FromParent {
-    len: u8,
-    cells: [(u8, u8); 8],
+    children: u8,
+    slot: [u8; 8],
 }
 
 const FROM_PARENT: [[FromParent; 27]; 8] = {
     let empty = FromParent {
-        len: 0,
-        cells: [(0, 0); 8],
+        children: 0,
+        slot: [0; 8],
     };
     let mut out = [[empty; 27]; 8];
     let mut i = 0;
@@ -117,9 +119,8 @@ const FROM_PARENT: [[FromParent; 27]; 8] = {
                 // Indexing, not a `&mut` binding: the decoder's minimum Rust (1.80) allows
                 // no mutable references in constants.
                 let (ps, child) = CHILD_NEIGHBOUR[i][slot];
-                let at = out[i][ps as usize].len as usize;
-                out[i][ps as usize].cells[at] = (slot as u8, child);
-                out[i][ps as usize].len += 1;
+                out[i][ps as usize].children |= 1 << child;
+                out[i][ps as usize].slot[child as usize] = slot as u8;
             }
             slot += 1;
         }
@@ -142,6 +143,10 @@ pub(super) fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbou
         count += u32::from(POPCOUNT[usize::from(b)]);
     }
     let mut out = Vec::with_capacity(count as usize);
+    // The occupancy byte and first child of the node (slot 13) and of each neighbour it has;
+    // 32 entries so that a 5-bit index needs no bounds check. Only the slots a node has are
+    // written and read, so the arrays are not cleared per node.
+    let (mut near_bytes, mut near_first) = ([0u8; 32], [0u32; 32]);
     for (p, &byte) in bytes.iter().enumerate() {
         if byte == 0 {
             continue;
@@ -152,9 +157,6 @@ pub(super) fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbou
             out.push(Neighbours::NONE);
             continue;
         }
-        // The occupancy byte and first child of the node (slot 13) and of each neighbour it
-        // has; 32 entries so that a 5-bit index needs no bounds check.
-        let (mut near_bytes, mut near_first) = ([0u8; 32], [0u32; 32]);
         near_bytes[13] = byte;
         near_first[13] = first[p];
         let mut rest = present;
@@ -176,13 +178,14 @@ pub(super) fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbou
                 sources &= sources - 1;
                 let (b, base) = (near_bytes[ps], near_first[ps]);
                 let f = &from[ps.min(26)];
-                for &(slot, child) in &f.cells[..usize::from(f.len).min(8)] {
-                    let child = child & 7;
-                    if b >> child & 1 == 1 {
-                        let below = POPCOUNT[usize::from(b & LOW[usize::from(child)])];
-                        row.index[usize::from(slot).min(26)] = base + u32::from(below);
-                        row.present |= 1 << slot;
-                    }
+                let mut cells = b & f.children;
+                while cells != 0 {
+                    let child = cells.trailing_zeros() as usize & 7;
+                    cells &= cells - 1;
+                    let slot = usize::from(f.slot[child]);
+                    let below = POPCOUNT[usize::from(b & LOW[child])];
+                    row.index[slot.min(26)] = base + u32::from(below);
+                    row.present |= 1 << slot;
                 }
             }
             out.push(row);
