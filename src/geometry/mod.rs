@@ -6,7 +6,9 @@
 use rustc_hash::FxHashMap;
 
 mod neighbours;
-use neighbours::{child_neighbours, nb, Neighbours, SIDE_MASKS};
+use neighbours::{
+    child_neighbours, face_neighbour_counts, nb, side_neighbour_counts, Neighbours, LATER_SIBLINGS,
+};
 
 use crate::container::chunk::ChunkTag;
 use crate::entropy::ans::{clamp_freq_one, AnsReader, BinaryModel, UniformModel};
@@ -155,83 +157,6 @@ pub struct DirectOctant {
 #[inline]
 fn octant_of(v: [u32; 3], shift: u32) -> usize {
     ((v[0] >> shift & 1) | (v[1] >> shift & 1) << 1 | (v[2] >> shift & 1) << 2) as usize
-}
-
-/// `x` with the bit of each child `i` spread to bit `4·i`.
-const SPREAD: [u32; 256] = {
-    let mut out = [0u32; 256];
-    let mut b = 0;
-    while b < 256 {
-        let mut i = 0;
-        while i < 8 {
-            out[b] |= ((b as u32 >> i) & 1) << (4 * i);
-            i += 1;
-        }
-        b += 1;
-    }
-    out
-};
-
-/// For child `i`: one in the 4-bit count of each later sibling it is a face neighbour of
-/// (`i + 2^a` for each axis `a` where bit `a` of `i` is 0).
-const LATER_SIBLINGS: [u32; 8] = {
-    let mut out = [0u32; 8];
-    let mut i = 0;
-    while i < 8 {
-        let mut a = 0;
-        while a < 3 {
-            if (i >> a) & 1 == 0 {
-                out[i] += 1 << (4 * (i | 1 << a));
-            }
-            a += 1;
-        }
-        i += 1;
-    }
-    out
-};
-
-/// For every child of a node, how many of its face neighbours across the node's faces are
-/// occupied, 4 bits per child: from the occupancy bytes of the node's face neighbours
-/// −x, +x, −y, +y, −z, +z (0 where absent or not walked yet). Child `i` with bit `a` of `i`
-/// clear faces child `i + 2^a` of the −a neighbour; with it set, child `i − 2^a` of the +a one.
-#[inline]
-fn face_neighbour_counts(f: [u8; 6]) -> u32 {
-    let axis = |low: u8, high: u8, a: u32, low_children: u8| {
-        let shift = 1 << a;
-        SPREAD[usize::from(((low >> shift) & low_children) | ((high << shift) & !low_children))]
-    };
-    axis(f[0], f[1], 0, 0x55) + axis(f[2], f[3], 1, 0x33) + axis(f[4], f[5], 2, 0x0f)
-}
-
-/// For each byte `b` of a neighbourhood mask (bits `8·byte` … `8·byte + 7` of the 27 slots):
-/// how many of the set slots lie on each child's side ([`SIDE_MASKS`]), 4 bits per child.
-const SIDE_COUNTS: [[u32; 256]; 4] = {
-    let mut out = [[0u32; 256]; 4];
-    let mut byte = 0;
-    while byte < 4 {
-        let mut b = 0;
-        while b < 256 {
-            let mut i = 0;
-            while i < 8 {
-                let n = ((b as u32) << (8 * byte)) & SIDE_MASKS[i];
-                out[byte][b] |= n.count_ones() << (4 * i);
-                i += 1;
-            }
-            b += 1;
-        }
-        byte += 1;
-    }
-    out
-};
-
-/// §8.3's `n7` of every child of a node with neighbourhood mask `present`, 4 bits each.
-#[inline]
-fn side_neighbour_counts(present: u32) -> u32 {
-    let b = present.to_le_bytes();
-    SIDE_COUNTS[0][usize::from(b[0])]
-        + SIDE_COUNTS[1][usize::from(b[1])]
-        + SIDE_COUNTS[2][usize::from(b[2])]
-        + SIDE_COUNTS[3][usize::from(b[3])]
 }
 
 /// §8.2's bound: a depth holds at most `N_t` cells.
@@ -591,44 +516,6 @@ pub fn order0_occupancy_bits(voxels: &[[u32; 3]], depth: u8) -> f64 {
 mod tests {
     use super::*;
     use crate::entropy::ans::{MAX_PRECISION, MIN_PRECISION};
-
-    /// The packed per-child counts are §8.3's `n7` and the across-face part of `kf`, as
-    /// their definitions compute them one child at a time.
-    #[test]
-    fn packed_child_counts_match_the_definitions() {
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
-        for _ in 0..20_000 {
-            let r = next();
-            let present = (r as u32) & ((1 << 27) - 1) & !(1 << 13);
-            let faces = (r >> 32).to_le_bytes();
-            let faces = [faces[0], faces[1], faces[2], faces[3], faces[4], faces[5]];
-            let (n7s, kfs) = (side_neighbour_counts(present), face_neighbour_counts(faces));
-            for (i, side) in SIDE_MASKS.iter().enumerate() {
-                let n7 = (present & side).count_ones();
-                assert_eq!(n7s >> (4 * i) & 0xf, n7, "present {present:#x}, child {i}");
-                let across: u32 = (0..3)
-                    .map(|a| {
-                        let high = (i >> a) & 1;
-                        u32::from(faces[2 * a + high] >> (i ^ (1 << a)) & 1)
-                    })
-                    .sum();
-                assert_eq!(kfs >> (4 * i) & 0xf, across, "faces {faces:?}, child {i}");
-            }
-        }
-        // Each decided child adds one to the later siblings it touches across a face.
-        for (i, later) in LATER_SIBLINGS.iter().enumerate() {
-            for j in 0..8usize {
-                let touches = (i ^ j).count_ones() == 1 && j > i;
-                assert_eq!(later >> (4 * j) & 0xf, u32::from(touches));
-            }
-        }
-    }
 
     /// The reciprocal product is the §8.3 quotient for every reachable count pair and every
     /// precision the tables allow.
