@@ -1,7 +1,7 @@
 //! Anchor geometry (spec §8): voxel coordinates as an octree of occupancy events under
-//! adaptive contexts, then a count per voxel. One traversal serves the encoder and the
-//! decoder: it asks a callback for each event's bit (the encoder knows it and records the
-//! event, the decoder reads it), so both evolve the contexts identically.
+//! adaptive contexts and direct nodes, then a count per voxel. One traversal serves the
+//! encoder and the decoder: it asks an [`Events`] for each event (the encoder knows the
+//! answer and records it, the decoder reads it), so both evolve the contexts identically.
 
 use rustc_hash::FxHashMap;
 
@@ -13,8 +13,7 @@ use neighbours::{
 use crate::container::chunk::ChunkTag;
 use crate::entropy::ans::{clamp_freq_one, AnsReader, BinaryModel, UniformModel};
 use crate::entropy::{GaussianTables, SymbolReader, SymbolWriter, PRECISION};
-use crate::error::AnsFault;
-use crate::error::{Error, Result};
+use crate::error::{AnsFault, Error, Result};
 use crate::model::morton3;
 
 /// §8.3: occupancy contexts (8 child indices × 8 neighbour counts × 4 × 4).
