@@ -1,12 +1,21 @@
-//! The whole context MLP (spec §5.3) with AVX2: 16 i16 lanes per `vpmaddwd`, eight weight
-//! rows against one input block at a time, their eight sums reduced into one vector, and the
-//! bias, rounding shift and clamped ReLU done on eight outputs at once.
+//! The whole context MLP (spec §5.3) with AVX2, 16 i16 lanes per `vpmaddwd`.
 //!
-//! The weights are re-laid once per stream ([`Avx2Mlp::new`]): rows padded with zeros to a
-//! multiple of 16 columns, row counts padded to a multiple of 8, and the eight rows of a group
-//! interleaved block by block so the kernel reads them as one sequential stream. Zero padding
-//! adds nothing to any sum, and padded hidden units have zero weights and bias, so they are
-//! 0 after the ReLU and add nothing to layer 1 either.
+//! Layer 0 (dense inputs): eight weight rows against one input block at a time, their eight
+//! sums reduced into one vector, and the bias, rounding shift and clamped ReLU done on eight
+//! outputs at once.
+//!
+//! Layer 1 goes by pairs of hidden units (2q, 2q + 1) and skips the pairs the ReLU set to 0
+//! (about a quarter of them where half the units are 0): the broadcast pair of activations
+//! times the pair's interleaved columns of W1 gives 8 outputs per `vpmaddwd`, with no
+//! horizontal sums. A zero unit adds nothing to any sum, and the sums are taken modulo 2^32
+//! (§5.3), so leaving pairs out and changing the order of the additions changes no bit.
+//!
+//! The weights are re-laid once per stream ([`Avx2Mlp::new`]). Layer 0: rows padded with
+//! zeros to a multiple of 16 columns, row counts padded to a multiple of 8, and the eight rows
+//! of a group interleaved block by block so the kernel reads them as one sequential stream.
+//! Layer 1: by unit pairs, outputs padded to a multiple of 8. Zero padding adds nothing to
+//! any sum, and padded hidden units have zero weights and bias, so they are 0 after the ReLU
+//! and are skipped like any other zero unit.
 
 use std::arch::x86_64::{
     __m128i, __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_castsi256_si128,
@@ -62,20 +71,58 @@ impl Layer {
     }
 }
 
+/// Layer 1 by unit pairs: for the pair of hidden units (2q, 2q + 1) and a group of 8
+/// outputs, the 16 weights `W1[o][2q], W1[o][2q + 1]` of the 8 outputs o in turn are
+/// contiguous at `(q * outputs + 8 g) * 2`: one `vpmaddwd` with the broadcast pair of
+/// activations adds both units' products to the group's 8 sums.
+#[derive(Debug, Clone)]
+struct Pairs {
+    weights: Vec<i16>,
+    /// Biases padded with zeros to `outputs`.
+    bias: Vec<i32>,
+    /// Outputs padded to a multiple of 8.
+    outputs: usize,
+}
+
+impl Pairs {
+    fn new(w: &[i16], bias: &[i32], rows: usize, cols: usize, cols_pad: usize) -> Pairs {
+        let outputs = round_up(rows, ROWS);
+        let mut weights = vec![0i16; cols_pad * outputs];
+        for r in 0..rows {
+            for c in 0..cols {
+                weights[((c / 2) * outputs + r) * 2 + c % 2] = w[r * cols + c];
+            }
+        }
+        let mut padded = vec![0i32; outputs];
+        padded[..rows].copy_from_slice(&bias[..rows]);
+        Pairs {
+            weights,
+            bias: padded,
+            outputs,
+        }
+    }
+}
+
+/// Output groups of 8 that one pass over the nonzero unit pairs accumulates in registers.
+const PASS_GROUPS: usize = 11;
+
 /// The context MLP in the AVX2 kernel's layout. Only [`Avx2Mlp::new`] makes one, and only
 /// on a CPU with AVX2.
 #[derive(Debug, Clone)]
 pub struct Avx2Mlp {
     layer0: Layer,
-    layer1: Layer,
+    layer1: Pairs,
     shift0: u8,
     cin: usize,
+    /// Hidden units padded to a multiple of 16 (padding units are always 0).
+    hidden_pad: usize,
     cout: usize,
 }
 
 impl Avx2Mlp {
-    /// The kernel for `mlp`, or `None` where the CPU lacks AVX2 or the MLP's tensors do not
-    /// have the lengths its dimensions give (the portable path then handles it).
+    /// The kernel for `mlp`, or `None` where the CPU lacks AVX2, the MLP's tensors do not
+    /// have the lengths its dimensions give, or it has more hidden units than the kernel's
+    /// 16-bit pair indices reach (the portable path then handles it).
     pub fn new(mlp: &IntMlp) -> Option<Avx2Mlp> {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return None;
@@ -88,14 +135,18 @@ impl Avx2Mlp {
         {
             return None;
         }
-        // Hidden activations feed layer 1 in blocks of 16, so the hidden width is padded to
-        // 16 (which is also a multiple of the 8 rows of layer 0).
+        // Hidden activations feed layer 1 in pairs and layer 0 writes them 8 at a time; 16
+        // keeps the scratch in whole vectors.
         let hidden_pad = round_up(hidden, LANES);
+        if hidden_pad > usize::from(u16::MAX) {
+            return None;
+        }
         Some(Avx2Mlp {
             layer0: Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
-            layer1: Layer::new(&mlp.w1, &mlp.b1, cout, hidden, round_up(cout, ROWS)),
+            layer1: Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
             shift0: mlp.shift0,
             cin,
+            hidden_pad,
             cout,
         })
     }
@@ -105,14 +156,15 @@ impl Avx2Mlp {
         self.layer0.blocks * LANES
     }
 
-    /// Length of the hidden scratch the kernel writes.
+    /// Length of the hidden scratch the kernel writes: the activations, then the list of
+    /// unit pairs with a nonzero unit.
     pub fn hidden_len(&self) -> usize {
-        self.layer0.groups * ROWS
+        self.hidden_pad + self.hidden_pad / 2
     }
 
     /// §5.3 steps 1-3, bit-identical to [`IntMlp::eval`]: `x` holds the `cin` inputs followed
-    /// by zeros up to [`Self::input_len`]; `h` is scratch of [`Self::hidden_len`]; `y` gets
-    /// the `cout` outputs.
+    /// by zeros up to [`Self::input_len`]; `h` is scratch of [`Self::hidden_len`] whose first
+    /// `hidden` values are the hidden activations afterwards; `y` gets the `cout` outputs.
     pub fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
         assert!(
             x.len() >= self.input_len()
@@ -140,19 +192,71 @@ impl Avx2Mlp {
             let relu = _mm_max_epi16(packed, _mm_setzero_si128());
             _mm_storeu_si128(h.as_mut_ptr().add(g * ROWS).cast::<__m128i>(), relu);
         }
-        // Layer 1: y_o = b1[o] + W1[o] . a.
+        // The unit pairs with a nonzero unit, in order. Written without branches: each pair
+        // is stored and the count advances only past nonzero ones (a branch per pair would be
+        // mispredicted often).
+        let (act, list) = h.split_at_mut(self.hidden_pad);
+        let mut n = 0;
+        for (q, pair) in act.chunks_exact(2).enumerate() {
+            *list.get_unchecked_mut(n) = q as u16 as i16;
+            n += usize::from((pair[0] | pair[1]) != 0);
+        }
+        let (act, list) = (&*act, &list[..n]);
+        // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the pairs, PASS_GROUPS output groups
+        // of 8 at a time.
+        let groups = self.layer1.outputs / ROWS;
+        let mut first = 0;
+        while first < groups {
+            match groups - first {
+                1 => self.layer1_pass::<1>(act, list, first, y),
+                2 => self.layer1_pass::<2>(act, list, first, y),
+                3 => self.layer1_pass::<3>(act, list, first, y),
+                4 => self.layer1_pass::<4>(act, list, first, y),
+                5 => self.layer1_pass::<5>(act, list, first, y),
+                6 => self.layer1_pass::<6>(act, list, first, y),
+                7 => self.layer1_pass::<7>(act, list, first, y),
+                8 => self.layer1_pass::<8>(act, list, first, y),
+                9 => self.layer1_pass::<9>(act, list, first, y),
+                10 => self.layer1_pass::<10>(act, list, first, y),
+                _ => self.layer1_pass::<PASS_GROUPS>(act, list, first, y),
+            }
+            first += PASS_GROUPS;
+        }
+    }
+
+    /// Layer 1's outputs `8 * first .. 8 * (first + B)` from the unit pairs in `list`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn layer1_pass<const B: usize>(
+        &self,
+        act: &[i16],
+        list: &[i16],
+        first: usize,
+        y: &mut [i32],
+    ) {
         let l1 = &self.layer1;
-        for g in 0..l1.groups {
-            let s = rows8(l1, g, h.as_ptr());
-            let acc =
-                _mm256_add_epi32(s, _mm256_loadu_si256(l1.bias.as_ptr().add(g * ROWS).cast()));
-            let at = g * ROWS;
-            if at + ROWS <= self.cout {
-                _mm256_storeu_si256(y.as_mut_ptr().add(at).cast::<__m256i>(), acc);
+        let mut acc = [_mm256_setzero_si256(); B];
+        let base = l1.weights.as_ptr().add(first * ROWS * 2);
+        for &q in list {
+            let q = usize::from(q as u16);
+            let both = u32::from(*act.get_unchecked(2 * q) as u16)
+                | u32::from(*act.get_unchecked(2 * q + 1) as u16) << 16;
+            let hv = _mm256_set1_epi32(both as i32);
+            let col = base.add(q * l1.outputs * 2);
+            for (i, a) in acc.iter_mut().enumerate() {
+                let w = _mm256_loadu_si256(col.add(i * 2 * ROWS).cast());
+                *a = _mm256_add_epi32(*a, _mm256_madd_epi16(w, hv));
+            }
+        }
+        for (i, a) in acc.into_iter().enumerate() {
+            let o = (first + i) * ROWS;
+            let v = _mm256_add_epi32(a, _mm256_loadu_si256(l1.bias.as_ptr().add(o).cast()));
+            if o + ROWS <= self.cout {
+                _mm256_storeu_si256(y.as_mut_ptr().add(o).cast::<__m256i>(), v);
             } else {
                 let mut last = [0i32; ROWS];
-                _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), acc);
-                y[at..].copy_from_slice(&last[..self.cout - at]);
+                _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), v);
+                y[o..].copy_from_slice(&last[..self.cout - o]);
             }
         }
     }
@@ -277,7 +381,8 @@ mod tests {
     /// multiple of 16, outputs not a multiple of 8), every shift, and extreme weights. The
     /// inputs must reach every branch a wrong kernel could get wrong: hidden units clamped to
     /// 0, saturated at 32767 and in between, and outputs whose sums wrap modulo 2^32; the test
-    /// counts them and fails if any kind never occurred.
+    /// counts them and fails if any kind never occurred. Layer 1 skips pairs of zero units, so
+    /// runs with every unit 0 and with none 0, and pairs with one unit 0, must occur too.
     #[test]
     fn matches_the_portable_mlp() {
         if !super::super::avx2_or_skip("hyperprior::simd::avx2::tests::matches_the_portable_mlp") {
@@ -293,7 +398,8 @@ mod tests {
             (48, 33, 7),
         ];
         // Hidden units at 0, at 32767, in between; outputs that wrapped; vectors compared.
-        let mut seen = [0usize; 5];
+        // All units 0, pairs with one unit 0, no unit 0.
+        let mut seen = [0usize; 8];
         for (cin, hidden, cout) in shapes {
             for shift0 in [0u8, 1, 5, 12, 20, 31] {
                 for extreme in [false, true] {
@@ -320,13 +426,21 @@ mod tests {
                         seen[2] += hs.iter().filter(|&&v| v > 0 && v < i16::MAX).count();
                         seen[3] += wrapped.iter().filter(|&&w| w).count();
                         seen[4] += 1;
+                        let nonzero = hs.iter().filter(|&&v| v != 0).count();
+                        seen[5] += usize::from(nonzero == 0);
+                        seen[6] += hs
+                            .chunks_exact(2)
+                            .filter(|p| (p[0] == 0) != (p[1] == 0))
+                            .count();
+                        seen[7] += usize::from(nonzero == hidden);
                     }
                 }
             }
         }
         assert!(
             seen.iter().all(|&c| c > 0),
-            "inputs too tame: hidden 0 / 32767 / between, wrapped outputs, runs: {seen:?}"
+            "inputs too tame: hidden 0 / 32767 / between, wrapped outputs, runs, all units 0, \
+             pairs with one unit 0, no unit 0: {seen:?}"
         );
     }
 
