@@ -11,6 +11,7 @@ mod simd;
 pub mod step;
 #[cfg(test)]
 mod test_scene;
+mod threshold_search;
 
 pub use grid::GridLayout;
 pub use mlp::IntMlp;

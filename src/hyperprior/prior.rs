@@ -5,7 +5,8 @@ use super::grid::GridLayout;
 use super::mlp::IntMlp;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 use super::simd::avx2::Avx2Mlp;
-use super::step::{factor_index, BaseStep, STEP_FACTOR, THRESHOLDS};
+use super::step::{factor_index, BaseStep, STEP_FACTOR};
+use super::threshold_search::ThresholdSearch;
 use crate::entropy::scale::THRESHOLD_Q16;
 use crate::model::{Dims, GroupQuantizer, HashGrid};
 
@@ -60,7 +61,7 @@ pub struct Prior {
     /// scale thresholds in the group's output domain. A step factor takes one of 129 values,
     /// so these are computed once per decode, not once per anchor.
     deltas: Vec<f32>,
-    thresholds: Vec<[u64; THRESHOLDS + 1]>,
+    thresholds: Vec<ThresholdSearch>,
 }
 
 /// A group's step at one anchor: the Table 5-2 factor, the binary32 step Δ, and the scale
@@ -70,7 +71,7 @@ pub struct GroupStep<'a> {
     pub factor: u32,
     pub delta: f32,
     /// The thresholds, then a sentinel u64::MAX that no lifted output reaches.
-    y_thresholds: &'a [u64; THRESHOLDS + 1],
+    y_thresholds: &'a ThresholdSearch,
 }
 
 impl Prior {
@@ -114,9 +115,9 @@ impl Prior {
             for &factor in &STEP_FACTOR {
                 deltas.push(base.delta(factor));
                 let t = base.y_thresholds(factor, emax[g], &THRESHOLD_Q16);
-                thresholds.push(std::array::from_fn(|i| {
+                thresholds.push(ThresholdSearch::new(std::array::from_fn(|i| {
                     t.get(i).copied().unwrap_or(u64::MAX)
-                }));
+                })));
             }
         }
         Prior {
@@ -228,13 +229,7 @@ impl Prior {
             // lift <= 30 (Table 5-1 bounds the weight fraction bits) and y < 2^31, so the
             // lifted value stays below 2^61 < the sentinel.
             let lifted = (yv.max(1) as u64) << lift;
-            // The number of thresholds <= lifted, by a branch-free binary search over the 63
-            // increasing thresholds and the sentinel (the comparisons become conditional
-            // moves; `& 63` keeps every probe in bounds without a check).
-            let mut c = 0usize;
-            for half in [32usize, 16, 8, 4, 2, 1] {
-                c += half * usize::from(t[(c + half - 1) & 63] <= lifted);
-            }
+            let c = t.count(lifted);
             *k = c as u8;
         }
     }
