@@ -280,9 +280,7 @@ pub fn read_attributes(
                             sym[i * w..(i + 1) * w].copy_from_slice(&u[..w]);
                         }
                         if lattice.is_identity() {
-                            for (j, (x, &uj)) in dst.iter_mut().zip(&u[..w]).enumerate() {
-                                *x = prior.reconstruct(y, g, j, delta, uj);
-                            }
+                            prior.reconstruct_values(y, g, 0, delta, &u[..w], dst);
                             continue;
                         }
                         // §7.3: μ + Δ·(B u).
@@ -299,14 +297,15 @@ pub fn read_attributes(
                             row[3 * slot..3 * slot + 3].fill(0.0);
                             continue;
                         }
-                        for c in 0..3 {
-                            let j = 3 * slot + c;
-                            let u = reader.symbol(kk[f + s + j])?;
-                            if let Some(sr) = sym_row.as_deref_mut() {
-                                sr[j] = u;
-                            }
-                            row[j] = prior.reconstruct(y, Group::Offsets, j, delta[2], u);
+                        let mut us = [0i64; 3];
+                        for (c, uc) in us.iter_mut().enumerate() {
+                            *uc = reader.symbol(kk[f + s + 3 * slot + c])?;
                         }
+                        if let Some(sr) = sym_row.as_deref_mut() {
+                            sr[3 * slot..3 * slot + 3].copy_from_slice(&us);
+                        }
+                        let (dst, offsets) = (&mut row[3 * slot..3 * slot + 3], Group::Offsets);
+                        prior.reconstruct_values(y, offsets, 3 * slot, delta[2], &us, dst);
                     }
                 }
                 Ok(())

@@ -54,6 +54,8 @@ pub struct Prior {
     adj_at: usize,
     /// Fraction bits E_o of each output.
     frac: Vec<i32>,
+    /// 2^-E_o of each output, exactly (§5.5 step 1's scale of a mean).
+    unit: Vec<f64>,
     /// Per output: how far its scale output is shifted up to the group's largest E_o, the
     /// domain of `thresholds` (§5.4 step 3).
     lift: Vec<u32>,
@@ -120,8 +122,10 @@ impl Prior {
                 })));
             }
         }
+        let unit = frac.iter().map(|&e| super::mlp::pow2(-e)).collect();
         Prior {
             layout,
+            unit,
             #[cfg(all(feature = "simd", target_arch = "x86_64"))]
             fast,
             frac,
@@ -248,6 +252,27 @@ impl Prior {
         super::step::reconstruct(y[o], self.frac[o], delta, u)
     }
 
+    /// §5.5 for the values `first .. first + out.len()` of group `g` from their symbols `u`:
+    /// [`Prior::reconstruct`] of each, with each output's 2^-E_o looked up instead of built.
+    #[inline]
+    pub fn reconstruct_values(
+        &self,
+        y: &[i32],
+        g: Group,
+        first: usize,
+        delta: f32,
+        u: &[i64],
+        out: &mut [f32],
+    ) {
+        let o = self.mean_at[g as usize] + first;
+        let (means, units) = (&y[o..o + out.len()], &self.unit[o..o + out.len()]);
+        for (((x, &m), &unit), &u) in out.iter_mut().zip(means).zip(units).zip(u) {
+            // μ = y 2^-E rounded once to binary32, as `step::mean_f32`.
+            let mu = (f64::from(m) * unit) as f32;
+            *x = super::step::reconstruct_from(mu, delta, u);
+        }
+    }
+
     /// Fraction bits E_o of output `o`.
     pub fn frac(&self, o: usize) -> i32 {
         self.frac[o]
@@ -258,6 +283,52 @@ impl Prior {
 mod tests {
     use super::*;
     use crate::hyperprior::test_scene::TestScene;
+
+    /// The row reconstruction gives each value's [`Prior::reconstruct`], bit for bit, for
+    /// every group, symbols from 0 to beyond 2^31, and steps that overflow to ∞ and NaN.
+    #[test]
+    fn row_reconstruction_equals_the_single_value() {
+        let scene = TestScene::new(200, 9);
+        let prior = Prior::new(
+            &scene.dims,
+            scene.coord_bits,
+            scene.mlp(3),
+            [&scene.quant; 3],
+            0,
+        );
+        let mut ctx = prior.context();
+        let symbols = [
+            0i64,
+            1,
+            -1,
+            7,
+            -300,
+            1 << 20,
+            -(1 << 31) - 5,
+            i64::MAX,
+            i64::MIN,
+        ];
+        for &v in &scene.voxels {
+            prior.eval(&scene.grid, v, &mut ctx);
+            let d = &scene.dims;
+            let widths = [d.feat_dim, d.scaling_dim, 3 * d.offsets].map(usize::from);
+            for (g, width) in Group::ALL.into_iter().zip(widths) {
+                for delta in [0.01f32, 3.5, f32::MAX, 0.0, f32::INFINITY] {
+                    let u: Vec<i64> = (0..width).map(|j| symbols[j % symbols.len()]).collect();
+                    let mut row = vec![0f32; width];
+                    prior.reconstruct_values(&ctx.y, g, 0, delta, &u, &mut row);
+                    for (j, (&x, &uj)) in row.iter().zip(&u).enumerate() {
+                        let single = prior.reconstruct(&ctx.y, g, j, delta, uj);
+                        assert_eq!(
+                            x.to_bits(),
+                            single.to_bits(),
+                            "{g:?} value {j} delta {delta}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     /// The SIMD kernel (where this CPU has one) and the portable §5.3 loop give the same
     /// outputs for every anchor of a random scene with HAC's dimensions and a random MLP
