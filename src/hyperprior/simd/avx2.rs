@@ -194,7 +194,8 @@ impl Avx2Mlp {
         }
         // The unit pairs with a nonzero unit, in order. Written without branches: each pair
         // is stored and the count advances only past nonzero ones (a branch per pair would be
-        // mispredicted often).
+        // mispredicted often). In bounds: the store for pair q is at n <= q < hidden_pad / 2,
+        // the list's length.
         let (act, list) = h.split_at_mut(self.hidden_pad);
         let mut n = 0;
         for (q, pair) in act.chunks_exact(2).enumerate() {
@@ -238,6 +239,8 @@ impl Avx2Mlp {
         let mut acc = [_mm256_setzero_si256(); B];
         let base = l1.weights.as_ptr().add(first * ROWS * 2);
         for &q in list {
+            // q < hidden_pad / 2 (see `eval_avx2`): units 2q and 2q + 1 are in `act`, and the
+            // pair's weights for these B groups are in `weights` (hidden_pad · outputs).
             let q = usize::from(q as u16);
             let both = u32::from(*act.get_unchecked(2 * q) as u16)
                 | u32::from(*act.get_unchecked(2 * q + 1) as u16) << 16;
