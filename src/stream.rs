@@ -26,8 +26,9 @@ use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::decoder::{decode_any, DecodeOptions, Decoded};
 use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
-use crate::explicit::attributes::TileSymbols;
-use crate::explicit::decode::{decode_tile, Due, ExplicitDecoder};
+use crate::explicit::attributes::{TileSymbols, TileSymbolsRef};
+use crate::explicit::decode::{Due, ExplicitDecoder};
+use crate::explicit::gatt::decode_tile;
 use crate::explicit::Gaussians;
 use crate::limits::LimitKind;
 
@@ -352,7 +353,7 @@ impl StreamDecoder {
                         hand_out(
                             &e.decoder,
                             t,
-                            &symbols,
+                            symbols.as_ref(),
                             &mut self.gaussians,
                             &mut self.tiles,
                         )?;
@@ -389,9 +390,8 @@ impl StreamDecoder {
             // one by one for another reason) the symbols; tiles not yet reconstructed are.
             e.decoder.chunk(chunk.tag, chunk.payload, &[])?;
             // The tiles handed out already are those `g.per_tile` holds: a prefix, in order.
-            let per_tile = e.decoder.decoded_tiles().unwrap_or_default();
-            for (t, s) in per_tile.iter().enumerate() {
-                if let (Some(s), None) = (s, &g.per_tile[t]) {
+            for (t, handed_out) in g.per_tile.iter().enumerate() {
+                if let (Some(s), None) = (e.decoder.tile_symbols(t), handed_out) {
                     hand_out(&e.decoder, t, s, &mut self.gaussians, &mut self.tiles)?;
                 }
             }
@@ -407,7 +407,7 @@ impl StreamDecoder {
 fn hand_out(
     decoder: &ExplicitDecoder,
     t: usize,
-    symbols: &TileSymbols,
+    symbols: TileSymbolsRef,
     gaussians: &mut Gaussians,
     tiles: &mut Vec<DecodedTile>,
 ) -> Result<()> {

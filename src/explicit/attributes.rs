@@ -53,6 +53,113 @@ pub struct TileSymbols {
     pub refinement: Vec<[u32; 3]>,
 }
 
+impl TileSymbols {
+    /// The symbols of `n` Gaussians of `values` coded values each, all 0, to be written in
+    /// place ([`TileSymbols::as_mut`]).
+    pub fn zeroed(n: usize, values: usize) -> TileSymbols {
+        TileSymbols {
+            coords: vec![0; n * values],
+            rotation_index: vec![0; n],
+            size_class: vec![0; n],
+            refinement: vec![[0; 3]; n],
+        }
+    }
+
+    /// Every Gaussian's symbols, as one view to write in place.
+    pub fn as_mut(&mut self) -> TileSymbolsMut<'_> {
+        TileSymbolsMut {
+            coords: &mut self.coords,
+            rotation_index: &mut self.rotation_index,
+            size_class: &mut self.size_class,
+            refinement: &mut self.refinement,
+        }
+    }
+
+    /// Every Gaussian's symbols, as a view.
+    pub fn as_ref(&self) -> TileSymbolsRef<'_> {
+        TileSymbolsRef {
+            coords: &self.coords,
+            rotation_index: &self.rotation_index,
+            size_class: &self.size_class,
+            refinement: &self.refinement,
+        }
+    }
+}
+
+/// Some Gaussians' symbols ([`TileSymbols`]'s fields) as mutable slices, so that tiles
+/// decoded on different threads write straight into one output.
+#[derive(Debug)]
+pub struct TileSymbolsMut<'a> {
+    /// [`TileSymbols::coords`].
+    pub coords: &'a mut [i32],
+    /// [`TileSymbols::rotation_index`].
+    pub rotation_index: &'a mut [u8],
+    /// [`TileSymbols::size_class`].
+    pub size_class: &'a mut [u8],
+    /// [`TileSymbols::refinement`].
+    pub refinement: &'a mut [[u32; 3]],
+}
+
+impl<'a> TileSymbolsMut<'a> {
+    /// The first `n` Gaussians' symbols and the rest, `values` coordinates per Gaussian
+    /// (`n` at most the Gaussians there are).
+    pub fn split_at(self, n: usize, values: usize) -> (TileSymbolsMut<'a>, TileSymbolsMut<'a>) {
+        let (coords, c) = self.coords.split_at_mut(n * values);
+        let (rotation_index, r) = self.rotation_index.split_at_mut(n);
+        let (size_class, s) = self.size_class.split_at_mut(n);
+        let (refinement, w) = self.refinement.split_at_mut(n);
+        (
+            TileSymbolsMut {
+                coords,
+                rotation_index,
+                size_class,
+                refinement,
+            },
+            TileSymbolsMut {
+                coords: c,
+                rotation_index: r,
+                size_class: s,
+                refinement: w,
+            },
+        )
+    }
+
+    /// The same symbols, read only.
+    pub fn as_ref(&self) -> TileSymbolsRef<'_> {
+        TileSymbolsRef {
+            coords: self.coords,
+            rotation_index: self.rotation_index,
+            size_class: self.size_class,
+            refinement: self.refinement,
+        }
+    }
+}
+
+/// Some Gaussians' symbols ([`TileSymbols`]'s fields) as slices.
+#[derive(Debug, Clone, Copy)]
+pub struct TileSymbolsRef<'a> {
+    /// [`TileSymbols::coords`].
+    pub coords: &'a [i32],
+    /// [`TileSymbols::rotation_index`].
+    pub rotation_index: &'a [u8],
+    /// [`TileSymbols::size_class`].
+    pub size_class: &'a [u8],
+    /// [`TileSymbols::refinement`].
+    pub refinement: &'a [[u32; 3]],
+}
+
+impl TileSymbolsRef<'_> {
+    /// An owned copy.
+    pub fn to_owned(self) -> TileSymbols {
+        TileSymbols {
+            coords: self.coords.to_vec(),
+            rotation_index: self.rotation_index.to_vec(),
+            size_class: self.size_class.to_vec(),
+            refinement: self.refinement.to_vec(),
+        }
+    }
+}
+
 /// §3.5: the context class of a value whose reference's symbol was `r_prev`.
 #[inline]
 pub fn context_class(has_reference: bool, r_prev: i64) -> usize {
@@ -123,24 +230,34 @@ pub fn walk(
     events: &mut impl Events,
 ) -> Result<TileSymbols> {
     let values: usize = groups.iter().map(|g| g.dim).sum();
+    let mut out = TileSymbols::zeroed(voxels.len(), values);
+    walk_into(layer, groups, voxels, events, &mut out.as_mut())?;
+    Ok(out)
+}
+
+/// [`walk`], writing the symbols into `out` (room for exactly the tile's Gaussians).
+pub fn walk_into(
+    layer: &Layer,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    events: &mut impl Events,
+    out: &mut TileSymbolsMut,
+) -> Result<()> {
+    let values: usize = groups.iter().map(|g| g.dim).sum();
     let n = voxels.len();
-    let mut out = TileSymbols {
-        coords: Vec::with_capacity(n * values),
-        rotation_index: Vec::with_capacity(n),
-        size_class: Vec::with_capacity(n),
-        refinement: Vec::with_capacity(n),
-    };
+    debug_assert_eq!(out.coords.len(), n * values);
     let mut prev_r = vec![0i64; values];
     let mut prev_u = vec![0i64; values];
     let mut prev_shift = vec![0i8; groups.len()];
-    for i in 0..n {
+    let rows = out.coords.chunks_exact_mut(values.max(1));
+    for (i, row) in rows.enumerate().take(n) {
         let reference = has_reference(voxels, i, layer.pred_level);
         let mut class = 0usize;
         let mut v = 0usize;
         for (gi, g) in groups.iter().enumerate() {
             if gi == 1 {
                 // After the scale group: the size class, then the position refinement.
-                let scale = &out.coords[i * values..i * values + groups[0].dim];
+                let scale = &row[..groups[0].dim];
                 let largest = scale.iter().map(|&u| i64::from(u)).max().unwrap_or(0);
                 class = layer.size_class(largest);
                 let e = layer.refine[class];
@@ -151,8 +268,8 @@ pub fn walk(
                         *wa = 2 * *wa + u32::from(b);
                     }
                 }
-                out.size_class.push(class as u8);
-                out.refinement.push(w);
+                out.size_class[i] = class as u8;
+                out.refinement[i] = w;
             }
             if g.kind == GroupKind::Rotation {
                 let f = &layer.rotation_freq;
@@ -162,7 +279,7 @@ pub fn walk(
                     i,
                     BitEvent::RotationLow,
                 )?;
-                out.rotation_index.push(2 * u8::from(high) + u8::from(low));
+                out.rotation_index[i] = 2 * u8::from(high) + u8::from(low);
             }
             let shift = layer.group_shift(gi, class);
             let offset = layer.group_offset(gi, class);
@@ -191,13 +308,13 @@ pub fn walk(
                 }
                 prev_r[v] = r;
                 prev_u[v] = u;
-                out.coords.push(u as i32);
+                row[v] = u as i32;
                 v += 1;
             }
             prev_shift[gi] = shift;
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 #[cfg(test)]

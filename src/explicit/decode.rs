@@ -6,9 +6,10 @@ use crate::par::*;
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::payload::{apos_bodies, body, read_apos, read_apos_tile, METHOD_CODED};
 use crate::container::signature::{Signature, SIGNATURE_LEN};
-use crate::entropy::{GaussianTables, SymbolReader};
+use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
-use crate::explicit::attributes::{walk, BitEvent, Events, TileSymbols};
+use crate::explicit::attributes::{TileSymbols, TileSymbolsRef};
+use crate::explicit::gatt::{decode_and_reconstruct, read_gatt, DecodedTiles};
 use crate::explicit::groups::{read_gqua, Group};
 use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
@@ -65,95 +66,6 @@ pub fn expected_critical(i: usize, layers: usize) -> ChunkTag {
         i if i - 2 < 4 * layers => LAYER[(i - 2) % 4],
         _ => ChunkTag::SEND,
     }
-}
-
-struct Reader<'a> {
-    symbols: SymbolReader<'a>,
-}
-
-impl Events for Reader<'_> {
-    fn bit(&mut self, freq_one: u32, _: usize, _: BitEvent) -> Result<bool> {
-        self.symbols.bit(freq_one)
-    }
-    fn symbol(&mut self, k: u8, _: usize, _: usize, _: i64) -> Result<i64> {
-        self.symbols.symbol(k)
-    }
-}
-
-/// §3.5: decodes one tile's body of `GATT`; `voxels` are the tile's.
-pub(crate) fn decode_tile(
-    layer: &Layer,
-    groups: &[Group],
-    voxels: &[[u32; 3]],
-    body: &[u8],
-    tables: &GaussianTables,
-) -> Result<TileSymbols> {
-    let mut reader = Reader {
-        symbols: SymbolReader::new(ChunkTag::GATT, body, tables)?,
-    };
-    let symbols = walk(layer, groups, voxels, &mut reader)?;
-    reader.symbols.finish()?;
-    Ok(symbols)
-}
-
-/// A decoded tile: its symbols (§3.5) and its Gaussians (§3.6).
-pub type DecodedTile = (TileSymbols, Gaussians);
-
-/// §3.5, §3.6: decodes `GATT` of a layer whose geometry is `voxels` cut by `tiles`, and
-/// reconstructs each selected tile's Gaussians in the same task (tiles are independent, so
-/// the reconstruction runs on every thread rather than after the last tile).
-#[allow(clippy::too_many_arguments)]
-pub fn read_gatt(
-    payload: &[u8],
-    header: &GaussianHeader,
-    rate: u8,
-    layer: &Layer,
-    groups: &[Group],
-    tiles: &TileTable,
-    voxels: &[[u32; 3]],
-    selected: &[bool],
-    tables: &GaussianTables,
-) -> Result<Vec<Option<DecodedTile>>> {
-    let tag = ChunkTag::GATT;
-    let words = body(tag, payload, METHOD_CODED)?;
-    let bodies = split_bodies(tag, 1, words, tiles.len())?;
-    let decoded: Vec<Result<Option<DecodedTile>>> = bodies
-        .into_par_iter()
-        .enumerate()
-        .map(|(t, b)| {
-            if !selected.get(t).copied().unwrap_or(true) {
-                return Ok(None);
-            }
-            let tile_voxels = &voxels[tiles.range(t)];
-            decode_and_reconstruct(header, rate, layer, groups, tile_voxels, b, tables)
-        })
-        .collect();
-    // §10.3: the lowest tile's error is reported.
-    decoded.into_iter().collect()
-}
-
-/// §3.5, §3.6: one tile's symbols from its `GATT` body and its Gaussians from them.
-fn decode_and_reconstruct(
-    header: &GaussianHeader,
-    rate: u8,
-    layer: &Layer,
-    groups: &[Group],
-    voxels: &[[u32; 3]],
-    body: &[u8],
-    tables: &GaussianTables,
-) -> Result<Option<DecodedTile>> {
-    let symbols = decode_tile(layer, groups, voxels, body, tables)?;
-    let mut gaussians = Gaussians::with_capacity(header.sh_degree, voxels.len());
-    reconstruct_tile(
-        header.origin,
-        layer,
-        groups,
-        rate,
-        voxels,
-        &symbols,
-        &mut gaussians,
-    );
-    Ok(Some((symbols, gaussians)))
 }
 
 /// The payload of the next critical chunk in `rest` if it is `GATT` and every chunk before it
@@ -231,13 +143,12 @@ pub(crate) struct ExplicitDecoder {
     voxels: Option<Vec<[u32; 3]>>,
     /// Which tiles the region keeps (set with the selected layer's `GATT`).
     selected: Vec<bool>,
-    /// Every tile's symbols once `GATT` is decoded (`None`: not selected).
-    per_tile: Option<Vec<Option<TileSymbols>>>,
-    /// The selected tiles' Gaussians, in order, where `GATT` was decoded whole.
-    reconstructed: Option<Gaussians>,
+    /// The selected tiles' symbols, once `GATT` is decoded, and their Gaussians where it was
+    /// decoded whole (empty where the caller reconstructs them).
+    decoded: Option<DecodedTiles>,
     /// `GATT`'s outcome where it was decoded with `APOS` (see [`ExplicitDecoder::fused`]),
     /// reported when its own position in the stream is reached.
-    early_gatt: Option<Result<Vec<Option<DecodedTile>>>>,
+    early_gatt: Option<Result<DecodedTiles>>,
 }
 
 fn missing(tag: ChunkTag) -> Error {
@@ -267,8 +178,7 @@ impl ExplicitDecoder {
             tiles: None,
             voxels: None,
             selected: Vec::new(),
-            per_tile: None,
-            reconstructed: None,
+            decoded: None,
             early_gatt: None,
         }
     }
@@ -352,20 +262,7 @@ impl ExplicitDecoder {
                         read_gatt(bytes, h, rate, l, g, t, v, &self.selected, tables)?
                     }
                 };
-                let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-                let mut gaussians = Gaussians {
-                    sh_degree: h.sh_degree,
-                    ..Gaussians::default()
-                };
-                let mut per_tile = Vec::with_capacity(decoded.len());
-                for tile in decoded {
-                    per_tile.push(tile.map(|(symbols, g)| {
-                        gaussians.append(g);
-                        symbols
-                    }));
-                }
-                self.per_tile = Some(per_tile);
-                self.reconstructed = Some(gaussians);
+                self.decoded = Some(decoded);
             }
             _ => {
                 // SEND: empty, last, nothing after it.
@@ -392,38 +289,42 @@ impl ExplicitDecoder {
         let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
         let attributes = body(ChunkTag::GATT, gatt, METHOD_CODED)
             .and_then(|words| split_bodies(ChunkTag::GATT, 1, words, tiles.len()));
-        let (rate, selected) = (self.rate_chosen, &self.selected);
-        type Fused = (Result<Vec<[u32; 3]>>, Option<Result<Option<DecodedTile>>>);
-        let decoded: Vec<Fused> = geometry
+        let rate = self.rate_chosen;
+        let (mut decoded, values) = DecodedTiles::allocate(tiles, &self.selected, g, h.sh_degree);
+        let outputs = decoded.outputs(tiles, values);
+        // Per tile: its voxels, and where `GATT` was framed, its outcome.
+        type Fused = (Result<Vec<[u32; 3]>>, Option<Result<()>>);
+        let results: Vec<Fused> = geometry
             .into_par_iter()
+            .zip(outputs)
             .enumerate()
-            .map(|(t, b)| {
+            .map(|(t, (b, output))| {
                 let voxels = read_apos_tile(b, t, tiles, tables);
-                let tile = match (&voxels, &attributes) {
-                    (Ok(v), Ok(bodies)) if selected.get(t).copied().unwrap_or(true) => {
-                        Some(decode_and_reconstruct(h, rate, l, g, v, bodies[t], tables))
-                    }
-                    (Ok(_), Ok(_)) => Some(Ok(None)),
+                let tile = match (&voxels, &attributes, output) {
+                    (Ok(v), Ok(bodies), Some(out)) => Some(decode_and_reconstruct(
+                        h, rate, l, g, v, bodies[t], tables, out,
+                    )),
+                    (Ok(_), Ok(_), None) => Some(Ok(())),
                     _ => None,
                 };
                 (voxels, tile)
             })
             .collect();
         let mut voxels = Vec::with_capacity(tiles.anchors as usize);
-        let mut per_tile = Vec::with_capacity(decoded.len());
-        for (v, tile) in decoded {
+        let mut outcomes = Vec::with_capacity(results.len());
+        for (v, tile) in results {
             voxels.extend_from_slice(&v?);
-            per_tile.push(tile);
+            outcomes.push(tile);
         }
         tiles.check_geometry(&voxels)?;
         self.voxels = Some(voxels);
         // Every tile's geometry decoded, so every tile has an outcome where `GATT` was
         // framed; the lowest tile's error is reported (§10.3).
         self.early_gatt = Some(attributes.and_then(|_| {
-            per_tile
+            outcomes
                 .into_iter()
-                .map(|tile| tile.unwrap_or(Ok(None)))
-                .collect()
+                .try_for_each(|tile| tile.unwrap_or(Ok(())))
+                .map(|()| decoded)
         }));
         Ok(())
     }
@@ -454,9 +355,20 @@ impl ExplicitDecoder {
         self.selected.get(t).copied().unwrap_or(false)
     }
 
-    /// Every tile's symbols, once `GATT` is decoded.
-    pub(crate) fn decoded_tiles(&self) -> Option<&[Option<TileSymbols>]> {
-        self.per_tile.as_deref()
+    /// Tile `t`'s symbols, once `GATT` is decoded (`None`: a tile not decoded).
+    pub(crate) fn tile_symbols(&self, t: usize) -> Option<TileSymbolsRef<'_>> {
+        let d = self.decoded.as_ref()?;
+        let start = (*d.starts.get(t)?)?;
+        let (_, _, tiles, _) = self.tile_inputs().ok()?;
+        let n = tiles.range(t).len();
+        let values = self.groups.as_ref()?.iter().map(|g| g.dim).sum::<usize>();
+        let s = &d.symbols;
+        Some(TileSymbolsRef {
+            coords: s.coords.get(start * values..(start + n) * values)?,
+            rotation_index: s.rotation_index.get(start..start + n)?,
+            size_class: s.size_class.get(start..start + n)?,
+            refinement: s.refinement.get(start..start + n)?,
+        })
     }
 
     /// The stream's preflight, once `GHED` is decoded.
@@ -465,7 +377,12 @@ impl ExplicitDecoder {
     }
 
     /// §3.6: the Gaussians of tile `t` from its symbols, appended to `out`.
-    pub(crate) fn reconstruct(&self, t: usize, s: &TileSymbols, out: &mut Gaussians) -> Result<()> {
+    pub(crate) fn reconstruct(
+        &self,
+        t: usize,
+        s: TileSymbolsRef,
+        out: &mut Gaussians,
+    ) -> Result<()> {
         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
         let (l, g, tiles, v) = self.tile_inputs()?;
         reconstruct_tile(h.origin, l, g, self.rate_chosen, &v[tiles.range(t)], s, out);
@@ -473,41 +390,53 @@ impl ExplicitDecoder {
     }
 
     /// Records the selected layer's `GATT` as decoded elsewhere (tile by tile, as its bytes
-    /// arrived): its position is taken and its symbols kept.
+    /// arrived, each tile's Gaussians reconstructed there): its position is taken and its
+    /// symbols kept.
     pub(crate) fn gatt_decoded(&mut self, per_tile: Vec<Option<TileSymbols>>) {
         self.next += 1;
-        self.per_tile = Some(per_tile);
+        let mut symbols = TileSymbols::default();
+        let mut starts = Vec::with_capacity(per_tile.len());
+        for tile in per_tile {
+            starts.push(tile.map(|s| {
+                let start = symbols.size_class.len();
+                symbols.coords.extend_from_slice(&s.coords);
+                symbols.rotation_index.extend_from_slice(&s.rotation_index);
+                symbols.size_class.extend_from_slice(&s.size_class);
+                symbols.refinement.extend_from_slice(&s.refinement);
+                start
+            }));
+        }
+        self.decoded = Some(DecodedTiles {
+            symbols,
+            gaussians: Gaussians::default(),
+            starts,
+        });
     }
 
     /// §3.6, after `SEND`: the Gaussians of every decoded tile, in stream order.
-    pub(crate) fn finish(mut self) -> Result<DecodedGaussians> {
-        let reconstructed = self.reconstructed.take();
-        self.finish_with(reconstructed)
+    pub(crate) fn finish(self) -> Result<DecodedGaussians> {
+        self.finish_with(None)
     }
 
-    /// [`Self::finish`] with the Gaussians already reconstructed tile by tile, in order
-    /// (`None`: reconstruct them now).
-    pub(crate) fn finish_with(self, reconstructed: Option<Gaussians>) -> Result<DecodedGaussians> {
-        let per_tile = self.per_tile.as_ref().ok_or(missing(ChunkTag::GATT))?;
-        let done = reconstructed.is_some();
-        let mut gaussians = reconstructed.unwrap_or_else(|| Gaussians {
-            sh_degree: self.header.as_ref().map_or(0, |h| h.sh_degree),
-            ..Gaussians::default()
-        });
-        let mut all = TileSymbols::default();
-        let mut kept = Vec::new();
+    /// [`Self::finish`] with the Gaussians reconstructed by the caller tile by tile, in
+    /// order (`None`: those decoded with `GATT`).
+    pub(crate) fn finish_with(
+        mut self,
+        reconstructed: Option<Gaussians>,
+    ) -> Result<DecodedGaussians> {
+        let decoded = self.decoded.take().ok_or(missing(ChunkTag::GATT))?;
         let (_, _, tiles, voxels) = self.tile_inputs()?;
-        for (t, s) in per_tile.iter().enumerate() {
-            let Some(s) = s else { continue };
-            kept.extend_from_slice(&voxels[tiles.range(t)]);
-            if !done {
-                self.reconstruct(t, s, &mut gaussians)?;
+        let kept = if decoded.starts.iter().all(Option::is_some) {
+            self.voxels.take().unwrap_or_default()
+        } else {
+            let mut kept = Vec::with_capacity(decoded.symbols.size_class.len());
+            for (t, start) in decoded.starts.iter().enumerate() {
+                if start.is_some() {
+                    kept.extend_from_slice(&voxels[tiles.range(t)]);
+                }
             }
-            all.coords.extend_from_slice(&s.coords);
-            all.rotation_index.extend_from_slice(&s.rotation_index);
-            all.size_class.extend_from_slice(&s.size_class);
-            all.refinement.extend_from_slice(&s.refinement);
-        }
+            kept
+        };
         let missing_part = |tag| missing(tag);
         Ok(DecodedGaussians {
             header: self.header.ok_or(missing_part(ChunkTag::GHED))?,
@@ -515,9 +444,9 @@ impl ExplicitDecoder {
             rate: self.rate_chosen,
             layer: self.layer.ok_or(missing_part(ChunkTag::GLAY))?,
             voxels: kept,
-            symbols: all,
+            symbols: decoded.symbols,
             tiles: self.tiles.ok_or(missing_part(ChunkTag::TILS))?,
-            gaussians,
+            gaussians: reconstructed.unwrap_or(decoded.gaussians),
         })
     }
 }

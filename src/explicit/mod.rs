@@ -12,10 +12,12 @@
 //! | `GLAY` a layer's grid and prior | §3.4 | [`layer`] |
 //! | `GATT` attribute symbols per tile | §3.5 | [`attributes`] |
 //! | reconstruction, the decoded Gaussians | §3.6 | [`reconstruct`], [`gaussians`] |
+//! | `GATT` decoded tile by tile, in parallel | §3.5, §3.6 | `gatt` (private) |
 //! | stream order and decoding | §3.7 | [`decode`] |
 
 pub mod attributes;
 pub mod decode;
+pub(crate) mod gatt;
 pub mod gaussians;
 pub mod groups;
 pub mod header;

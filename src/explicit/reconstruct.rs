@@ -2,7 +2,8 @@
 //! to binary32 Gaussians, every operation an IEEE 754 binary32 operation with
 //! round-to-nearest-even in the order given, so every decoder outputs the same bits.
 
-use crate::explicit::attributes::TileSymbols;
+use crate::explicit::attributes::TileSymbolsRef;
+use crate::explicit::gaussians::GaussiansMut;
 use crate::explicit::groups::{Group, GroupKind};
 use crate::explicit::layer::Layer;
 use crate::explicit::Gaussians;
@@ -55,8 +56,22 @@ pub fn reconstruct_tile(
     groups: &[Group],
     rate: u8,
     voxels: &[[u32; 3]],
-    symbols: &TileSymbols,
+    symbols: TileSymbolsRef,
     out: &mut Gaussians,
+) {
+    let tile = out.extend_zeroed(voxels.len());
+    reconstruct_tile_into(origin, layer, groups, rate, voxels, symbols, tile);
+}
+
+/// §3.6: the Gaussians of one tile, written into `out` (room for exactly the tile's).
+pub fn reconstruct_tile_into(
+    origin: [f32; 3],
+    layer: &Layer,
+    groups: &[Group],
+    rate: u8,
+    voxels: &[[u32; 3]],
+    symbols: TileSymbolsRef,
+    out: GaussiansMut,
 ) {
     let values: usize = groups.iter().map(|g| g.dim).sum();
     let matrices: Vec<_> = groups.iter().map(Group::matrix).collect();
@@ -65,15 +80,16 @@ pub fn reconstruct_tile(
     let mut z = vec![0.0f32; widest];
     let mut u = vec![0i64; widest];
     let mut x = vec![0.0f32; widest];
-    for (i, &voxel) in voxels.iter().enumerate() {
+    let rest = out.rest_per_gaussian;
+    for (i, &voxel) in voxels.iter().enumerate().take(out.len()) {
         let class = usize::from(symbols.size_class[i]);
-        out.positions.push(position(
+        out.positions[i] = position(
             origin,
             layer.voxel_size,
             voxel,
             layer.refine[class],
             symbols.refinement[i],
-        ));
+        );
         let coords = &symbols.coords[i * values..(i + 1) * values];
         let mut at = 0;
         for (gi, g) in groups.iter().enumerate() {
@@ -89,13 +105,14 @@ pub fn reconstruct_tile(
                 x[j] = canonical_nan(g.mean[j] + delta * z[j]);
             }
             match g.kind {
-                GroupKind::Opacity => out.opacity_logit.push(x[0]),
-                GroupKind::Scale => out.log_scales.push([x[0], x[1], x[2]]),
-                GroupKind::Rotation => out
-                    .rotations
-                    .push(quaternion([x[0], x[1], x[2]], symbols.rotation_index[i])),
-                GroupKind::Dc => out.f_dc.push([x[0], x[1], x[2]]),
-                GroupKind::Rest => out.f_rest.extend_from_slice(&x[..d]),
+                GroupKind::Opacity => out.opacity_logit[i] = x[0],
+                GroupKind::Scale => out.log_scales[i] = [x[0], x[1], x[2]],
+                GroupKind::Rotation => {
+                    out.rotations[i] = quaternion([x[0], x[1], x[2]], symbols.rotation_index[i])
+                }
+                GroupKind::Dc => out.f_dc[i] = [x[0], x[1], x[2]],
+                // Table 3-3: the group holds all 3·B values.
+                GroupKind::Rest => out.f_rest[i * rest..(i + 1) * rest].copy_from_slice(&x[..d]),
             }
         }
     }

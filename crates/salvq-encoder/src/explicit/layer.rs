@@ -475,7 +475,7 @@ pub fn encode_layer(
             groups,
             rate,
             &grid.voxels[range],
-            &symbols,
+            symbols.as_ref(),
             &mut expected,
         );
     }

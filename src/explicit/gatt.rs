@@ -1,0 +1,189 @@
+//! `GATT` (spec §3.5, §3.6) decoded tile by tile: each tile's symbols and Gaussians written
+//! straight into the layer's output, so that tiles decoded on different threads need no
+//! concatenation afterwards.
+
+use crate::par::*;
+
+use crate::container::chunk::ChunkTag;
+use crate::container::payload::{body, METHOD_CODED};
+use crate::entropy::{GaussianTables, SymbolReader};
+use crate::error::Result;
+use crate::explicit::attributes::{walk_into, BitEvent, Events, TileSymbols, TileSymbolsMut};
+use crate::explicit::gaussians::GaussiansMut;
+use crate::explicit::groups::Group;
+use crate::explicit::header::GaussianHeader;
+use crate::explicit::layer::Layer;
+use crate::explicit::reconstruct::reconstruct_tile_into;
+use crate::explicit::Gaussians;
+use crate::tiles::{split_bodies, TileTable};
+
+struct Reader<'a> {
+    symbols: SymbolReader<'a>,
+}
+
+impl Events for Reader<'_> {
+    fn bit(&mut self, freq_one: u32, _: usize, _: BitEvent) -> Result<bool> {
+        self.symbols.bit(freq_one)
+    }
+    fn symbol(&mut self, k: u8, _: usize, _: usize, _: i64) -> Result<i64> {
+        self.symbols.symbol(k)
+    }
+}
+
+/// §3.5: decodes one tile's body of `GATT`; `voxels` are the tile's.
+pub(crate) fn decode_tile(
+    layer: &Layer,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    body: &[u8],
+    tables: &GaussianTables,
+) -> Result<TileSymbols> {
+    let values = groups.iter().map(|g| g.dim).sum();
+    let mut out = TileSymbols::zeroed(voxels.len(), values);
+    decode_tile_into(layer, groups, voxels, body, tables, &mut out.as_mut())?;
+    Ok(out)
+}
+
+/// [`decode_tile`], writing the symbols into `out`.
+fn decode_tile_into(
+    layer: &Layer,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    body: &[u8],
+    tables: &GaussianTables,
+    out: &mut TileSymbolsMut,
+) -> Result<()> {
+    let mut reader = Reader {
+        symbols: SymbolReader::new(ChunkTag::GATT, body, tables)?,
+    };
+    walk_into(layer, groups, voxels, &mut reader, out)?;
+    reader.symbols.finish()
+}
+
+/// The selected tiles of a layer's `GATT`, decoded: their symbols (§3.5) and Gaussians
+/// (§3.6), each concatenated in tile order.
+#[derive(Debug)]
+pub(crate) struct DecodedTiles {
+    pub(crate) symbols: TileSymbols,
+    pub(crate) gaussians: Gaussians,
+    /// Where each tile's Gaussians start in both (`None`: a tile not decoded).
+    pub(crate) starts: Vec<Option<usize>>,
+}
+
+/// One selected tile's place in [`DecodedTiles`]: its symbols and Gaussians, to write.
+pub(crate) type TileOutput<'a> = (TileSymbolsMut<'a>, GaussiansMut<'a>);
+
+impl DecodedTiles {
+    /// Room for the Gaussians of the tiles `selected` keeps, and each tile's place in it
+    /// (`None` for a tile not kept), so that tiles decoded on different threads write
+    /// straight into the output rather than into buffers concatenated afterwards.
+    pub(crate) fn allocate(
+        tiles: &TileTable,
+        selected: &[bool],
+        groups: &[Group],
+        sh_degree: u8,
+    ) -> (Self, usize) {
+        let mut starts = Vec::with_capacity(tiles.len());
+        let mut total = 0;
+        for t in 0..tiles.len() {
+            if selected.get(t).copied().unwrap_or(true) {
+                starts.push(Some(total));
+                total += tiles.range(t).len();
+            } else {
+                starts.push(None);
+            }
+        }
+        let values = groups.iter().map(|g| g.dim).sum();
+        let decoded = DecodedTiles {
+            symbols: TileSymbols::zeroed(total, values),
+            gaussians: Gaussians::zeroed(sh_degree, total),
+            starts,
+        };
+        (decoded, values)
+    }
+
+    /// Each tile's place to write ([`DecodedTiles::allocate`]).
+    pub(crate) fn outputs(
+        &mut self,
+        tiles: &TileTable,
+        values: usize,
+    ) -> Vec<Option<TileOutput<'_>>> {
+        let (mut symbols, mut gaussians) = (self.symbols.as_mut(), self.gaussians.as_mut());
+        let mut out = Vec::with_capacity(self.starts.len());
+        for (t, start) in self.starts.iter().enumerate() {
+            if start.is_none() {
+                out.push(None);
+                continue;
+            }
+            let n = tiles.range(t).len();
+            let (s, s_rest) = symbols.split_at(n, values);
+            let (g, g_rest) = gaussians.split_at(n);
+            (symbols, gaussians) = (s_rest, g_rest);
+            out.push(Some((s, g)));
+        }
+        out
+    }
+}
+
+/// §3.5, §3.6: decodes `GATT` of a layer whose geometry is `voxels` cut by `tiles`, and
+/// reconstructs each selected tile's Gaussians in the same task (tiles are independent, so
+/// the reconstruction runs on every thread rather than after the last tile).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn read_gatt(
+    payload: &[u8],
+    header: &GaussianHeader,
+    rate: u8,
+    layer: &Layer,
+    groups: &[Group],
+    tiles: &TileTable,
+    voxels: &[[u32; 3]],
+    selected: &[bool],
+    tables: &GaussianTables,
+) -> Result<DecodedTiles> {
+    let tag = ChunkTag::GATT;
+    let words = body(tag, payload, METHOD_CODED)?;
+    let bodies = split_bodies(tag, 1, words, tiles.len())?;
+    let (mut decoded, values) = DecodedTiles::allocate(tiles, selected, groups, header.sh_degree);
+    let outputs = decoded.outputs(tiles, values);
+    let results: Vec<Result<()>> = bodies
+        .into_par_iter()
+        .zip(outputs)
+        .enumerate()
+        .map(|(t, (b, output))| match output {
+            Some(out) => {
+                let tile_voxels = &voxels[tiles.range(t)];
+                decode_and_reconstruct(header, rate, layer, groups, tile_voxels, b, tables, out)
+            }
+            None => Ok(()),
+        })
+        .collect();
+    // §10.3: the lowest tile's error is reported.
+    results.into_iter().collect::<Result<()>>()?;
+    Ok(decoded)
+}
+
+/// §3.5, §3.6: one tile's symbols from its `GATT` body and its Gaussians from them, written
+/// into `out`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn decode_and_reconstruct(
+    header: &GaussianHeader,
+    rate: u8,
+    layer: &Layer,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    body: &[u8],
+    tables: &GaussianTables,
+    (mut symbols, gaussians): TileOutput,
+) -> Result<()> {
+    decode_tile_into(layer, groups, voxels, body, tables, &mut symbols)?;
+    reconstruct_tile_into(
+        header.origin,
+        layer,
+        groups,
+        rate,
+        voxels,
+        symbols.as_ref(),
+        gaussians,
+    );
+    Ok(())
+}
