@@ -22,9 +22,13 @@ struct Reader<'a> {
 }
 
 impl Events for Reader<'_> {
+    // Inlined into the walk, as the octree's reader is into its walk: a call per symbol cost
+    // more than the symbol's table lookup.
+    #[inline(always)]
     fn bit(&mut self, freq_one: u32, _: usize, _: BitEvent) -> Result<bool> {
         self.symbols.bit(freq_one)
     }
+    #[inline(always)]
     fn symbol(&mut self, k: u8, _: usize, _: usize, _: i64) -> Result<i64> {
         self.symbols.symbol(k)
     }
