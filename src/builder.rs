@@ -73,6 +73,13 @@ impl DecoderBuilder {
         self
     }
 
+    /// Explicit profile: keep only the Gaussians, not the symbols they were reconstructed
+    /// from ([`crate::DecodeOptions::gaussians_only`]).
+    pub fn gaussians_only(mut self) -> Self {
+        self.options.gaussians_only = true;
+        self
+    }
+
     /// Decode tiles on a pool of `threads` threads, built once here (default: rayon's
     /// global pool). The output does not depend on the count (§10.3).
     #[cfg(feature = "parallel")]

@@ -45,6 +45,14 @@ mod sequential {
             let mut state = init();
             self.for_each(|item| f(&mut state, item));
         }
+        fn map_init<S, R>(
+            self,
+            init: impl Fn() -> S,
+            mut f: impl FnMut(&mut S, Self::Item) -> R,
+        ) -> impl Iterator<Item = R> {
+            let mut state = init();
+            self.map(move |item| f(&mut state, item))
+        }
         fn reduce_with(
             self,
             f: impl FnMut(Self::Item, Self::Item) -> Self::Item,

@@ -166,6 +166,43 @@ fn one_and_two_threads_decode_the_same() {
 }
 
 #[test]
+fn gaussians_only_decodes_the_same_gaussians_without_the_symbols() {
+    let e = encode_synthetic(
+        &GaussianParams::new(700, 1, 4),
+        plans(1, 5),
+        ExplicitOptions {
+            tile_gaussians: 64,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(e.layers[0].0.tiles > 4);
+    let region = salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap();
+    for threads in [1, 2] {
+        for region in [None, Some(region)] {
+            let o = DecodeOptions::default()
+                .with_threads(Some(threads))
+                .with_region(region);
+            let decode = |o: &DecodeOptions| match decode_any(&e.stream, o).unwrap() {
+                Decoded::Gaussians(d) => d,
+                Decoded::Anchors(_) => panic!("an explicit stream"),
+            };
+            let (full, only) = (decode(&o), decode(&o.clone().with_gaussians_only(true)));
+            let what = format!("{threads} threads, region {region:?}");
+            assert!(!full.gaussians.is_empty(), "{what}");
+            assert_eq!(only.gaussians, full.gaussians, "{what}");
+            assert_eq!(only.voxels, full.voxels, "{what}");
+            assert_eq!(
+                full.symbols.size_class.len(),
+                full.gaussians.len(),
+                "{what}"
+            );
+            assert_eq!(only.symbols, Default::default(), "{what}");
+        }
+    }
+}
+
+#[test]
 fn a_region_decodes_only_the_tiles_it_meets() {
     let params = GaussianParams::new(800, 0, 5);
     let e = encode_synthetic(

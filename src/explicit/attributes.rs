@@ -65,6 +65,16 @@ impl TileSymbols {
         }
     }
 
+    /// Room for exactly `n` Gaussians' symbols, as a view to write in place: the buffers are
+    /// reused (their values are left as they were, to be overwritten).
+    pub fn resized(&mut self, n: usize, values: usize) -> TileSymbolsMut<'_> {
+        self.coords.resize(n * values, 0);
+        self.rotation_index.resize(n, 0);
+        self.size_class.resize(n, 0);
+        self.refinement.resize(n, [0; 3]);
+        self.as_mut()
+    }
+
     /// Every Gaussian's symbols, as one view to write in place.
     pub fn as_mut(&mut self) -> TileSymbolsMut<'_> {
         TileSymbolsMut {

@@ -91,17 +91,18 @@ pub fn decode_gaussians(
     decode_gaussians_in(data, limits, rate, None)
 }
 
-/// [`decode_gaussians`], keeping only the tiles whose boxes meet `region` (world
-/// coordinates `x0, y0, z0, x1, y1, z1`; §10.3).
-pub fn decode_gaussians_in(
+/// [`decode_gaussians_in`], keeping the symbols or not (`crate::DecodeOptions::gaussians_only`).
+pub(crate) fn decode_explicit(
     data: &[u8],
     limits: &Limits,
     rate: Option<u8>,
     region: Option<crate::tiles::RegionBox>,
+    keep_symbols: bool,
 ) -> Result<DecodedGaussians> {
     let (_sig, rest) = Signature::parse(data)?;
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut state = ExplicitDecoder::new(limits, rate, region);
+    state.keep_symbols = keep_symbols;
     loop {
         // §1.5 rule 4: the stream ends only with SEND.
         let chunk = reader.next_before_send()?;
@@ -110,6 +111,17 @@ pub fn decode_gaussians_in(
         }
     }
     state.finish()
+}
+
+/// [`decode_gaussians`], keeping only the tiles whose boxes meet `region` (world
+/// coordinates `x0, y0, z0, x1, y1, z1`; §10.3).
+pub fn decode_gaussians_in(
+    data: &[u8],
+    limits: &Limits,
+    rate: Option<u8>,
+    region: Option<crate::tiles::RegionBox>,
+) -> Result<DecodedGaussians> {
+    decode_explicit(data, limits, rate, region, true)
 }
 
 /// What the critical chunk at the current position does (§3.7): which check failed, or
@@ -143,6 +155,8 @@ pub(crate) struct ExplicitDecoder {
     voxels: Option<Vec<[u32; 3]>>,
     /// Which tiles the region keeps (set with the selected layer's `GATT`).
     selected: Vec<bool>,
+    /// Whether the symbols are kept ([`DecodeOptions::gaussians_only`] off).
+    pub(crate) keep_symbols: bool,
     /// The selected tiles' symbols, once `GATT` is decoded, and their Gaussians where it was
     /// decoded whole (empty where the caller reconstructs them).
     decoded: Option<DecodedTiles>,
@@ -178,6 +192,7 @@ impl ExplicitDecoder {
             tiles: None,
             voxels: None,
             selected: Vec::new(),
+            keep_symbols: true,
             decoded: None,
             early_gatt: None,
         }
@@ -259,7 +274,8 @@ impl ExplicitDecoder {
                         let (l, g, t, v) = self.tile_inputs()?;
                         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
                         let rate = self.rate_chosen;
-                        read_gatt(bytes, h, rate, l, g, t, v, &self.selected, tables)?
+                        let keep = self.keep_symbols;
+                        read_gatt(bytes, h, rate, l, g, t, v, &self.selected, keep, tables)?
                     }
                 };
                 self.decoded = Some(decoded);
@@ -290,20 +306,23 @@ impl ExplicitDecoder {
         let attributes = body(ChunkTag::GATT, gatt, METHOD_CODED)
             .and_then(|words| split_bodies(ChunkTag::GATT, 1, words, tiles.len()));
         let rate = self.rate_chosen;
-        let (mut decoded, values) = DecodedTiles::allocate(tiles, &self.selected, g, h.sh_degree);
+        let keep = self.keep_symbols;
+        let (mut decoded, values) =
+            DecodedTiles::allocate(tiles, &self.selected, g, h.sh_degree, keep);
         let outputs = decoded.outputs(tiles, values);
         // Per tile: its voxels, and where `GATT` was framed, its outcome.
         type Fused = (Result<Vec<[u32; 3]>>, Option<Result<()>>);
+        let inputs = (h, rate, l, g, tables);
         let results: Vec<Fused> = geometry
             .into_par_iter()
             .zip(outputs)
             .enumerate()
-            .map(|(t, (b, output))| {
+            .map_init(TileSymbols::default, |scratch, (t, (b, output))| {
                 let voxels = read_apos_tile(b, t, tiles, tables);
                 let tile = match (&voxels, &attributes, output) {
-                    (Ok(v), Ok(bodies), Some(out)) => Some(decode_and_reconstruct(
-                        h, rate, l, g, v, bodies[t], tables, out,
-                    )),
+                    (Ok(v), Ok(bodies), Some(out)) => {
+                        Some(decode_and_reconstruct(inputs, v, bodies[t], out, scratch))
+                    }
                     (Ok(_), Ok(_), None) => Some(Ok(())),
                     _ => None,
                 };
@@ -410,6 +429,7 @@ impl ExplicitDecoder {
             symbols,
             gaussians: Gaussians::default(),
             starts,
+            keep_symbols: true,
         });
     }
 

@@ -72,10 +72,13 @@ pub(crate) struct DecodedTiles {
     pub(crate) gaussians: Gaussians,
     /// Where each tile's Gaussians start in both (`None`: a tile not decoded).
     pub(crate) starts: Vec<Option<usize>>,
+    /// Whether the symbols are kept (else `symbols` is empty).
+    pub(crate) keep_symbols: bool,
 }
 
-/// One selected tile's place in [`DecodedTiles`]: its symbols and Gaussians, to write.
-pub(crate) type TileOutput<'a> = (TileSymbolsMut<'a>, GaussiansMut<'a>);
+/// One selected tile's place in [`DecodedTiles`]: its symbols (where they are kept) and
+/// Gaussians, to write.
+pub(crate) type TileOutput<'a> = (Option<TileSymbolsMut<'a>>, GaussiansMut<'a>);
 
 impl DecodedTiles {
     /// Room for the Gaussians of the tiles `selected` keeps, and each tile's place in it
@@ -86,6 +89,7 @@ impl DecodedTiles {
         selected: &[bool],
         groups: &[Group],
         sh_degree: u8,
+        keep_symbols: bool,
     ) -> (Self, usize) {
         let mut starts = Vec::with_capacity(tiles.len());
         let mut total = 0;
@@ -99,9 +103,10 @@ impl DecodedTiles {
         }
         let values = groups.iter().map(|g| g.dim).sum();
         let decoded = DecodedTiles {
-            symbols: TileSymbols::zeroed(total, values),
+            symbols: TileSymbols::zeroed(if keep_symbols { total } else { 0 }, values),
             gaussians: Gaussians::zeroed(sh_degree, total),
             starts,
+            keep_symbols,
         };
         (decoded, values)
     }
@@ -120,10 +125,12 @@ impl DecodedTiles {
                 continue;
             }
             let n = tiles.range(t).len();
-            let (s, s_rest) = symbols.split_at(n, values);
+            let keep_symbols = self.keep_symbols;
+            let kept = if keep_symbols { n } else { 0 };
+            let (s, s_rest) = symbols.split_at(kept, values);
             let (g, g_rest) = gaussians.split_at(n);
             (symbols, gaussians) = (s_rest, g_rest);
-            out.push(Some((s, g)));
+            out.push(Some((keep_symbols.then_some(s), g)));
         }
         out
     }
@@ -142,43 +149,59 @@ pub(crate) fn read_gatt(
     tiles: &TileTable,
     voxels: &[[u32; 3]],
     selected: &[bool],
+    keep_symbols: bool,
     tables: &GaussianTables,
 ) -> Result<DecodedTiles> {
     let tag = ChunkTag::GATT;
     let words = body(tag, payload, METHOD_CODED)?;
     let bodies = split_bodies(tag, 1, words, tiles.len())?;
-    let (mut decoded, values) = DecodedTiles::allocate(tiles, selected, groups, header.sh_degree);
+    let sh_degree = header.sh_degree;
+    let (mut decoded, values) =
+        DecodedTiles::allocate(tiles, selected, groups, sh_degree, keep_symbols);
     let outputs = decoded.outputs(tiles, values);
     let results: Vec<Result<()>> = bodies
         .into_par_iter()
         .zip(outputs)
         .enumerate()
-        .map(|(t, (b, output))| match output {
-            Some(out) => {
-                let tile_voxels = &voxels[tiles.range(t)];
-                decode_and_reconstruct(header, rate, layer, groups, tile_voxels, b, tables, out)
-            }
-            None => Ok(()),
-        })
+        .map_init(
+            TileSymbols::default,
+            |scratch, (t, (b, output))| match output {
+                Some(out) => {
+                    let tile_voxels = &voxels[tiles.range(t)];
+                    let inputs = (header, rate, layer, groups, tables);
+                    decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
+                }
+                None => Ok(()),
+            },
+        )
         .collect();
     // §10.3: the lowest tile's error is reported.
     results.into_iter().collect::<Result<()>>()?;
     Ok(decoded)
 }
 
+/// What decoding any tile of a layer's `GATT` reads: the preflight, the rate, the layer, its
+/// groups and the ANS tables.
+pub(crate) type LayerInputs<'a> = (
+    &'a GaussianHeader,
+    u8,
+    &'a Layer,
+    &'a [Group],
+    &'a GaussianTables,
+);
+
 /// §3.5, §3.6: one tile's symbols from its `GATT` body and its Gaussians from them, written
-/// into `out`.
-#[allow(clippy::too_many_arguments)]
+/// into `out`; where the symbols are not kept, they go to `scratch` (a worker's, reused from
+/// tile to tile) instead.
 pub(crate) fn decode_and_reconstruct(
-    header: &GaussianHeader,
-    rate: u8,
-    layer: &Layer,
-    groups: &[Group],
+    (header, rate, layer, groups, tables): LayerInputs,
     voxels: &[[u32; 3]],
     body: &[u8],
-    tables: &GaussianTables,
-    (mut symbols, gaussians): TileOutput,
+    (symbols, gaussians): TileOutput,
+    scratch: &mut TileSymbols,
 ) -> Result<()> {
+    let values = groups.iter().map(|g| g.dim).sum::<usize>();
+    let mut symbols = symbols.unwrap_or_else(|| scratch.resized(voxels.len(), values));
     decode_tile_into(layer, groups, voxels, body, tables, &mut symbols)?;
     reconstruct_tile_into(
         header.origin,

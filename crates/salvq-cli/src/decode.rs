@@ -73,6 +73,8 @@ pub(crate) fn run(args: DecodeArgs) -> Result<(), Error> {
         .with_region(region)
         .with_fault(inject_fault);
     if salvq::decoder::is_explicit(&stream) {
+        // The canonical form holds the symbols (§11.6); a PLY file only the Gaussians.
+        let options = options.with_gaussians_only(!canonical);
         return decode_explicit::run(&stream, &options, &output, canonical, measure, t);
     }
     if canonical {

@@ -89,8 +89,11 @@ impl Batch {
     }
 }
 
+/// A viewer needs the Gaussians, not the symbols they came from.
 fn options(rate: Option<u8>) -> DecodeOptions {
-    DecodeOptions::default().with_rate(rate)
+    DecodeOptions::default()
+        .with_rate(rate)
+        .with_gaussians_only(true)
 }
 
 fn to_js(e: impl std::fmt::Display) -> JsError {
