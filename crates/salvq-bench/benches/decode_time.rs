@@ -4,7 +4,9 @@
 //! and minimum, then the median over the rounds of both. Checks what it measures: every decode
 //! equals the first, bit for bit.
 //!
-//! Run: `cargo bench --bench decode_time -- FILE... [--threads 1,2] [--runs 7] [--rounds 5]`.
+//! Run: `cargo bench --bench decode_time -- FILE... [--threads 1,2] [--runs 7] [--rounds 5]
+//! [--gaussians-only]` (the last: explicit streams decoded as a viewer does, without keeping
+//! the symbols).
 //! To compare two commits on a noisy machine, build this bench at each
 //! (`cargo bench --bench decode_time --no-run` prints the binary's path) and run the two
 //! binaries in turn, several times; compare their per-round medians as ratios. With no FILE
@@ -25,6 +27,7 @@ struct Args {
     threads: Vec<usize>,
     runs: usize,
     rounds: usize,
+    gaussians_only: bool,
 }
 
 fn parse_args() -> Args {
@@ -33,6 +36,7 @@ fn parse_args() -> Args {
         threads: vec![1, 2],
         runs: 7,
         rounds: 5,
+        gaussians_only: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -46,6 +50,7 @@ fn parse_args() -> Args {
             }
             "--runs" => args.runs = value("--runs").parse().expect("--runs: a number"),
             "--rounds" => args.rounds = value("--rounds").parse().expect("--rounds: a number"),
+            "--gaussians-only" => args.gaussians_only = true,
             // `cargo bench` passes `--bench` to every bench binary.
             "--bench" => {}
             f => args.files.push(f.to_string()),
@@ -107,7 +112,11 @@ fn main() {
         let mut row = 0;
         for (s, (name, bytes)) in streams.iter().enumerate() {
             for &threads in &args.threads {
-                let decoder = salvq::Decoder::builder().threads(threads).build();
+                let mut builder = salvq::Decoder::builder().threads(threads);
+                if args.gaussians_only {
+                    builder = builder.gaussians_only();
+                }
+                let decoder = builder.build();
                 let mut times = Vec::with_capacity(runs);
                 for _ in 0..runs {
                     let t = Instant::now();
