@@ -13,7 +13,7 @@ use crate::explicit::gatt::{decode_and_reconstruct, read_gatt, DecodedTiles};
 use crate::explicit::groups::{read_gqua, Group};
 use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
-use crate::explicit::reconstruct::reconstruct_tile;
+use crate::explicit::reconstruct::reconstruct_tile_into;
 use crate::explicit::Gaussians;
 use crate::limits::Limits;
 use crate::tiles::{split_bodies, TileTable};
@@ -404,7 +404,9 @@ impl ExplicitDecoder {
     ) -> Result<()> {
         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
         let (l, g, tiles, v) = self.tile_inputs()?;
-        reconstruct_tile(h.origin, l, g, self.rate_chosen, &v[tiles.range(t)], s, out);
+        let voxels = &v[tiles.range(t)];
+        let tile = out.extend_zeroed(voxels.len());
+        reconstruct_tile_into(h.origin, l, g, self.rate_chosen, voxels, s, tile);
         Ok(())
     }
 

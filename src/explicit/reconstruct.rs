@@ -6,7 +6,6 @@ use crate::explicit::attributes::TileSymbolsRef;
 use crate::explicit::gaussians::GaussiansMut;
 use crate::explicit::groups::{Group, GroupKind};
 use crate::explicit::layer::Layer;
-use crate::explicit::Gaussians;
 use crate::hyperprior::step::canonical_nan;
 
 /// §3.6 step 1: a Gaussian's position from its voxel `v`, its `e` refinement bits `w` per
@@ -49,21 +48,8 @@ pub fn quaternion(small: [f32; 3], largest: u8) -> [f32; 4] {
     q
 }
 
-/// §3.6: the Gaussians of one tile, appended to `out`.
-pub fn reconstruct_tile(
-    origin: [f32; 3],
-    layer: &Layer,
-    groups: &[Group],
-    rate: u8,
-    voxels: &[[u32; 3]],
-    symbols: TileSymbolsRef,
-    out: &mut Gaussians,
-) {
-    let tile = out.extend_zeroed(voxels.len());
-    reconstruct_tile_into(origin, layer, groups, rate, voxels, symbols, tile);
-}
-
-/// §3.6: the Gaussians of one tile, written into `out` (room for exactly the tile's).
+/// §3.6: the Gaussians of one tile, written into `out` (room for exactly the tile's; to append
+/// them to a [`crate::explicit::Gaussians`], [`crate::explicit::Gaussians::extend_zeroed`]).
 pub fn reconstruct_tile_into(
     origin: [f32; 3],
     layer: &Layer,

@@ -15,7 +15,7 @@ use salvq::entropy::{GaussianTables, SymbolWriter};
 use salvq::explicit::attributes::{walk, BitEvent, Events, TileSymbols, MAX_COORDINATE};
 use salvq::explicit::groups::{Group, GroupKind};
 use salvq::explicit::layer::{Layer, MAX_COORD_BITS, SIZE_CLASSES};
-use salvq::explicit::reconstruct::reconstruct_tile;
+use salvq::explicit::reconstruct::reconstruct_tile_into;
 use salvq::explicit::Gaussians;
 use salvq::model::morton3;
 use salvq::tiles::{join_bodies, TileTable};
@@ -469,14 +469,15 @@ pub fn encode_layer(
         let symbols: TileSymbols = walk(&layer, groups, &grid.voxels[range.clone()], &mut w)?;
         debug_assert_eq!(symbols.size_class, size_class[range.clone()]);
         gatt.push(w.out.finish());
-        reconstruct_tile(
+        let tile = expected.extend_zeroed(range.len());
+        reconstruct_tile_into(
             origin,
             &layer,
             groups,
             rate,
             &grid.voxels[range],
             symbols.as_ref(),
-            &mut expected,
+            tile,
         );
     }
     let glay = layer.to_payload();
