@@ -158,18 +158,6 @@ pub struct TileSymbolsRef<'a> {
     pub refinement: &'a [[u32; 3]],
 }
 
-impl TileSymbolsRef<'_> {
-    /// An owned copy.
-    pub fn to_owned(self) -> TileSymbols {
-        TileSymbols {
-            coords: self.coords.to_vec(),
-            rotation_index: self.rotation_index.to_vec(),
-            size_class: self.size_class.to_vec(),
-            refinement: self.refinement.to_vec(),
-        }
-    }
-}
-
 /// §3.5: the context class of a value whose reference's symbol was `r_prev`.
 #[inline]
 pub fn context_class(has_reference: bool, r_prev: i64) -> usize {

@@ -117,6 +117,7 @@ impl DecodedTiles {
         tiles: &TileTable,
         values: usize,
     ) -> Vec<Option<TileOutput<'_>>> {
+        let keep_symbols = self.keep_symbols;
         let (mut symbols, mut gaussians) = (self.symbols.as_mut(), self.gaussians.as_mut());
         let mut out = Vec::with_capacity(self.starts.len());
         for (t, start) in self.starts.iter().enumerate() {
@@ -125,7 +126,6 @@ impl DecodedTiles {
                 continue;
             }
             let n = tiles.range(t).len();
-            let keep_symbols = self.keep_symbols;
             let kept = if keep_symbols { n } else { 0 };
             let (s, s_rest) = symbols.split_at(kept, values);
             let (g, g_rest) = gaussians.split_at(n);
