@@ -37,15 +37,17 @@ echo "installing @playcanvas/splat-transform@$version into a temporary folder"
 npm install --prefix "$work/npm" --no-audit --no-fund --loglevel=error \
     "@playcanvas/splat-transform@$version" >/dev/null
 st="$work/npm/node_modules/.bin/splat-transform"
-echo "$("$st" --version 2>&1 | head -n 1)"
+echo "$("$st" --version 2>&1 | sed -n 1p)"
 
 cd "$work"
 "$salvq" gen --anchors 2000 --seed 1 -o model.safetensors >/dev/null
 "$salvq" encode model.safetensors -o scene.salvq >/dev/null 2>&1
 "$salvq" export-ply scene.salvq -o scene.ply
 
-# The vertex count a PLY header declares.
-count() { head -c 65536 "$1" | tr -d '\r' | grep -a -m 1 '^element vertex ' | cut -d ' ' -f 3; }
+# The vertex count a PLY header declares. No stage of a pipeline here stops reading early
+# (grep -m, head -n): under pipefail the stage before it would die of SIGPIPE (exit 141)
+# whenever it had not finished writing, which failed CI once.
+count() { head -c 65536 "$1" | tr -d '\r' | grep -a '^element vertex ' | cut -d ' ' -f 3 | sed -n 1p; }
 
 n=$(count scene.ply)
 echo "salvq export-ply: $n Gaussians in scene.ply"
@@ -59,7 +61,7 @@ check() { # name, count
     fi
 }
 
-rows=$("$st" -w scene.ply --summary null 2>/dev/null | grep -a -m 1 'Row Count' | tr -dc '0-9')
+rows=$("$st" -w scene.ply --summary null 2>/dev/null | grep -a 'Row Count' | sed -n 1p | tr -dc '0-9')
 check "splat-transform --summary of scene.ply" "$rows"
 
 for format in spz compressed.ply; do
