@@ -40,12 +40,18 @@ impl Counts {
     /// P(1) in units of 2^−p, clamped to 1 … 2^p − 1: ⌊c1 · 2^p / (c0 + c1)⌋, computed as
     /// a product with a reciprocal (exact, see [`RECIPROCAL`]) rather than a division, which
     /// costs more than the rest of an event.
-    #[inline]
+    #[cfg(test)]
     fn freq_one(self, p: u32) -> u32 {
+        self.freq_one_at(Precision::new(p))
+    }
+
+    /// [`Counts::freq_one`] at `p`, its shift and bound worked out once per set of contexts.
+    #[inline(always)]
+    fn freq_one_at(self, p: Precision) -> u32 {
         let (c0, c1) = (self.0 & 0xffff, self.0 >> 16);
         let sum = ((c0 + c1) as usize).min(ADAPT_LIMIT as usize);
-        let f = (u64::from(c1) * RECIPROCAL[sum]) >> (RECIPROCAL_BITS - p);
-        (f as u32).clamp(1, (1 << p) - 1)
+        let f = (u64::from(c1) * RECIPROCAL[sum]) >> p.shift;
+        (f as u32).max(1).min(p.max)
     }
 
     #[inline]
@@ -60,34 +66,60 @@ impl Counts {
     }
 }
 
+/// A precision `p` (§6.2, at most [`RECIPROCAL_BITS`]) as [`Counts::freq_one_at`] uses it: the
+/// shift from the reciprocal product to units of 2^−p, and the largest P(1), 2^p − 1.
+#[derive(Debug, Clone, Copy)]
+struct Precision {
+    shift: u32,
+    max: u32,
+}
+
+impl Precision {
+    fn new(p: u32) -> Precision {
+        Precision {
+            shift: RECIPROCAL_BITS - p,
+            max: (1 << p) - 1,
+        }
+    }
+}
+
 /// A set of adaptive binary contexts, each one's current P(1) kept beside its counts: an
 /// event reads its probability with one load, and the product that computes it runs at the
 /// update, off the chain from one event's bit to the next event's context.
 struct Contexts<const N: usize> {
     counts: [Counts; N],
     freq_one: [u32; N],
-    precision: u32,
+    precision: Precision,
 }
 
 impl<const N: usize> Contexts<N> {
+    /// `N` is a power of two, so that a context index masked to `N − 1` needs no bounds check.
+    const MASK: usize = {
+        assert!(N.is_power_of_two());
+        N - 1
+    };
+
     fn new(precision: u32) -> Self {
+        let precision = Precision::new(precision);
         Contexts {
             counts: [Counts::START; N],
-            freq_one: [Counts::START.freq_one(precision); N],
+            freq_one: [Counts::START.freq_one_at(precision); N],
             precision,
         }
     }
 
+    /// P(1) of context `ctx` (below `N`), in 1 … 2^P − 1.
     #[inline(always)]
     fn freq_one(&self, ctx: usize) -> u32 {
-        self.freq_one[ctx]
+        self.freq_one[ctx & Self::MASK]
     }
 
     #[inline(always)]
     fn update(&mut self, ctx: usize, bit: bool) {
+        let ctx = ctx & Self::MASK;
         let c = &mut self.counts[ctx];
         c.update(bit);
-        self.freq_one[ctx] = c.freq_one(self.precision);
+        self.freq_one[ctx] = c.freq_one_at(self.precision);
     }
 }
 
@@ -168,6 +200,91 @@ fn check_room(children: usize, k: u32, anchors: u32) -> Result<()> {
             count: u64::from(anchors) + 1,
             anchors,
         });
+    }
+    Ok(())
+}
+
+/// What a node's occupancy events depend on besides the events themselves (§8.3): the
+/// node, and its children's `n7` and across-face `kf`, 4 bits per child.
+#[derive(Clone, Copy)]
+struct NodeContext {
+    depth: u32,
+    cell: [u32; 3],
+    side_counts: u32,
+    face_counts: u32,
+    /// The nodes of the next depth before this node's children, and the bound on them.
+    nodes_before: usize,
+    anchors: u32,
+}
+
+/// §8.2, §8.3: a node's eight occupancy events (the last implied when the first seven are 0),
+/// as its occupancy byte. §8.2's bound on the nodes of a depth is checked as each occupied
+/// child is decided, before the next event.
+///
+/// Not inlined into [`walk`]: on its own, the coder's state stays in registers across the
+/// eight events instead of going through the stack; the children are unrolled so that each
+/// one's shifts and sibling counts are constants.
+#[inline(never)]
+fn occupancy_byte<E: Events>(
+    events: &mut E,
+    occ: &mut Contexts<OCCUPANCY_CONTEXTS>,
+    node: NodeContext,
+) -> Result<u8> {
+    let mut decided = Decided {
+        face_counts: node.face_counts,
+        byte: 0,
+        occupied: 0,
+    };
+    child_event::<E, 0>(events, occ, &node, &mut decided)?;
+    child_event::<E, 1>(events, occ, &node, &mut decided)?;
+    child_event::<E, 2>(events, occ, &node, &mut decided)?;
+    child_event::<E, 3>(events, occ, &node, &mut decided)?;
+    child_event::<E, 4>(events, occ, &node, &mut decided)?;
+    child_event::<E, 5>(events, occ, &node, &mut decided)?;
+    child_event::<E, 6>(events, occ, &node, &mut decided)?;
+    child_event::<E, 7>(events, occ, &node, &mut decided)?;
+    Ok(decided.byte)
+}
+
+/// A node's children decided so far: the occupancy byte, how many are occupied, and the
+/// `kf` counts with the occupied siblings added.
+struct Decided {
+    face_counts: u32,
+    byte: u8,
+    occupied: usize,
+}
+
+/// Child `I`'s occupancy event (§8.3's context) and what it changes.
+#[inline(always)]
+fn child_event<E: Events, const I: usize>(
+    events: &mut E,
+    occ: &mut Contexts<OCCUPANCY_CONTEXTS>,
+    node: &NodeContext,
+    decided: &mut Decided,
+) -> Result<()> {
+    let bit = if I == 7 && decided.occupied == 0 {
+        true
+    } else {
+        let n7 = (node.side_counts >> (4 * I) & 0xf) as usize;
+        let kf = (decided.face_counts >> (4 * I) & 0xf) as usize;
+        let ctx = ((I * 8 + n7) * 4 + kf.min(3)) * 4 + decided.occupied.min(3);
+        let what = Event::Occupancy {
+            depth: node.depth + 1,
+            cell: child_cell(node.cell, I),
+        };
+        let bit = events.bit(occ.freq_one(ctx), what)?;
+        occ.update(ctx, bit);
+        bit
+    };
+    if bit {
+        check_room(
+            node.nodes_before + decided.occupied,
+            node.depth,
+            node.anchors,
+        )?;
+        decided.byte |= 1 << I;
+        decided.occupied += 1;
+        decided.face_counts += LATER_SIBLINGS[I];
     }
     Ok(())
 }
@@ -257,31 +374,21 @@ pub fn walk<E: Events>(
             ];
             // §8.3's `kf` of every child, 4 bits each (at most 3 + 3): first the neighbours
             // across the node's faces, then, as children are decided, the siblings.
-            let mut face_counts = face_neighbour_counts(face_bytes);
+            let face_counts = face_neighbour_counts(face_bytes);
             let side_counts = side_neighbour_counts(present);
-            let (mut byte, mut occupied) = (0u8, 0usize);
-            for (i, &later) in LATER_SIBLINGS.iter().enumerate() {
-                let bit = if i == 7 && occupied == 0 {
-                    true
-                } else {
-                    let n7 = (side_counts >> (4 * i) & 0xf) as usize;
-                    let kf = (face_counts >> (4 * i) & 0xf) as usize;
-                    let ctx = ((i * 8 + n7) * 4 + kf.min(3)) * 4 + occupied.min(3);
-                    let what = Event::Occupancy {
-                        depth: k + 1,
-                        cell: child_cell(p, i),
-                    };
-                    let bit = events.bit(occ.freq_one(ctx), what)?;
-                    occ.update(ctx, bit);
-                    bit
-                };
-                if bit {
-                    check_room(children.len(), k, anchors)?;
+            let node = NodeContext {
+                depth: k,
+                cell: p,
+                side_counts,
+                face_counts,
+                nodes_before: children.len(),
+                anchors,
+            };
+            let byte = occupancy_byte(events, &mut occ, node)?;
+            for i in 0..8 {
+                if byte >> i & 1 == 1 {
                     children.push(child_cell(p, i));
                     child_direct.push(false);
-                    byte |= 1 << i;
-                    occupied += 1;
-                    face_counts += later;
                 }
             }
             bytes[pi] = byte;
@@ -450,8 +557,10 @@ impl Events for OctreeReader<'_> {
     #[inline(always)]
     fn bit(&mut self, freq_one: u32, _: Event) -> Result<bool> {
         const P: usize = PRECISION as usize;
+        // `walk` passes a context's P(1), which [`Counts::freq_one`] keeps in 1 … 2^P − 1.
+        debug_assert_eq!(freq_one, clamp_freq_one(PRECISION, freq_one));
         let model = BinaryModel {
-            freq_zero: (1 << P) - clamp_freq_one(PRECISION, freq_one),
+            freq_zero: (1 << P) - freq_one,
         };
         self.ans.decode_binary::<P>(model).map_err(Self::fault)
     }
