@@ -452,6 +452,8 @@ fn assemble(
         .par_iter()
         .zip(mask_at.par_iter())
         .zip(rows.into_par_iter())
+        // One tile per job (see `par`).
+        .with_max_len(1)
         .map(|((&t, &m0), out)| {
             let r = tiles.range(t);
             read_attributes(

@@ -2,6 +2,11 @@
 //! default), else the same calls run in order on the caller's thread, which is what a
 //! WebAssembly build without threads needs. Results do not depend on which: every parallel
 //! loop of the decoder writes its own outputs, and errors are reported by tile order (§10.3).
+//!
+//! Loops over tiles run one tile per job (`with_max_len(1)`). Left to split by length, rayon
+//! stops splitting once each thread has a part, so a thread works through runs of several
+//! tiles (each some milliseconds) while the other, done, waits: playbot's 50 tiles on 2
+//! threads left one idle for 26 ms of a 268 ms decode (median of 20 decodes).
 
 #[cfg(feature = "parallel")]
 pub(crate) use rayon::prelude::*;
@@ -41,6 +46,10 @@ mod sequential {
 
     /// The iterator methods rayon adds, as their sequential meaning.
     pub(crate) trait ParallelIterator: Iterator + Sized {
+        /// How rayon splits the work: nothing to split here.
+        fn with_max_len(self, _: usize) -> Self {
+            self
+        }
         fn for_each_init<S>(self, init: impl Fn() -> S, mut f: impl FnMut(&mut S, Self::Item)) {
             let mut state = init();
             self.for_each(|item| f(&mut state, item));

@@ -276,6 +276,8 @@ pub fn read_apos(
     let decoded: Vec<Result<Vec<[u32; 3]>>> = bodies
         .into_par_iter()
         .enumerate()
+        // One tile per job (see `par`).
+        .with_max_len(1)
         .map(|(t, b)| read_apos_tile(b, t, tiles, tables))
         .collect();
     let mut voxels = Vec::with_capacity(tiles.anchors as usize);

@@ -317,6 +317,8 @@ impl ExplicitDecoder {
             .into_par_iter()
             .zip(outputs)
             .enumerate()
+            // One tile per job (see `par`).
+            .with_max_len(1)
             .map_init(TileSymbols::default, |scratch, (t, (b, output))| {
                 let voxels = read_apos_tile(b, t, tiles, tables);
                 let tile = match (&voxels, &attributes, output) {

@@ -163,6 +163,8 @@ pub(crate) fn read_gatt(
         .into_par_iter()
         .zip(outputs)
         .enumerate()
+        // One tile per job (see `par`).
+        .with_max_len(1)
         .map_init(
             TileSymbols::default,
             |scratch, (t, (b, output))| match output {
