@@ -281,6 +281,51 @@ mod tests {
     }
 
     /// §7.3: a NaN reconstruction is output as 0x7FC00000 whatever NaN the arithmetic made.
+    /// A general basis's `B u` is §7.3's sums, term by term in increasing j in binary32,
+    /// whatever the dimension's remainder by the kernel's row blocks and wherever `u` is 0.
+    #[test]
+    fn general_products_are_section_7_3_sums_in_order() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for d in [1usize, 2, 7, 8, 9, 16, 45, 50] {
+            let mut value = |scale: f32| (next() % 2001) as f32 / 1000.0 * scale - scale;
+            let basis = Basis {
+                u: (0..d * d).map(|_| value(1.0)).collect(),
+                s: (0..d).map(|_| 0.5 + value(0.25).abs()).collect(),
+                v: (0..d * d).map(|_| value(1.0)).collect(),
+            };
+            let m = LatticeMatrix::new(LatticeKind::General, d, Some(&basis));
+            let b = m.to_f64();
+            assert_eq!(
+                b,
+                general_matrix(d, &basis)
+                    .iter()
+                    .map(|&x| f64::from(x))
+                    .collect::<Vec<_>>()
+            );
+            for round in 0..4 {
+                let u: Vec<i64> = (0..d)
+                    .map(|_| match next() % 4 {
+                        0 => 0,
+                        1 if round > 1 => (next() % (1 << 24)) as i64 - (1 << 23),
+                        _ => (next() % 15) as i64 - 7,
+                    })
+                    .collect();
+                let mut z = vec![f32::NAN; d];
+                m.apply(&u, &mut z);
+                for (i, zi) in z.iter().enumerate() {
+                    let sum = (0..d).fold(0.0f32, |acc, j| acc + b[i * d + j] as f32 * u[j] as f32);
+                    assert_eq!(zi.to_bits(), sum.to_bits(), "d {d}, row {i}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn nan_reconstructions_are_canonical() {
         let x = reconstruct_value(f32::INFINITY, 1.0, f32::NEG_INFINITY);

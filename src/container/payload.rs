@@ -9,6 +9,7 @@ use crate::par::*;
 use crate::entropy::GaussianTables;
 use crate::error::Field;
 use crate::error::{Error, Result};
+use crate::geometry::WalkScratch;
 use crate::model::validate::{check_finite, check_positive, check_rate_steps};
 use crate::model::{names, Anchors, Basis, Dims, GroupQuantizer, HashGrid, Region, SceneModel};
 use crate::tiles::{join_bodies, split_bodies, TileTable};
@@ -273,12 +274,13 @@ pub fn read_apos(
     tables: &GaussianTables,
 ) -> Result<Vec<[u32; 3]>> {
     let bodies = apos_bodies(payload, tiles)?;
+    let pool = Pool::<WalkScratch>::new();
     let decoded: Vec<Result<Vec<[u32; 3]>>> = bodies
         .into_par_iter()
         .enumerate()
         // One tile per job (see `par`).
         .with_max_len(1)
-        .map(|(t, b)| read_apos_tile(b, t, tiles, tables))
+        .map(|(t, b)| pool.with(|scratch| read_apos_tile(b, t, tiles, tables, scratch)))
         .collect();
     let mut voxels = Vec::with_capacity(tiles.anchors as usize);
     for d in decoded {
@@ -296,14 +298,16 @@ pub fn apos_bodies<'a>(payload: &'a [u8], tiles: &TileTable) -> Result<Vec<&'a [
 }
 
 /// §8.1, §10: the voxels of tile `t` from its `APOS` body, in world voxel coordinates.
+/// `scratch`: the octree walk's buffers, kept by a caller from tile to tile.
 pub fn read_apos_tile(
     body: &[u8],
     t: usize,
     tiles: &TileTable,
     tables: &GaussianTables,
+    scratch: &mut WalkScratch,
 ) -> Result<Vec<[u32; 3]>> {
     let (level, cell) = tiles.cells[t];
-    let mut voxels = crate::geometry::decode(body, level, tiles.count(t), tables)?;
+    let mut voxels = crate::geometry::decode_with(body, level, tiles.count(t), tables, scratch)?;
     for v in &mut voxels {
         *v = [0, 1, 2].map(|k| v[k] + (cell[k] << level));
     }

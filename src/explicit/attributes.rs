@@ -6,7 +6,7 @@
 use crate::entropy::SCALE_COUNT;
 use crate::error::{Error, Result};
 use crate::explicit::groups::{Group, GroupKind};
-use crate::explicit::layer::{Layer, CONTEXT_CLASSES};
+use crate::explicit::layer::{Layer, CONTEXT_CLASSES, SIZE_CLASSES};
 
 /// §3.5: the largest magnitude of a lattice coordinate (so that `float32(u)` is exact).
 pub const MAX_COORDINATE: i64 = 1 << 24;
@@ -244,6 +244,7 @@ pub fn walk_into(
     let values: usize = groups.iter().map(|g| g.dim).sum();
     let n = voxels.len();
     debug_assert_eq!(out.coords.len(), n * values);
+    let scale_indices = ScaleIndices::new(layer, groups, values);
     let mut prev_r = vec![0i64; values];
     let mut prev_u = vec![0i64; values];
     let mut prev_shift = vec![0i8; groups.len()];
@@ -279,40 +280,75 @@ pub fn walk_into(
                 )?;
                 out.rotation_index[i] = 2 * u8::from(high) + u8::from(low);
             }
-            let shift = layer.group_shift(gi, class);
-            let offset = layer.group_offset(gi, class);
+            let (from, to) = (prev_shift[gi], layer.group_shift(gi, class));
             let predicted = reference && layer.predict[gi];
-            for _ in 0..g.dim {
-                // The reference's symbol, in this Gaussian's step units.
-                let r_ref = rescale(prev_r[v], prev_shift[gi], shift);
-                let k = offset_scale(
-                    layer.scale_table[v][context_class(reference, r_ref)],
-                    offset,
-                );
-                let pred = if predicted {
-                    rescale(prev_u[v], prev_shift[gi], shift)
+            let range = v..v + g.dim;
+            let group_values = prev_r[range.clone()]
+                .iter_mut()
+                .zip(&mut prev_u[range.clone()])
+                .zip(&scale_indices.of(class)[range.clone()])
+                .zip(&mut row[range]);
+            for (j, (((r_prev, u_prev), k_row), coord)) in group_values.enumerate() {
+                // The reference's symbol and coordinate, in this Gaussian's step units (the
+                // same units where the shifts agree: the rescaling is the identity there, as
+                // the clamp to ±2^24 is for a coordinate and for the context class).
+                let (r_ref, u_ref) = if from == to {
+                    (*r_prev, *u_prev)
                 } else {
-                    0
+                    (rescale(*r_prev, from, to), rescale(*u_prev, from, to))
                 };
-                let r = events.symbol(k, i, v, pred)?;
+                let k = k_row[context_class(reference, r_ref)];
+                let pred = if predicted { u_ref } else { 0 };
+                let r = events.symbol(k, i, v + j, pred)?;
                 let u = pred + r;
                 if u.abs() > MAX_COORDINATE {
                     return Err(Error::ValueInvalid {
                         tensor: "GATT.coordinate",
-                        index: vec![i as u64, v as u64],
+                        index: vec![i as u64, (v + j) as u64],
                         value: u,
                         allowed: "|u| ≤ 2^24 (§3.5)",
                     });
                 }
-                prev_r[v] = r;
-                prev_u[v] = u;
-                row[v] = u as i32;
-                v += 1;
+                *r_prev = r;
+                *u_prev = u;
+                *coord = u as i32;
             }
-            prev_shift[gi] = shift;
+            v += g.dim;
+            prev_shift[gi] = to;
         }
     }
     Ok(())
+}
+
+/// §3.5's scale index of every coded value, per size class and context class: the layer's
+/// table with the class's group offset applied (`offset_scale`), computed once per walk
+/// rather than once per value.
+struct ScaleIndices {
+    /// `[class][value][context class]`, `values` rows per size class.
+    table: Vec<[u8; CONTEXT_CLASSES]>,
+    values: usize,
+}
+
+impl ScaleIndices {
+    fn new(layer: &Layer, groups: &[Group], values: usize) -> ScaleIndices {
+        let mut table = Vec::with_capacity(SIZE_CLASSES * values);
+        for class in 0..SIZE_CLASSES {
+            let mut v = 0;
+            for (gi, g) in groups.iter().enumerate() {
+                let offset = layer.group_offset(gi, class);
+                for row in &layer.scale_table[v..v + g.dim] {
+                    table.push(row.map(|k| offset_scale(k, offset)));
+                }
+                v += g.dim;
+            }
+        }
+        ScaleIndices { table, values }
+    }
+
+    /// The rows of size class `class`, one per coded value.
+    fn of(&self, class: usize) -> &[[u8; CONTEXT_CLASSES]] {
+        &self.table[class * self.values..(class + 1) * self.values]
+    }
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@ use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
 use crate::explicit::reconstruct::reconstruct_tile_into;
 use crate::explicit::Gaussians;
+use crate::geometry::WalkScratch;
 use crate::limits::Limits;
 use crate::tiles::{split_bodies, TileTable};
 
@@ -313,22 +314,29 @@ impl ExplicitDecoder {
         // Per tile: its voxels, and where `GATT` was framed, its outcome.
         type Fused = (Result<Vec<[u32; 3]>>, Option<Result<()>>);
         let inputs = (h, rate, l, g, tables);
+        let pool = Pool::<(WalkScratch, TileSymbols)>::new();
         let results: Vec<Fused> = geometry
             .into_par_iter()
             .zip(outputs)
             .enumerate()
             // One tile per job (see `par`).
             .with_max_len(1)
-            .map_init(TileSymbols::default, |scratch, (t, (b, output))| {
-                let voxels = read_apos_tile(b, t, tiles, tables);
-                let tile = match (&voxels, &attributes, output) {
-                    (Ok(v), Ok(bodies), Some(out)) => {
-                        Some(decode_and_reconstruct(inputs, v, bodies[t], out, scratch))
-                    }
-                    (Ok(_), Ok(_), None) => Some(Ok(())),
-                    _ => None,
-                };
-                (voxels, tile)
+            .map(|(t, (b, output))| {
+                pool.with(|scratch| {
+                    let voxels = read_apos_tile(b, t, tiles, tables, &mut scratch.0);
+                    let tile = match (&voxels, &attributes, output) {
+                        (Ok(v), Ok(bodies), Some(out)) => Some(decode_and_reconstruct(
+                            inputs,
+                            v,
+                            bodies[t],
+                            out,
+                            &mut scratch.1,
+                        )),
+                        (Ok(_), Ok(_), None) => Some(Ok(())),
+                        _ => None,
+                    };
+                    (voxels, tile)
+                })
             })
             .collect();
         let mut voxels = Vec::with_capacity(tiles.anchors as usize);

@@ -159,23 +159,21 @@ pub(crate) fn read_gatt(
     let (mut decoded, values) =
         DecodedTiles::allocate(tiles, selected, groups, sh_degree, keep_symbols);
     let outputs = decoded.outputs(tiles, values);
+    let pool = Pool::<TileSymbols>::new();
     let results: Vec<Result<()>> = bodies
         .into_par_iter()
         .zip(outputs)
         .enumerate()
         // One tile per job (see `par`).
         .with_max_len(1)
-        .map_init(
-            TileSymbols::default,
-            |scratch, (t, (b, output))| match output {
-                Some(out) => {
-                    let tile_voxels = &voxels[tiles.range(t)];
-                    let inputs = (header, rate, layer, groups, tables);
-                    decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
-                }
-                None => Ok(()),
-            },
-        )
+        .map(|(t, (b, output))| match output {
+            Some(out) => pool.with(|scratch| {
+                let tile_voxels = &voxels[tiles.range(t)];
+                let inputs = (header, rate, layer, groups, tables);
+                decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
+            }),
+            None => Ok(()),
+        })
         .collect();
     // §10.3: the lowest tile's error is reported.
     results.into_iter().collect::<Result<()>>()?;

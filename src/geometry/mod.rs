@@ -191,24 +191,73 @@ pub fn walk<E: Events>(
     precision: u32,
     events: &mut E,
 ) -> Result<Vec<[u32; 3]>> {
+    walk_with(
+        depth,
+        anchors,
+        precision,
+        events,
+        &mut WalkScratch::default(),
+    )
+}
+
+/// The buffers of one octree walk's levels, kept from level to level and, by a caller that
+/// walks several tiles in turn, from tile to tile. A tile's deeper levels take megabytes of
+/// neighbour rows (112 bytes a node); allocated afresh for every level of every tile, the
+/// allocator handed them back to the kernel and the decoder page-faulted them in again.
+#[derive(Default)]
+pub struct WalkScratch {
+    nodes: Vec<[u32; 3]>,
+    direct: Vec<bool>,
+    children: Vec<[u32; 3]>,
+    child_direct: Vec<bool>,
+    bytes: Vec<u8>,
+    nbr: Vec<Neighbours>,
+    child_nbr: Vec<Neighbours>,
+    first_child: Vec<u32>,
+}
+
+/// [`walk`], in `scratch`'s buffers.
+pub fn walk_with<E: Events>(
+    depth: u8,
+    anchors: u32,
+    precision: u32,
+    events: &mut E,
+    scratch: &mut WalkScratch,
+) -> Result<Vec<[u32; 3]>> {
     let d = u32::from(depth);
     let n = anchors as usize;
     let mut occ = Contexts::<OCCUPANCY_CONTEXTS>::new(precision);
     let mut single = Contexts::<DIRECT_CONTEXTS>::new(precision);
+    let WalkScratch {
+        nodes,
+        direct,
+        children,
+        child_direct,
+        bytes,
+        nbr,
+        child_nbr,
+        first_child,
+    } = scratch;
     // A node is a cell of the current depth, or, once coded directly, the voxel it holds
     // (marked in `direct`): its one child at every later depth holds the same voxel.
-    let mut nodes: Vec<[u32; 3]> = vec![[0, 0, 0]];
-    let mut direct: Vec<bool> = vec![false];
+    nodes.clear();
+    nodes.push([0, 0, 0]);
+    direct.clear();
+    direct.push(false);
     // The root has no neighbours; each level's follow from its parents' (§8.3's contexts
     // need them), without a lookup by position.
-    let mut nbr: Vec<Neighbours> = vec![Neighbours::NONE];
+    nbr.clear();
+    nbr.push(Neighbours::NONE);
     for k in 0..d {
         // Levels below depth k + 1: the shift from a voxel to its depth-(k + 1) cell.
         let below = d - k - 1;
-        let mut bytes = vec![0u8; nodes.len()];
+        bytes.clear();
+        bytes.resize(nodes.len(), 0);
+        children.clear();
+        child_direct.clear();
         let capacity = (nodes.len() * 2).min(n);
-        let mut children: Vec<[u32; 3]> = Vec::with_capacity(capacity);
-        let mut child_direct: Vec<bool> = Vec::with_capacity(capacity);
+        children.reserve(capacity);
+        child_direct.reserve(capacity);
         for (pi, &p) in nodes.iter().enumerate() {
             if direct[pi] {
                 // §8.2: no events below a direct node.
@@ -281,10 +330,11 @@ pub fn walk<E: Events>(
             bytes[pi] = byte;
         }
         if k + 1 < d {
-            nbr = child_neighbours(&nbr, &bytes);
+            child_neighbours(nbr, bytes, first_child, child_nbr);
+            std::mem::swap(nbr, child_nbr);
         }
-        nodes = children;
-        direct = child_direct;
+        std::mem::swap(nodes, children);
+        std::mem::swap(direct, child_direct);
     }
     // §8.4: counts.
     let mut counts = Contexts::<COUNT_CONTEXTS>::new(precision);
@@ -467,15 +517,26 @@ pub fn decode(
     anchors: u32,
     tables: &GaussianTables,
 ) -> Result<Vec<[u32; 3]>> {
+    decode_with(body, depth, anchors, tables, &mut WalkScratch::default())
+}
+
+/// [`decode`], in `scratch`'s buffers (a caller decoding tile after tile keeps one).
+pub fn decode_with(
+    body: &[u8],
+    depth: u8,
+    anchors: u32,
+    tables: &GaussianTables,
+    scratch: &mut WalkScratch,
+) -> Result<Vec<[u32; 3]>> {
     if tables.precision() == PRECISION {
         let ans = AnsReader::new(body).map_err(OctreeReader::fault)?;
         let mut reader = OctreeReader { ans };
-        let voxels = walk(depth, anchors, PRECISION, &mut reader)?;
+        let voxels = walk_with(depth, anchors, PRECISION, &mut reader, scratch)?;
         reader.ans.finish().map_err(OctreeReader::fault)?;
         return Ok(voxels);
     }
     let mut reader = SymbolReader::new(ChunkTag::APOS, body, tables)?;
-    let voxels = walk(depth, anchors, tables.precision(), &mut reader)?;
+    let voxels = walk_with(depth, anchors, tables.precision(), &mut reader, scratch)?;
     reader.finish()?;
     Ok(voxels)
 }

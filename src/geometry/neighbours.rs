@@ -129,20 +129,29 @@ const FROM_PARENT: [[FromParent; 27]; 8] = {
     out
 };
 
-/// The next level's neighbours from this level's: `bytes[p]` is node `p`'s occupancy byte
-/// and its children are numbered in order (node by node, octant by octant).
+/// The next level's neighbours from this level's, into `out`: `bytes[p]` is node `p`'s
+/// occupancy byte and its children are numbered in order (node by node, octant by octant);
+/// `first` is scratch (each node's first child).
 ///
 /// A child's neighbours lie in its parent and the parent's 7 neighbours on the child's side,
 /// so only the neighbours the parent has are visited: deep in a sparse octree most nodes
 /// have none or few.
-pub(super) fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbours> {
-    let mut first = Vec::with_capacity(bytes.len());
+pub(super) fn child_neighbours(
+    nbr: &[Neighbours],
+    bytes: &[u8],
+    first: &mut Vec<u32>,
+    out: &mut Vec<Neighbours>,
+) {
+    first.clear();
+    first.reserve(bytes.len());
     let mut count = 0u32;
     for &b in bytes {
         first.push(count);
         count += u32::from(POPCOUNT[usize::from(b)]);
     }
-    let mut out = Vec::with_capacity(count as usize);
+    let first = &first[..];
+    out.clear();
+    out.reserve(count as usize);
     // The occupancy byte and first child of the node (slot 13) and of each neighbour it has;
     // 32 entries so that a 5-bit index needs no bounds check. Only the slots a node has are
     // written and read, so the arrays are not cleared per node.
@@ -191,7 +200,6 @@ pub(super) fn child_neighbours(nbr: &[Neighbours], bytes: &[u8]) -> Vec<Neighbou
             out.push(row);
         }
     }
-    out
 }
 
 /// `LOW[j]`: the bits below bit `j` of an occupancy byte.
