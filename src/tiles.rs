@@ -11,8 +11,28 @@ use crate::model::morton3;
 /// Bytes per tile in `TILS`: count, cell level, cell, box.
 pub const TILE_ENTRY_BYTES: u64 = 4 + 1 + 12 + 24;
 
-/// The reference encoder's tile size (anchors per tile) when none is asked for.
+/// The reference encoder's largest tile (anchors per tile) when none is asked for.
 pub const DEFAULT_TILE_ANCHORS: u32 = 16_384;
+
+/// Tiles the reference encoder aims for in a scene too small to fill them at
+/// [`DEFAULT_TILE_ANCHORS`].
+pub const AUTO_TILES: u32 = 8;
+
+/// The smallest tile [`auto_tile_anchors`] chooses.
+pub const MIN_AUTO_TILE_ANCHORS: u32 = 2_048;
+
+/// The reference encoder's tile size for a scene of `n` anchors (or Gaussians) when none is
+/// asked for (informative, §10): `n / AUTO_TILES` rounded up, within
+/// [`MIN_AUTO_TILE_ANCHORS`] … [`DEFAULT_TILE_ANCHORS`]. A scene below 8 · 16 384 would
+/// otherwise be one or a few tiles and decode on one thread; smaller tiles cost bytes (each
+/// restarts the octree and its contexts: 0.1 … 0.9 % of the real scenes' streams at 2 048 …
+/// 4 096, measured in `docs/speed`), so the floor keeps a tile's cost small.
+pub fn auto_tile_anchors(n: usize) -> u32 {
+    let per = n.div_ceil(AUTO_TILES as usize);
+    u32::try_from(per)
+        .unwrap_or(u32::MAX)
+        .clamp(MIN_AUTO_TILE_ANCHORS, DEFAULT_TILE_ANCHORS)
+}
 
 /// The box of a region decode (§10.3.1): world coordinates, binary64, `min ≤ max` on each
 /// axis (a bound may be infinite). Only [`RegionBox::new`] makes one, so a decoder never

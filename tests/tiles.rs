@@ -372,3 +372,28 @@ fn the_lowest_tile_error_is_reported() {
         );
     }
 }
+
+/// The encoder's default tile size (§10, informative): a scene below 8 · 16 384 anchors gets
+/// about 8 tiles of at least 2 048, so that it decodes on several threads; one of at most
+/// 2 048 stays whole, and a large one keeps tiles of at most 16 384.
+#[test]
+fn the_default_tiles_split_a_small_scene_but_not_a_tiny_one() {
+    use salvq::tiles::{auto_tile_anchors, DEFAULT_TILE_ANCHORS, MIN_AUTO_TILE_ANCHORS};
+    assert_eq!(auto_tile_anchors(0), MIN_AUTO_TILE_ANCHORS);
+    assert_eq!(auto_tile_anchors(4_721), MIN_AUTO_TILE_ANCHORS);
+    assert_eq!(auto_tile_anchors(22_589), 2_824);
+    assert_eq!(auto_tile_anchors(8 * 16_384), DEFAULT_TILE_ANCHORS);
+    assert_eq!(auto_tile_anchors(usize::MAX), DEFAULT_TILE_ANCHORS);
+    let tiles_of = |n: u32| {
+        let e = encode_full(&model(n), &EncodeOptions::default()).unwrap();
+        salvq_encoder::info::inspect(&e.stream, &Limits::default())
+            .unwrap()
+            .tiles
+            .unwrap()
+    };
+    let tiny = tiles_of(2_000);
+    assert_eq!(tiny.count, 1);
+    let small = tiles_of(6_000);
+    assert!(small.count >= 3, "{small:?}");
+    assert!(small.max_anchors <= MIN_AUTO_TILE_ANCHORS, "{small:?}");
+}

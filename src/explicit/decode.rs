@@ -17,6 +17,7 @@ use crate::explicit::reconstruct::reconstruct_tile_into;
 use crate::explicit::Gaussians;
 use crate::geometry::WalkScratch;
 use crate::limits::Limits;
+use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
 
 /// A decoded explicit-profile stream: the Gaussians of the selected layer and the integer
@@ -148,6 +149,8 @@ pub(crate) struct ExplicitDecoder {
     next: usize,
     header: Option<GaussianHeader>,
     groups: Option<Vec<Group>>,
+    /// The groups' lattice matrices (§3.3), once `GQUA` is read.
+    matrices: Vec<LatticeMatrix>,
     selected_layer: usize,
     layers: usize,
     rate_chosen: u8,
@@ -186,6 +189,7 @@ impl ExplicitDecoder {
             next: 0,
             header: None,
             groups: None,
+            matrices: Vec::new(),
             selected_layer: 0,
             layers: 0,
             rate_chosen: 0,
@@ -248,7 +252,9 @@ impl ExplicitDecoder {
             }
             ChunkTag::GQUA => {
                 let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-                self.groups = Some(read_gqua(bytes, h.sh_degree, h.rate_count)?);
+                let groups = read_gqua(bytes, h.sh_degree, h.rate_count)?;
+                self.matrices = groups.iter().map(Group::matrix).collect();
+                self.groups = Some(groups);
             }
             ChunkTag::GLAY => {
                 let g = self.groups.as_ref().ok_or(missing(ChunkTag::GQUA))?;
@@ -313,7 +319,7 @@ impl ExplicitDecoder {
         let outputs = decoded.outputs(tiles, values);
         // Per tile: its voxels, and where `GATT` was framed, its outcome.
         type Fused = (Result<Vec<[u32; 3]>>, Option<Result<()>>);
-        let inputs = (h, rate, l, g, tables);
+        let inputs = (h, rate, l, g, &self.matrices[..], tables);
         let pool = Pool::<(WalkScratch, TileSymbols)>::new();
         let results: Vec<Fused> = geometry
             .into_par_iter()
@@ -416,7 +422,8 @@ impl ExplicitDecoder {
         let (l, g, tiles, v) = self.tile_inputs()?;
         let voxels = &v[tiles.range(t)];
         let tile = out.extend_zeroed(voxels.len());
-        reconstruct_tile_into(h.origin, l, g, self.rate_chosen, voxels, s, tile);
+        let m = &self.matrices;
+        reconstruct_tile_into(h.origin, l, g, m, self.rate_chosen, voxels, s, tile);
         Ok(())
     }
 

@@ -15,6 +15,7 @@ use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
 use crate::explicit::reconstruct::reconstruct_tile_into;
 use crate::explicit::Gaussians;
+use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
 
 struct Reader<'a> {
@@ -159,6 +160,7 @@ pub(crate) fn read_gatt(
     let (mut decoded, values) =
         DecodedTiles::allocate(tiles, selected, groups, sh_degree, keep_symbols);
     let outputs = decoded.outputs(tiles, values);
+    let matrices: Vec<LatticeMatrix> = groups.iter().map(Group::matrix).collect();
     let pool = Pool::<TileSymbols>::new();
     let results: Vec<Result<()>> = bodies
         .into_par_iter()
@@ -169,7 +171,7 @@ pub(crate) fn read_gatt(
         .map(|(t, (b, output))| match output {
             Some(out) => pool.with(|scratch| {
                 let tile_voxels = &voxels[tiles.range(t)];
-                let inputs = (header, rate, layer, groups, tables);
+                let inputs = (header, rate, layer, groups, &matrices[..], tables);
                 decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
             }),
             None => Ok(()),
@@ -181,12 +183,13 @@ pub(crate) fn read_gatt(
 }
 
 /// What decoding any tile of a layer's `GATT` reads: the preflight, the rate, the layer, its
-/// groups and the ANS tables.
+/// groups and their matrices ([`Group::matrix`]), and the ANS tables.
 pub(crate) type LayerInputs<'a> = (
     &'a GaussianHeader,
     u8,
     &'a Layer,
     &'a [Group],
+    &'a [LatticeMatrix],
     &'a GaussianTables,
 );
 
@@ -194,7 +197,7 @@ pub(crate) type LayerInputs<'a> = (
 /// into `out`; where the symbols are not kept, they go to `scratch` (a worker's, reused from
 /// tile to tile) instead.
 pub(crate) fn decode_and_reconstruct(
-    (header, rate, layer, groups, tables): LayerInputs,
+    (header, rate, layer, groups, matrices, tables): LayerInputs,
     voxels: &[[u32; 3]],
     body: &[u8],
     (symbols, gaussians): TileOutput,
@@ -207,6 +210,7 @@ pub(crate) fn decode_and_reconstruct(
         header.origin,
         layer,
         groups,
+        matrices,
         rate,
         voxels,
         symbols.as_ref(),

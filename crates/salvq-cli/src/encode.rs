@@ -59,9 +59,11 @@ pub struct EncodeArgs {
     /// `--quantizer`, `--fit-scales` and `--regions`.
     #[arg(long, conflicts_with_all = ["quantizer", "fit_scales", "regions"])]
     auto: bool,
-    /// Anchors per tile (spec §10): tiles decode independently, in parallel or alone.
-    #[arg(long, default_value_t = salvq::tiles::DEFAULT_TILE_ANCHORS, value_parser = clap::value_parser!(u32).range(1..))]
-    pub(crate) tile_anchors: u32,
+    /// Anchors (or Gaussians) per tile at most (spec §10): tiles decode independently, in
+    /// parallel or alone. Default: 16384, and for a scene of fewer than 131072 about 8 tiles
+    /// of at least 2048, so that a small scene decodes on several threads too.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub(crate) tile_anchors: Option<u32>,
     /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest
     /// plane on the LLL-reduced basis for a learned basis), `rounding`, `nearest-plane`,
     /// `closest` (Schnorr-Euchner, bounded) or `rdo` (auto's point refined for rate and
@@ -161,7 +163,7 @@ pub fn run_model(
         fit_basis: a.quantizer == "klt",
         feat_regions: a.regions,
         fit_scales: a.fit_scales,
-        tile_anchors: a.tile_anchors,
+        tile_anchors: a.tile_anchors.unwrap_or(0),
         scaffold_precision: match a.scaffold_precision.as_str() {
             "f32" => Some(salvq::container::payload::ScaffoldPrecision::F32),
             "f16" => Some(salvq::container::payload::ScaffoldPrecision::F16),

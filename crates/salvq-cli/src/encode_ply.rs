@@ -79,7 +79,7 @@ pub fn run(a: EncodeArgs, bytes: &[u8], t: Instant, progress: &Progress) -> Resu
         rates: RateControl::Psnr(targets.clone()),
         coded: a.rates.clone(),
         klt: None,
-        tile_gaussians: a.tile_anchors,
+        tile_gaussians: a.tile_anchors.unwrap_or(0),
         note: a.note.clone(),
         variant: Default::default(),
     };

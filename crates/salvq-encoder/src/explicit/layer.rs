@@ -447,6 +447,7 @@ pub fn encode_layer(
     // Geometry per tile (§8, cell-relative), then the attributes.
     let mut apos = Vec::with_capacity(tiles.len());
     let mut gatt = Vec::with_capacity(tiles.len());
+    let matrices: Vec<_> = groups.iter().map(Group::matrix).collect();
     let mut expected = Gaussians {
         sh_degree: p.sh_degree,
         ..Gaussians::default()
@@ -474,6 +475,7 @@ pub fn encode_layer(
             origin,
             &layer,
             groups,
+            &matrices,
             rate,
             &grid.voxels[range],
             symbols.as_ref(),

@@ -23,7 +23,7 @@ use salvq::entropy::GaussianTables;
 use salvq::explicit::groups::{write_gqua, Group, GroupKind};
 use salvq::explicit::header::GaussianHeader;
 use salvq::explicit::Gaussians;
-use salvq::tiles::DEFAULT_TILE_ANCHORS;
+use salvq::tiles::auto_tile_anchors;
 use salvq_render::compare::RingTarget;
 
 /// Where the rate-distortion curves' trial steps are centred (Annex A.8.2): the voxel edge
@@ -95,7 +95,8 @@ pub struct ExplicitOptions {
     /// order; `None`: SH DC and SH rest each when it makes the middle rate's layer, basis
     /// included, smaller.
     pub klt: Option<Vec<bool>>,
-    /// Gaussians per tile at most (§10).
+    /// Gaussians per tile at most (§10); 0: [`salvq::tiles::auto_tile_anchors`] of the
+    /// scene's.
     pub tile_gaussians: u32,
     /// Text for an `encd` chunk (§1.7), written after `GQUA`.
     pub note: Option<String>,
@@ -109,7 +110,7 @@ impl Default for ExplicitOptions {
             rates: RateControl::Psnr(DEFAULT_PSNR_TARGETS.to_vec()),
             coded: None,
             klt: None,
-            tile_gaussians: DEFAULT_TILE_ANCHORS,
+            tile_gaussians: 0,
             note: None,
             variant: Variant::default(),
         }
@@ -281,7 +282,7 @@ pub fn rate_plans(
             plan,
             origin,
             0,
-            DEFAULT_TILE_ANCHORS,
+            auto_tile_anchors(p.len()),
             variant,
             tables,
         )
@@ -377,6 +378,10 @@ pub fn encode_prepared(
         rate_mask,
         origin,
     };
+    let tile_gaussians = match options.tile_gaussians {
+        0 => auto_tile_anchors(p.len()),
+        t => t,
+    };
     let code_layer = |groups: &[Group], r: u8| {
         layer::encode_layer(
             p,
@@ -385,7 +390,7 @@ pub fn encode_prepared(
             &plans[usize::from(r)],
             origin,
             r,
-            options.tile_gaussians,
+            tile_gaussians,
             options.variant,
             tables,
         )
