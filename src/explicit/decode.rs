@@ -282,7 +282,8 @@ impl ExplicitDecoder {
                         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
                         let rate = self.rate_chosen;
                         let keep = self.keep_symbols;
-                        read_gatt(bytes, h, rate, l, g, t, v, &self.selected, keep, tables)?
+                        let inputs = (h, rate, l, g, &self.matrices[..], tables);
+                        read_gatt(bytes, inputs, t, v, &self.selected, keep)?
                     }
                 };
                 self.decoded = Some(decoded);

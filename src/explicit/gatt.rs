@@ -140,27 +140,21 @@ impl DecodedTiles {
 /// §3.5, §3.6: decodes `GATT` of a layer whose geometry is `voxels` cut by `tiles`, and
 /// reconstructs each selected tile's Gaussians in the same task (tiles are independent, so
 /// the reconstruction runs on every thread rather than after the last tile).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn read_gatt(
     payload: &[u8],
-    header: &GaussianHeader,
-    rate: u8,
-    layer: &Layer,
-    groups: &[Group],
+    inputs: LayerInputs,
     tiles: &TileTable,
     voxels: &[[u32; 3]],
     selected: &[bool],
     keep_symbols: bool,
-    tables: &GaussianTables,
 ) -> Result<DecodedTiles> {
     let tag = ChunkTag::GATT;
     let words = body(tag, payload, METHOD_CODED)?;
     let bodies = split_bodies(tag, 1, words, tiles.len())?;
-    let sh_degree = header.sh_degree;
+    let (header, _, _, groups, _, _) = inputs;
     let (mut decoded, values) =
-        DecodedTiles::allocate(tiles, selected, groups, sh_degree, keep_symbols);
+        DecodedTiles::allocate(tiles, selected, groups, header.sh_degree, keep_symbols);
     let outputs = decoded.outputs(tiles, values);
-    let matrices: Vec<LatticeMatrix> = groups.iter().map(Group::matrix).collect();
     let pool = Pool::<TileSymbols>::new();
     let results: Vec<Result<()>> = bodies
         .into_par_iter()
@@ -171,7 +165,6 @@ pub(crate) fn read_gatt(
         .map(|(t, (b, output))| match output {
             Some(out) => pool.with(|scratch| {
                 let tile_voxels = &voxels[tiles.range(t)];
-                let inputs = (header, rate, layer, groups, &matrices[..], tables);
                 decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
             }),
             None => Ok(()),
