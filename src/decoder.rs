@@ -448,28 +448,23 @@ fn assemble(
             });
         }
     }
-    let decoded: Vec<Result<()>> = chosen
-        .par_iter()
-        .zip(mask_at.par_iter())
-        .zip(rows.into_par_iter())
-        // One tile per job (see `par`).
-        .with_max_len(1)
-        .map(|((&t, &m0), out)| {
-            let r = tiles.range(t);
-            read_attributes(
-                bodies[t],
-                d,
-                &voxel[r.clone()],
-                &mask[m0..m0 + r.len() * k],
-                r.start as u32,
-                &grid,
-                &prior,
-                &lattices,
-                tables,
-                out,
-            )
-        })
-        .collect();
+    let size = |j: usize| tiles.range(chosen[j]).len();
+    let decoded = map_largest_first(rows, size, |j, out| {
+        let (t, m0) = (chosen[j], mask_at[j]);
+        let r = tiles.range(t);
+        read_attributes(
+            bodies[t],
+            d,
+            &voxel[r.clone()],
+            &mask[m0..m0 + r.len() * k],
+            r.start as u32,
+            &grid,
+            &prior,
+            &lattices,
+            tables,
+            out,
+        )
+    });
     for result in decoded {
         result?;
     }

@@ -373,6 +373,50 @@ fn the_lowest_tile_error_is_reported() {
     }
 }
 
+/// Tiles are decoded largest first, but errors are still reported by tile order: with every
+/// later tile of `AFEA` broken too, tile 1's fault is the one reported.
+#[test]
+fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
+    let m = model(700);
+    let e = tiled(&m, 100);
+    let tils = tils_of(&e.stream);
+    let nt = u32::from_le_bytes([tils[1], tils[2], tils[3], tils[4]]) as usize;
+    assert!(nt > 4, "{nt} tiles");
+    // The start of each tile's body in the payload (§10.1: 1 method byte, then per tile its
+    // length in bytes, then the bodies).
+    let starts = |p: &[u8]| {
+        let mut at = 1 + 4 * nt;
+        (0..nt)
+            .map(|t| {
+                let b = 1 + 4 * t;
+                let len = u32::from_le_bytes([p[b], p[b + 1], p[b + 2], p[b + 3]]) as usize;
+                at += len;
+                at - len
+            })
+            .collect::<Vec<usize>>()
+    };
+    // Tiles 2.. get a state the encoder never ends on; tile 1 gets a zero top word.
+    let later = edit_payload(&e.stream, ChunkTag::AFEA, |p| {
+        for &at in &starts(p)[2..] {
+            p[at..at + 8].copy_from_slice(&[0xA5; 8]);
+        }
+    });
+    let both = edit_payload(&later, ChunkTag::AFEA, |p| {
+        let at = starts(p)[1];
+        p[at..at + 4].copy_from_slice(&[0; 4]);
+    });
+    let zero_top = Error::AnsStreamInvalid {
+        tag: ChunkTag::AFEA,
+        fault: salvq::error::AnsFault::ZeroTopWord,
+    };
+    for threads in [1, 2, 4] {
+        let options = with(Some(threads), None);
+        let other = decode_with_options(&later, &options).unwrap_err();
+        assert_ne!(other, zero_top, "tiles 2.. alone must fail otherwise");
+        assert_eq!(decode_with_options(&both, &options).unwrap_err(), zero_top);
+    }
+}
+
 /// The encoder's default tile size (§10, informative): a scene below 8 · 16 384 anchors gets
 /// about 8 tiles of at least 2 048, so that it decodes on several threads; one of at most
 /// 2 048 stays whole, and a large one keeps tiles of at most 16 384.

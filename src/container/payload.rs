@@ -275,13 +275,10 @@ pub fn read_apos(
 ) -> Result<Vec<[u32; 3]>> {
     let bodies = apos_bodies(payload, tiles)?;
     let pool = Pool::<WalkScratch>::new();
-    let decoded: Vec<Result<Vec<[u32; 3]>>> = bodies
-        .into_par_iter()
-        .enumerate()
-        // One tile per job (see `par`).
-        .with_max_len(1)
-        .map(|(t, b)| pool.with(|scratch| read_apos_tile(b, t, tiles, tables, scratch)))
-        .collect();
+    let size = |t: usize| tiles.range(t).len();
+    let decoded = map_largest_first(bodies, size, |t, b| {
+        pool.with(|scratch| read_apos_tile(b, t, tiles, tables, scratch))
+    });
     let mut voxels = Vec::with_capacity(tiles.anchors as usize);
     for d in decoded {
         voxels.extend_from_slice(&d?);

@@ -322,30 +322,25 @@ impl ExplicitDecoder {
         type Fused = (Result<Vec<[u32; 3]>>, Option<Result<()>>);
         let inputs = (h, rate, l, g, &self.matrices[..], tables);
         let pool = Pool::<(WalkScratch, TileSymbols)>::new();
-        let results: Vec<Fused> = geometry
-            .into_par_iter()
-            .zip(outputs)
-            .enumerate()
-            // One tile per job (see `par`).
-            .with_max_len(1)
-            .map(|(t, (b, output))| {
-                pool.with(|scratch| {
-                    let voxels = read_apos_tile(b, t, tiles, tables, &mut scratch.0);
-                    let tile = match (&voxels, &attributes, output) {
-                        (Ok(v), Ok(bodies), Some(out)) => Some(decode_and_reconstruct(
-                            inputs,
-                            v,
-                            bodies[t],
-                            out,
-                            &mut scratch.1,
-                        )),
-                        (Ok(_), Ok(_), None) => Some(Ok(())),
-                        _ => None,
-                    };
-                    (voxels, tile)
-                })
+        let jobs: Vec<_> = geometry.into_iter().zip(outputs).collect();
+        let size = |t: usize| tiles.range(t).len();
+        let results: Vec<Fused> = map_largest_first(jobs, size, |t, (b, output)| {
+            pool.with(|scratch| {
+                let voxels = read_apos_tile(b, t, tiles, tables, &mut scratch.0);
+                let tile = match (&voxels, &attributes, output) {
+                    (Ok(v), Ok(bodies), Some(out)) => Some(decode_and_reconstruct(
+                        inputs,
+                        v,
+                        bodies[t],
+                        out,
+                        &mut scratch.1,
+                    )),
+                    (Ok(_), Ok(_), None) => Some(Ok(())),
+                    _ => None,
+                };
+                (voxels, tile)
             })
-            .collect();
+        });
         let mut voxels = Vec::with_capacity(tiles.anchors as usize);
         let mut outcomes = Vec::with_capacity(results.len());
         for (v, tile) in results {

@@ -156,20 +156,15 @@ pub(crate) fn read_gatt(
         DecodedTiles::allocate(tiles, selected, groups, header.sh_degree, keep_symbols);
     let outputs = decoded.outputs(tiles, values);
     let pool = Pool::<TileSymbols>::new();
-    let results: Vec<Result<()>> = bodies
-        .into_par_iter()
-        .zip(outputs)
-        .enumerate()
-        // One tile per job (see `par`).
-        .with_max_len(1)
-        .map(|(t, (b, output))| match output {
-            Some(out) => pool.with(|scratch| {
-                let tile_voxels = &voxels[tiles.range(t)];
-                decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
-            }),
-            None => Ok(()),
-        })
-        .collect();
+    let jobs: Vec<_> = bodies.into_iter().zip(outputs).collect();
+    let size = |t: usize| tiles.range(t).len();
+    let results = map_largest_first(jobs, size, |t, (b, output)| match output {
+        Some(out) => pool.with(|scratch| {
+            let tile_voxels = &voxels[tiles.range(t)];
+            decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
+        }),
+        None => Ok(()),
+    });
     // §10.3: the lowest tile's error is reported.
     results.into_iter().collect::<Result<()>>()?;
     Ok(decoded)
