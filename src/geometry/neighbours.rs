@@ -180,7 +180,9 @@ pub(super) fn child_neighbours(
             if byte >> i & 1 == 0 {
                 continue;
             }
-            let mut row = Neighbours::NONE;
+            // Built in place: a row built on the stack and then pushed was copied, 112 bytes.
+            out.push(Neighbours::NONE);
+            let Some(row) = out.last_mut() else { break };
             let mut sources = (present & side) | (1 << 13);
             while sources != 0 {
                 let ps = sources.trailing_zeros() as usize & 31;
@@ -197,7 +199,6 @@ pub(super) fn child_neighbours(
                     row.present |= 1 << slot;
                 }
             }
-            out.push(row);
         }
     }
 }
