@@ -165,6 +165,52 @@ fn one_and_two_threads_decode_the_same() {
     assert_eq!(with(1), with(2));
 }
 
+/// Tiles are decoded largest first, but errors are still reported by tile order (§10.3): in
+/// `APOS` and in `GATT` (decoded with it), with every later tile broken too, tile 1's fault
+/// is the one reported.
+#[test]
+fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
+    use salvq::container::chunk::ChunkTag;
+    use salvq::error::AnsFault;
+    let e = encode_synthetic(
+        &GaussianParams::new(900, 1, 6),
+        plans(1, 5),
+        ExplicitOptions {
+            tile_gaussians: 100,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let nt = e.layers[0].0.tiles as usize;
+    assert!(nt > 4, "{nt} tiles");
+    for tag in [ChunkTag::APOS, ChunkTag::GATT] {
+        // Tiles 2.. get a state the encoder never ends on; tile 1 gets a zero top word.
+        let later = common::edit_payload(&e.stream, tag, |p| {
+            for &at in &common::tile_body_starts(p, nt)[2..] {
+                p[at..at + 8].copy_from_slice(&[0xA5; 8]);
+            }
+        });
+        let both = common::edit_payload(&later, tag, |p| {
+            let at = common::tile_body_starts(p, nt)[1];
+            p[at..at + 4].copy_from_slice(&[0; 4]);
+        });
+        let zero_top = Error::AnsStreamInvalid {
+            tag,
+            fault: AnsFault::ZeroTopWord,
+        };
+        for threads in [1, 2, 4] {
+            let o = DecodeOptions::default().with_threads(Some(threads));
+            let other = decode_any(&later, &o).map(|_| ()).unwrap_err();
+            assert_ne!(
+                other, zero_top,
+                "{tag}: tiles 2.. alone must fail otherwise"
+            );
+            let first = decode_any(&both, &o).map(|_| ()).unwrap_err();
+            assert_eq!(first, zero_top, "{tag}, {threads} threads");
+        }
+    }
+}
+
 #[test]
 fn gaussians_only_decodes_the_same_gaussians_without_the_symbols() {
     let e = encode_synthetic(

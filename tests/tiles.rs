@@ -382,19 +382,7 @@ fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
     let tils = tils_of(&e.stream);
     let nt = u32::from_le_bytes([tils[1], tils[2], tils[3], tils[4]]) as usize;
     assert!(nt > 4, "{nt} tiles");
-    // The start of each tile's body in the payload (§10.1: 1 method byte, then per tile its
-    // length in bytes, then the bodies).
-    let starts = |p: &[u8]| {
-        let mut at = 1 + 4 * nt;
-        (0..nt)
-            .map(|t| {
-                let b = 1 + 4 * t;
-                let len = u32::from_le_bytes([p[b], p[b + 1], p[b + 2], p[b + 3]]) as usize;
-                at += len;
-                at - len
-            })
-            .collect::<Vec<usize>>()
-    };
+    let starts = |p: &[u8]| tile_body_starts(p, nt);
     // Tiles 2.. get a state the encoder never ends on; tile 1 gets a zero top word.
     let later = edit_payload(&e.stream, ChunkTag::AFEA, |p| {
         for &at in &starts(p)[2..] {

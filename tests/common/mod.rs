@@ -48,6 +48,21 @@ pub fn edit_payload(stream: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) 
     surgery::edit_payload(stream, tag, f).expect("chunk present")
 }
 
+/// Where each of `tiles` bodies starts in a tiled payload (§10.1: the method byte, each
+/// tile's body length in bytes, then the bodies).
+#[allow(dead_code)] // not every test file uses it
+pub fn tile_body_starts(payload: &[u8], tiles: usize) -> Vec<usize> {
+    let mut at = 1 + 4 * tiles;
+    (0..tiles)
+        .map(|t| {
+            let b = &payload[1 + 4 * t..5 + 4 * t];
+            let len = u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize;
+            at += len;
+            at - len
+        })
+        .collect()
+}
+
 /// Byte offset of a chunk's length field.
 pub fn chunk_offset(stream: &[u8], tag: ChunkTag) -> usize {
     surgery::chunk_offset(stream, tag).unwrap_or_else(|| panic!("no chunk {tag}"))
