@@ -113,15 +113,21 @@ pub(crate) fn map_largest_first<I: Send, R: Send>(
     cost: impl Fn(usize) -> usize,
     f: impl Fn(usize, I) -> R + Sync,
 ) -> Vec<R> {
-    let threads = current_num_threads().min(items.len());
-    if threads <= 1 {
-        return items
-            .into_iter()
-            .enumerate()
-            .map(|(i, x)| f(i, x))
-            .collect();
+    // One thread (or the build without rayon): in index order on the caller's thread.
+    #[cfg(feature = "parallel")]
+    {
+        let threads = current_num_threads().min(items.len());
+        if threads > 1 {
+            return largest_first_on(threads, items, cost, f);
+        }
     }
-    largest_first_on(threads, items, cost, f)
+    #[cfg(not(feature = "parallel"))]
+    let _ = cost;
+    items
+        .into_iter()
+        .enumerate()
+        .map(|(i, x)| f(i, x))
+        .collect()
 }
 
 #[cfg(feature = "parallel")]
@@ -161,20 +167,6 @@ fn largest_first_order(n: usize, cost: impl Fn(usize) -> usize) -> Vec<usize> {
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by_key(|&i| (std::cmp::Reverse(cost(i)), i));
     order
-}
-
-#[cfg(not(feature = "parallel"))]
-fn largest_first_on<I: Send, R: Send>(
-    _: usize,
-    items: Vec<I>,
-    _: impl Fn(usize) -> usize,
-    f: impl Fn(usize, I) -> R + Sync,
-) -> Vec<R> {
-    items
-        .into_iter()
-        .enumerate()
-        .map(|(i, x)| f(i, x))
-        .collect()
 }
 
 #[cfg(test)]
