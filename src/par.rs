@@ -32,14 +32,10 @@ mod sequential {
 
     /// The slice methods rayon adds, as the plain ones.
     pub(crate) trait ParallelSlice<T> {
-        fn par_iter(&self) -> std::slice::Iter<'_, T>;
         fn par_chunks(&self, n: usize) -> std::slice::Chunks<'_, T>;
         fn par_chunks_mut(&mut self, n: usize) -> std::slice::ChunksMut<'_, T>;
     }
     impl<T> ParallelSlice<T> for [T] {
-        fn par_iter(&self) -> std::slice::Iter<'_, T> {
-            self.iter()
-        }
         fn par_chunks(&self, n: usize) -> std::slice::Chunks<'_, T> {
             self.chunks(n)
         }
@@ -50,10 +46,6 @@ mod sequential {
 
     /// The iterator methods rayon adds, as their sequential meaning.
     pub(crate) trait ParallelIterator: Iterator + Sized {
-        /// How rayon splits the work: nothing to split here.
-        fn with_max_len(self, _: usize) -> Self {
-            self
-        }
         fn for_each_init<S>(self, init: impl Fn() -> S, mut f: impl FnMut(&mut S, Self::Item)) {
             let mut state = init();
             self.for_each(|item| f(&mut state, item));
