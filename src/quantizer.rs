@@ -123,11 +123,14 @@ impl LatticeMatrix {
     /// product and sum rounded to binary32, `u_j` converted to binary32 first. A term with
     /// `u_j = 0` or `B_ij = 0` adds ±0 to a sum that is never −0, so skipping it changes
     /// nothing.
-    pub fn apply(&self, u: &[i64], z: &mut [f32]) {
+    ///
+    /// `u` may hold `i64` (the anchors' coordinates) or `i32` (the explicit profile's); the
+    /// conversion to binary32 is the same rounding of the same integer.
+    pub fn apply<T: Copy + Into<i64>>(&self, u: &[T], z: &mut [f32]) {
         let d = self.dim;
         if self.is_identity() {
             for (zi, &ui) in z.iter_mut().zip(u) {
-                *zi = ui as f32;
+                *zi = ui.into() as f32;
             }
             return;
         }
@@ -135,6 +138,7 @@ impl LatticeMatrix {
         z.fill(0.0);
         if self.b.is_empty() {
             for (j, &uj) in u.iter().enumerate().take(d) {
+                let uj: i64 = uj.into();
                 if uj == 0 {
                     continue;
                 }
@@ -146,13 +150,22 @@ impl LatticeMatrix {
             }
             return;
         }
-        for (column, &uj) in self.b.chunks_exact(d).zip(u) {
-            if uj == 0 {
-                continue;
+        // Most coordinates of a fine rate are 0, at no pattern a branch predicts: list the
+        // non-zero columns of each run of 64 first (no branch), then add those in increasing j.
+        const RUN: usize = 64;
+        let mut nonzero = [0u8; RUN];
+        for (r, run) in u[..d.min(u.len())].chunks(RUN).enumerate() {
+            let mut n = 0;
+            for (j, &uj) in run.iter().enumerate() {
+                nonzero[n] = j as u8;
+                n += usize::from(uj.into() != 0);
             }
-            let uf = uj as f32;
-            for (zi, &bij) in z.iter_mut().zip(column) {
-                *zi += bij * uf;
+            for &j in &nonzero[..n] {
+                let j = r * RUN + usize::from(j);
+                let uf = u[j].into() as f32;
+                for (zi, &bij) in z.iter_mut().zip(&self.b[j * d..(j + 1) * d]) {
+                    *zi += bij * uf;
+                }
             }
         }
     }
@@ -313,7 +326,8 @@ mod tests {
             seed ^= seed << 17;
             seed
         };
-        for d in [1usize, 2, 7, 8, 9, 16, 45, 50] {
+        // 64 and past it: the non-zero columns are listed 64 at a time.
+        for d in [1usize, 2, 7, 8, 9, 16, 45, 50, 63, 64, 65, 130] {
             let mut value = |scale: f32| (next() % 2001) as f32 / 1000.0 * scale - scale;
             let basis = Basis {
                 u: (0..d * d).map(|_| value(1.0)).collect(),
@@ -343,6 +357,14 @@ mod tests {
                     let sum = (0..d).fold(0.0f32, |acc, j| acc + b[i * d + j] as f32 * u[j] as f32);
                     assert_eq!(zi.to_bits(), sum.to_bits(), "d {d}, row {i}");
                 }
+                // The explicit profile's i32 coordinates give the same bits.
+                let u32s: Vec<i32> = u.iter().map(|&x| x as i32).collect();
+                let mut z32 = vec![f32::NAN; d];
+                m.apply(&u32s, &mut z32);
+                assert_eq!(
+                    z.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                    z32.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+                );
             }
         }
     }

@@ -70,8 +70,6 @@ pub fn reconstruct_tile_into(
     let steps: Vec<f32> = groups.iter().map(|g| g.rate_step(rate)).collect();
     let widest = groups.iter().map(|g| g.dim).max().unwrap_or(0);
     let mut z = vec![0.0f32; widest];
-    let mut u = vec![0i64; widest];
-    let mut x = vec![0.0f32; widest];
     let rest = out.rest_per_gaussian;
     for (i, &voxel) in voxels.iter().enumerate().take(out.len()) {
         let class = usize::from(symbols.size_class[i]);
@@ -86,25 +84,27 @@ pub fn reconstruct_tile_into(
         let mut at = 0;
         for (gi, g) in groups.iter().enumerate() {
             let d = g.dim;
-            for (uj, &c) in u.iter_mut().zip(&coords[at..at + d]) {
-                *uj = i64::from(c);
-            }
+            let u = &coords[at..at + d];
             at += d;
-            // Step 2: Δ = G ⊗ 2^shift, z = B·float32(u) (§7.3), x = mean ⊕ (Δ ⊗ z).
+            // Step 2: Δ = G ⊗ 2^shift, z = B·float32(u) (§7.3), x = mean ⊕ (Δ ⊗ z), written
+            // straight into the group's output (the rotation's three through `small`).
             let delta = steps[gi] * pow2(layer.group_shift(gi, class).into());
-            matrices[gi].apply(&u[..d], &mut z[..d]);
-            for j in 0..d {
-                x[j] = canonical_nan(g.mean[j] + delta * z[j]);
-            }
-            match g.kind {
-                GroupKind::Opacity => out.opacity_logit[i] = x[0],
-                GroupKind::Scale => out.log_scales[i] = [x[0], x[1], x[2]],
-                GroupKind::Rotation => {
-                    out.rotations[i] = quaternion([x[0], x[1], x[2]], symbols.rotation_index[i])
-                }
-                GroupKind::Dc => out.f_dc[i] = [x[0], x[1], x[2]],
+            let z = &mut z[..d];
+            matrices[gi].apply(u, z);
+            let mut small = [0.0f32; 3];
+            let x: &mut [f32] = match g.kind {
+                GroupKind::Opacity => core::slice::from_mut(&mut out.opacity_logit[i]),
+                GroupKind::Scale => &mut out.log_scales[i],
+                GroupKind::Rotation => &mut small,
+                GroupKind::Dc => &mut out.f_dc[i],
                 // Table 3-3: the group holds all 3·B values.
-                GroupKind::Rest => out.f_rest[i * rest..(i + 1) * rest].copy_from_slice(&x[..d]),
+                GroupKind::Rest => &mut out.f_rest[i * rest..(i + 1) * rest],
+            };
+            for ((xj, &mean), &zj) in x.iter_mut().zip(&g.mean).zip(&*z) {
+                *xj = canonical_nan(mean + delta * zj);
+            }
+            if g.kind == GroupKind::Rotation {
+                out.rotations[i] = quaternion(small, symbols.rotation_index[i]);
             }
         }
     }
