@@ -27,6 +27,8 @@ pub struct LatticeMatrix {
     sparse_start: Vec<u32>,
     sparse_rows: Vec<u32>,
     sparse_vals: Vec<f32>,
+    /// Every entry of the dense `b` is finite (so a zero coordinate's terms are ±0).
+    dense_finite: bool,
 }
 
 impl LatticeMatrix {
@@ -40,6 +42,7 @@ impl LatticeMatrix {
             sparse_start: Vec::new(),
             sparse_rows: Vec::new(),
             sparse_vals: Vec::new(),
+            dense_finite: false,
         };
         // §7.2: the generators have integer and half-integer entries, exact in binary32.
         let mut column = |entries: &mut dyn Iterator<Item = (usize, f32)>| {
@@ -82,6 +85,7 @@ impl LatticeMatrix {
         if m.b.is_empty() && m.sparse_start.is_empty() {
             m.kind = LatticeKind::Identity;
         }
+        m.dense_finite = !m.b.is_empty() && m.b.iter().all(|v| v.is_finite());
         m
     }
 
@@ -117,6 +121,31 @@ impl LatticeMatrix {
 
     pub fn is_identity(&self) -> bool {
         self.kind == LatticeKind::Identity
+    }
+
+    /// [`LatticeMatrix::apply`] for a group of `D` values (`u` holds `D`), as an array.
+    ///
+    /// A dense, finite B of dimension `D` takes every term, zeros included, in a loop the
+    /// compiler unrolls: with B finite, a zero coordinate's terms are ±0 and change nothing
+    /// (see `apply`), so the sums are the same bits without a branch per coordinate.
+    #[inline(always)]
+    pub fn apply_fixed<const D: usize, T: Copy + Into<i64>>(&self, u: &[T]) -> [f32; D] {
+        let mut z = [0.0f32; D];
+        if self.is_identity() {
+            for (zi, &ui) in z.iter_mut().zip(u) {
+                *zi = ui.into() as f32;
+            }
+        } else if self.dense_finite && self.dim == D && u.len() >= D {
+            for (column, &uj) in self.b.chunks_exact(D).zip(u) {
+                let uf = uj.into() as f32;
+                for (zi, &bij) in z.iter_mut().zip(column) {
+                    *zi += bij * uf;
+                }
+            }
+        } else {
+            self.apply(u, &mut z);
+        }
+        z
     }
 
     /// §7.3 step 2: `z = B u` in binary32: `z_i = (((+0 + B_i0·u_0) + B_i1·u_1) + …)`, every
@@ -366,6 +395,72 @@ mod tests {
                     z32.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
                 );
             }
+        }
+    }
+
+    /// `apply_fixed` takes every term of a finite dense B, zeros included: the same bits as
+    /// `apply`, which skips them; a B with a non-finite entry goes through `apply`.
+    #[test]
+    fn fixed_size_products_are_the_same_bits() {
+        fn check<const D: usize>(m: &LatticeMatrix, u: &[i32]) {
+            let mut z = vec![f32::NAN; D];
+            m.apply(u, &mut z);
+            let fixed: [f32; D] = m.apply_fixed(u);
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&z), bits(&fixed), "u {u:?}");
+        }
+        let identity = |d: usize| {
+            let mut v = vec![0.0f32; d * d];
+            for i in 0..d {
+                v[i * d + i] = 1.0;
+            }
+            v
+        };
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for round in 0..200 {
+            let mut value = || (next() % 2001) as f32 / 1000.0 - 1.0;
+            let mut basis3 = Basis {
+                u: (0..9).map(|_| value()).collect(),
+                s: (0..3).map(|_| 0.5 + value().abs()).collect(),
+                v: identity(3),
+            };
+            if round < 20 {
+                // U_00 times s_0 overflows binary32: B has one infinity, taken only where u_0
+                // is not 0.
+                basis3.u[0] = 3.0e38;
+                basis3.s[0] = 2.0;
+            }
+            let basis1 = Basis {
+                u: vec![value()],
+                s: vec![0.5 + value().abs()],
+                v: identity(1),
+            };
+            let mut u: Vec<i32> = (0..3)
+                .map(|_| match next() % 3 {
+                    0 => 0,
+                    _ => (next() % 4001) as i32 - 2000,
+                })
+                .collect();
+            if round % 4 == 0 {
+                // Only u_0: the infinity's row takes none of its NaN entries.
+                u[1..].fill(0);
+            }
+            check::<3>(
+                &LatticeMatrix::new(LatticeKind::General, 3, Some(&basis3)),
+                &u,
+            );
+            check::<1>(
+                &LatticeMatrix::new(LatticeKind::General, 1, Some(&basis1)),
+                &u[..1],
+            );
+            check::<3>(&LatticeMatrix::new(LatticeKind::Identity, 3, None), &u);
+            check::<3>(&LatticeMatrix::new(LatticeKind::Dn, 3, None), &u);
         }
     }
 

@@ -5,7 +5,7 @@
 use crate::explicit::attributes::TileSymbolsRef;
 use crate::explicit::gaussians::GaussiansMut;
 use crate::explicit::groups::{Group, GroupKind};
-use crate::explicit::layer::Layer;
+use crate::explicit::layer::{Layer, SIZE_CLASSES};
 use crate::hyperprior::step::canonical_nan;
 use crate::quantizer::LatticeMatrix;
 
@@ -67,7 +67,15 @@ pub fn reconstruct_tile_into(
 ) {
     debug_assert_eq!(matrices.len(), groups.len());
     let values: usize = groups.iter().map(|g| g.dim).sum();
-    let steps: Vec<f32> = groups.iter().map(|g| g.rate_step(rate)).collect();
+    // Step 2's Δ = G ⊗ 2^shift of every group and size class, once per tile.
+    let deltas: Vec<[f32; SIZE_CLASSES]> = groups
+        .iter()
+        .enumerate()
+        .map(|(gi, g)| {
+            let step = g.rate_step(rate);
+            std::array::from_fn(|class| step * pow2(layer.group_shift(gi, class).into()))
+        })
+        .collect();
     let widest = groups.iter().map(|g| g.dim).max().unwrap_or(0);
     let mut z = vec![0.0f32; widest];
     let rest = out.rest_per_gaussian;
@@ -80,32 +88,51 @@ pub fn reconstruct_tile_into(
             layer.refine[class],
             symbols.refinement[i],
         );
-        let coords = &symbols.coords[i * values..(i + 1) * values];
-        let mut at = 0;
-        for (gi, g) in groups.iter().enumerate() {
-            let d = g.dim;
-            let u = &coords[at..at + d];
-            at += d;
-            // Step 2: Δ = G ⊗ 2^shift, z = B·float32(u) (§7.3), x = mean ⊕ (Δ ⊗ z), written
-            // straight into the group's output (the rotation's three through `small`).
-            let delta = steps[gi] * pow2(layer.group_shift(gi, class).into());
-            let z = &mut z[..d];
-            matrices[gi].apply(u, z);
-            let mut small = [0.0f32; 3];
-            let x: &mut [f32] = match g.kind {
-                GroupKind::Opacity => core::slice::from_mut(&mut out.opacity_logit[i]),
-                GroupKind::Scale => &mut out.log_scales[i],
-                GroupKind::Rotation => &mut small,
-                GroupKind::Dc => &mut out.f_dc[i],
+        let mut coords = &symbols.coords[i * values..(i + 1) * values];
+        for ((g, matrix), delta) in groups.iter().zip(matrices).zip(&deltas) {
+            let (u, later) = coords.split_at(g.dim.min(coords.len()));
+            coords = later;
+            let delta = delta[class];
+            // Step 2: z = B·float32(u) (§7.3), x = mean ⊕ (Δ ⊗ z), written straight into
+            // the group's output. The groups of three values go through an array, so that
+            // their loops unroll.
+            match g.kind {
+                GroupKind::Opacity => {
+                    let [x] = group_values::<1>(matrix, u, &g.mean, delta);
+                    out.opacity_logit[i] = x;
+                }
+                GroupKind::Scale => out.log_scales[i] = group_values(matrix, u, &g.mean, delta),
+                GroupKind::Rotation => {
+                    let small = group_values(matrix, u, &g.mean, delta);
+                    out.rotations[i] = quaternion(small, symbols.rotation_index[i]);
+                }
+                GroupKind::Dc => out.f_dc[i] = group_values(matrix, u, &g.mean, delta),
                 // Table 3-3: the group holds all 3·B values.
-                GroupKind::Rest => &mut out.f_rest[i * rest..(i + 1) * rest],
-            };
-            for ((xj, &mean), &zj) in x.iter_mut().zip(&g.mean).zip(&*z) {
-                *xj = canonical_nan(mean + delta * zj);
-            }
-            if g.kind == GroupKind::Rotation {
-                out.rotations[i] = quaternion(small, symbols.rotation_index[i]);
+                GroupKind::Rest => {
+                    let z = &mut z[..g.dim];
+                    matrix.apply(u, z);
+                    let x = &mut out.f_rest[i * rest..(i + 1) * rest];
+                    for ((xj, &mean), &zj) in x.iter_mut().zip(&g.mean).zip(&*z) {
+                        *xj = canonical_nan(mean + delta * zj);
+                    }
+                }
             }
         }
     }
+}
+
+/// §3.6 step 2 for a group of `D` values: `mean ⊕ (Δ ⊗ B·float32(u))`. `u` and `mean` hold
+/// `D` values (Table 3-3 fixes the groups' sizes, `GQUA`'s reader checks them).
+#[inline(always)]
+fn group_values<const D: usize>(
+    matrix: &LatticeMatrix,
+    u: &[i32],
+    mean: &[f32],
+    delta: f32,
+) -> [f32; D] {
+    let (Some(u), Some(mean)) = (u.first_chunk::<D>(), mean.first_chunk::<D>()) else {
+        return [0.0; D];
+    };
+    let z: [f32; D] = matrix.apply_fixed(u);
+    std::array::from_fn(|j| canonical_nan(mean[j] + delta * z[j]))
 }
