@@ -346,15 +346,19 @@ mod tests {
     /// §7.3: a NaN reconstruction is output as 0x7FC00000 whatever NaN the arithmetic made.
     /// A general basis's `B u` is §7.3's sums, term by term in increasing j in binary32,
     /// whatever the dimension's remainder by the kernel's row blocks and wherever `u` is 0.
-    #[test]
-    fn general_products_are_section_7_3_sums_in_order() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
+    /// A seeded xorshift64 sequence for the tests' random bases and coordinates.
+    fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
+        move || {
             seed ^= seed << 13;
             seed ^= seed >> 7;
             seed ^= seed << 17;
             seed
-        };
+        }
+    }
+
+    #[test]
+    fn general_products_are_section_7_3_sums_in_order() {
+        let mut next = xorshift(0x2545_f491_4f6c_dd1du64);
         // 64 and past it: the non-zero columns are listed 64 at a time.
         for d in [1usize, 2, 7, 8, 9, 16, 45, 50, 63, 64, 65, 130] {
             let mut value = |scale: f32| (next() % 2001) as f32 / 1000.0 * scale - scale;
@@ -416,13 +420,7 @@ mod tests {
             }
             v
         };
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut next = xorshift(0x9e37_79b9_7f4a_7c15u64);
         for round in 0..200 {
             let mut value = || (next() % 2001) as f32 / 1000.0 - 1.0;
             let mut basis3 = Basis {
