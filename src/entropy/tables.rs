@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::sync::OnceLock;
 
 use super::ans::ScaleModel;
-use super::ans::{COARSE_BITS, MAX_PRECISION, MIN_PRECISION};
+use super::ans::{COARSE_BITS, COARSE_LEN, MAX_PRECISION, MIN_PRECISION};
 use super::scale::{SCALE_COUNT, SIGMA_Q16, THRESHOLD_Q16};
 
 /// Longest Exp-Golomb prefix (leading zeros) an escape may have (§6.4).
@@ -97,9 +97,9 @@ pub struct GaussianTables {
     tail_q4: u32,
     r_max: u32,
     scales: Vec<ScaleTable>,
-    /// Decoder search table (see `ans::COARSE_BITS`): 64 · 2^B alphabet indices, B =
-    /// min(P, COARSE_BITS); scale k's bucket b at `(k << B) + b`.
-    coarse: Vec<u16>,
+    /// Decoder search tables (see `ans::COARSE_BITS`), one per scale: bucket b's alphabet
+    /// index, then the scale's last alphabet index (the bound of the last bucket's search).
+    coarse: Vec<[u16; COARSE_LEN]>,
 }
 
 impl GaussianTables {
@@ -159,17 +159,19 @@ impl GaussianTables {
 
     fn from_scales(precision: u32, tail_q4: u32, r_max: u32, scales: Vec<ScaleTable>) -> Self {
         // The coarse search table: bucket b's first quantile is b << shift.
-        let bits = precision.min(COARSE_BITS);
-        let shift = precision - bits;
-        let mut coarse = Vec::with_capacity(SCALE_COUNT << bits);
+        let shift = precision - COARSE_BITS;
+        let mut coarse = Vec::with_capacity(SCALE_COUNT);
         for t in &scales {
+            let mut search = [0u16; COARSE_LEN];
             let mut i = 0usize;
-            for b in 0..1u32 << bits {
+            for (b, entry) in (0u32..).zip(&mut search[..COARSE_LEN - 1]) {
                 while t.cum[i + 1] <= b << shift {
                     i += 1;
                 }
-                coarse.push(i as u16);
+                *entry = i as u16;
             }
+            search[COARSE_LEN - 1] = (t.cum.len() - 2) as u16;
+            coarse.push(search);
         }
         GaussianTables {
             precision,
@@ -206,12 +208,9 @@ impl GaussianTables {
     /// The decoding model of scale `k` (panics if `k ≥ SCALE_COUNT`).
     #[inline]
     pub(crate) fn model(&self, k: u8) -> ScaleModel<'_> {
-        let bits = self.precision.min(COARSE_BITS);
-        let start = usize::from(k) << bits;
         ScaleModel {
             cum: &self.scales[usize::from(k)].cum,
-            coarse: &self.coarse[start..start + (1usize << bits)],
-            shift: self.precision - bits,
+            coarse: &self.coarse[usize::from(k)],
         }
     }
 
@@ -367,13 +366,23 @@ mod tests {
     #[test]
     fn model_search_finds_the_symbol_of_every_quantile() {
         use constriction::stream::model::DecoderModel;
-        for p in [12, 16] {
-            let t = GaussianTables::new(p);
+        // The format's tables, and wide ones (R up to 1023) whose tail buckets hold up to
+        // 2^(P−B) symbols of frequency 1: the search's widest bisections.
+        let tables = [
+            GaussianTables::new(12),
+            GaussianTables::new(16),
+            GaussianTables::new(20),
+            GaussianTables::with_tail(16, 16 * 40, 1023),
+        ];
+        for t in &tables {
+            let p = t.precision();
             for k in 0..SCALE_COUNT as u8 {
                 let cum = t.scale(k).cumulative();
                 let m = t.model(k);
                 for q in 0..1u32 << p {
-                    let (i, c, f) = DecoderModel::<16>::quantile_function(&m, q);
+                    let (i, c, f) = crate::with_precision!(p, P => {
+                        DecoderModel::<P>::quantile_function(&m, q)
+                    });
                     assert!(cum[i] <= q && q < cum[i + 1]);
                     assert_eq!((c, f.get()), (cum[i], cum[i + 1] - cum[i]));
                 }
