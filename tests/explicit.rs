@@ -437,3 +437,39 @@ fn three_points_round_trip_through_the_plans() {
         assert_eq!(&decode(&e.stream, report.rate).gaussians, expected);
     }
 }
+
+/// `salvq info` counts, per group, the values coded with the widest table and those sent with
+/// an escape (§6.3.1, §6.4): a group quantized far finer than the widest table's σ overruns
+/// it, a group quantized coarser than its spread never does.
+#[test]
+fn info_names_the_groups_that_overrun_the_scale_grid() {
+    use salvq_encoder::info::explicit::inspect_explicit;
+    let mut plan = plan(0.05, 5);
+    // Scales at a step of 0.005 in log units: a spread of some hundred steps, past the
+    // widest table's σ (29.3 steps) but within reach of its escapes' cost.
+    plan.steps = vec![0.005, 100.0, 0.03, 0.03, 0.04];
+    let e = encode_synthetic(
+        &GaussianParams::new(200, 1, 5),
+        vec![plan],
+        ExplicitOptions::default(),
+    )
+    .unwrap();
+    let info = inspect_explicit(&e.stream, &Limits::default()).unwrap();
+    let saturation = &info.layers[0].saturation;
+    let group = |name: &str| {
+        saturation
+            .iter()
+            .find(|g| g.group == name)
+            .unwrap_or_else(|| panic!("{name} in {saturation:?}"))
+    };
+    let (scale, opacity) = (group("scale"), group("opacity"));
+    assert!(scale.widest_table > 0.9, "{scale:?}");
+    assert!(scale.escaped > 0.1, "{scale:?}");
+    assert_eq!((opacity.widest_table, opacity.escaped), (0.0, 0.0));
+    let line = format!(
+        "scale {:.1} % / {:.1} %",
+        100.0 * scale.widest_table,
+        100.0 * scale.escaped
+    );
+    assert!(info.to_text().contains(&line), "{}", info.to_text());
+}

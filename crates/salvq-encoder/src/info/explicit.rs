@@ -8,7 +8,7 @@ use serde::Serialize;
 use crate::error::Result;
 use salvq::container::chunk::ChunkReader;
 use salvq::container::signature::{Signature, SIGNATURE_LEN};
-use salvq::entropy::GaussianTables;
+use salvq::entropy::{GaussianTables, SCALE_COUNT};
 use salvq::explicit::attributes::{walk, BitEvent, Events};
 use salvq::explicit::decode_gaussians;
 use salvq::limits::Limits;
@@ -36,6 +36,22 @@ pub struct ExplicitLayerInfo {
     pub refine_bits: f64,
     /// Bits per Gaussian of each group, by name (the rotation index in `rotation`).
     pub group_bits: Vec<(String, f64)>,
+    /// Per group: the share of its coded values whose table is the widest (scale index 63,
+    /// §6.3.1), and the share sent with an escape (|r| > R_k, §6.4). Values whose spread
+    /// passes the widest table's σ cost more than their entropy, and each escape is 2L + 2
+    /// binary events more to decode.
+    pub saturation: Vec<GroupSaturation>,
+}
+
+/// How far a group's values overrun the scale grid (`info`'s `saturation`).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct GroupSaturation {
+    /// The group's name.
+    pub group: String,
+    /// Share of its coded values coded with the widest table (scale index 63).
+    pub widest_table: f64,
+    /// Share of its coded values sent with an escape.
+    pub escaped: f64,
 }
 
 /// `info` of an explicit-profile stream.
@@ -67,6 +83,8 @@ struct Cost<'a> {
     group_of: &'a [usize],
     tables: &'a GaussianTables,
     bits: Vec<f64>,
+    /// Per group: coded values, those at the widest table, those escaped.
+    counts: Vec<[u64; 3]>,
     refine: f64,
     rotation_group: usize,
 }
@@ -82,7 +100,13 @@ impl Events for Cost<'_> {
     }
     fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> salvq::Result<i64> {
         let r = i64::from(self.coords[i * self.values + v]) - pred;
-        self.bits[self.group_of[v]] += self.tables.ideal_bits(k, r);
+        let g = self.group_of[v];
+        self.bits[g] += self.tables.ideal_bits(k, r);
+        let widest = usize::from(k) == SCALE_COUNT - 1;
+        let escaped = r.unsigned_abs() > u64::from(self.tables.radius(k));
+        self.counts[g][0] += 1;
+        self.counts[g][1] += u64::from(widest);
+        self.counts[g][2] += u64::from(escaped);
         Ok(r)
     }
 }
@@ -130,6 +154,7 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
             group_of: &group_of,
             tables,
             bits: vec![0.0; d.groups.len()],
+            counts: vec![[0; 3]; d.groups.len()],
             refine: 0.0,
             rotation_group,
         };
@@ -164,6 +189,19 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
                 .iter()
                 .zip(&cost.bits)
                 .map(|(g, b)| (g.kind.name().to_string(), b / n))
+                .collect(),
+            saturation: d
+                .groups
+                .iter()
+                .zip(&cost.counts)
+                .map(|(g, &[values, widest, escaped])| {
+                    let share = |c: u64| c as f64 / values.max(1) as f64;
+                    GroupSaturation {
+                        group: g.kind.name().to_string(),
+                        widest_table: share(widest),
+                        escaped: share(escaped),
+                    }
+                })
                 .collect(),
         });
     }
@@ -257,6 +295,60 @@ impl ExplicitInfo {
                 g.join(" ")
             );
         }
+        // Where a group's values overrun the scale grid (§6.3.1, §6.4).
+        for l in &self.layers {
+            let over: Vec<String> = l
+                .saturation
+                .iter()
+                .filter(|g| g.widest_table > 0.0 || g.escaped > 0.0)
+                .map(|g| {
+                    format!(
+                        "{} {:.1} % / {:.1} %",
+                        g.group,
+                        100.0 * g.widest_table,
+                        100.0 * g.escaped
+                    )
+                })
+                .collect();
+            if !over.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "rate {}: values at the widest table (k = 63) / escaped: {}",
+                    l.rate,
+                    over.join(", ")
+                );
+            }
+        }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A value is escaped exactly when |r| passes its table's radius R_k (§6.4), and counted
+    /// at the widest table only for scale index 63.
+    #[test]
+    fn escapes_are_counted_past_the_radius() {
+        let tables = GaussianTables::standard();
+        let (k, widest) = (40u8, (SCALE_COUNT - 1) as u8);
+        let r = i64::from(tables.radius(k));
+        // Gaussian 0 codes [R, −R − 1, R_63 + 1], the last at the widest table.
+        let coords = [r as i32, -(r as i32) - 1, tables.radius(widest) as i32 + 1];
+        let mut cost = Cost {
+            coords: &coords,
+            values: 3,
+            group_of: &[0, 0, 1],
+            tables,
+            bits: vec![0.0; 2],
+            counts: vec![[0; 3]; 2],
+            refine: 0.0,
+            rotation_group: 0,
+        };
+        cost.symbol(k, 0, 0, 0).unwrap();
+        cost.symbol(k, 0, 1, 0).unwrap();
+        cost.symbol(widest, 0, 2, 0).unwrap();
+        assert_eq!(cost.counts, vec![[2, 0, 1], [1, 1, 1]]);
     }
 }
