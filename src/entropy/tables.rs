@@ -367,7 +367,7 @@ mod tests {
     fn model_search_finds_the_symbol_of_every_quantile() {
         use constriction::stream::model::DecoderModel;
         // The format's tables, and wide ones (R up to 1023) whose tail buckets hold up to
-        // 2^(P−B) symbols of frequency 1: the search's widest bisections.
+        // 2^(P − COARSE_BITS) symbols of frequency 1: the search's widest bisections.
         let tables = [
             GaussianTables::new(12),
             GaussianTables::new(16),
