@@ -287,6 +287,83 @@ pub(super) fn side_neighbour_counts(present: u32) -> u32 {
 mod tests {
     use super::*;
 
+    /// Brute force: the row of every cell of `cells`, by looking each neighbour up by position.
+    fn rows_by_position(cells: &[[i64; 3]]) -> Vec<Neighbours> {
+        let at: std::collections::HashMap<[i64; 3], u32> = cells
+            .iter()
+            .enumerate()
+            .map(|(j, &c)| (c, j as u32))
+            .collect();
+        cells
+            .iter()
+            .map(|c| {
+                let mut row = Neighbours::NONE;
+                for slot in (0..27).filter(|&s| s != 13) {
+                    let d = [
+                        slot as i64 % 3 - 1,
+                        slot as i64 / 3 % 3 - 1,
+                        slot as i64 / 9 - 1,
+                    ];
+                    if let Some(&j) = at.get(&[c[0] + d[0], c[1] + d[1], c[2] + d[2]]) {
+                        row.index[slot] = j;
+                        row.present |= 1 << slot;
+                    }
+                }
+                row
+            })
+            .collect()
+    }
+
+    /// Every child's row is the one found by looking its neighbours up by position, for
+    /// sparse and dense levels, only children of isolated nodes included.
+    #[test]
+    fn child_rows_are_the_neighbours_by_position() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let (mut first, mut out) = (Vec::new(), Vec::new());
+        for round in 0..200u64 {
+            // Cell density 1/64 … 1, child density 1/8 … 1.
+            let (cell_odds, child_odds) = (1 + round % 64, 1 + round / 64 % 8);
+            let cells: Vec<[i64; 3]> = (0..512i64)
+                .map(|m| [m % 8, m / 8 % 8, m / 64])
+                .filter(|_| next() % cell_odds == 0)
+                .collect();
+            let bytes: Vec<u8> = cells
+                .iter()
+                .map(|_| {
+                    (0..8)
+                        .filter(|_| next() % child_odds == 0)
+                        .fold(0, |b, i| b | 1 << i)
+                })
+                .collect();
+            let children: Vec<[i64; 3]> = cells
+                .iter()
+                .zip(&bytes)
+                .flat_map(|(c, &b)| {
+                    (0..8i64).filter(move |i| b >> i & 1 == 1).map(move |i| {
+                        [
+                            2 * c[0] + (i & 1),
+                            2 * c[1] + (i >> 1 & 1),
+                            2 * c[2] + (i >> 2),
+                        ]
+                    })
+                })
+                .collect();
+            child_neighbours(&rows_by_position(&cells), &bytes, &mut first, &mut out);
+            let expected = rows_by_position(&children);
+            assert_eq!(out.len(), expected.len(), "round {round}");
+            for (j, (got, want)) in out.iter().zip(&expected).enumerate() {
+                assert_eq!(got.present, want.present, "round {round}, child {j}");
+                assert_eq!(got.index, want.index, "round {round}, child {j}");
+            }
+        }
+    }
+
     /// The packed per-child counts are §8.3's `n7` and the across-face part of `kf`, as
     /// their definitions compute them one child at a time.
     #[test]
