@@ -8,8 +8,10 @@
 //! model whose Gaussians depend on the camera (Scaffold-GS, Annex C.1); they are computed
 //! for ring camera 0 of Annex C.2, as `salvq export-ply` does, once the stream is complete.
 //!
-//! Decoding runs on the calling thread (a Web Worker, say) without SIMD; the output is the
-//! same bits as the native decoder's (§10.3).
+//! Decoding runs on the calling thread (a Web Worker, say). The package is built with
+//! WebAssembly SIMD (`simd128`, the workspace's `.cargo/config.toml`), whose lanes the compiler
+//! uses only for independent values, never reordering or fusing floating-point operations; the
+//! output is the same bits as the native decoder's (§10.3).
 
 use wasm_bindgen::prelude::*;
 

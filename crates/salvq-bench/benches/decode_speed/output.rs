@@ -53,7 +53,7 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
         }
     }
     if rows.iter().any(|r| r.wasm.is_some()) {
-        t += "\nWebAssembly (salvq-wasm `decode` in Node's V8, one thread, no SIMD; median of the runs after the first)\n";
+        t += "\nWebAssembly (salvq-wasm `decode` in Node's V8, one thread, WebAssembly SIMD; median of the runs after the first)\n";
         for r in rows {
             if let Some((w, first)) = r.wasm {
                 t += &format!(
