@@ -287,6 +287,17 @@ pub(super) fn side_neighbour_counts(present: u32) -> u32 {
 mod tests {
     use super::*;
 
+    /// A xorshift64 generator: the tests' random levels and masks, the same on every machine.
+    fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+        let mut x = seed;
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        }
+    }
+
     /// Brute force: the row of every cell of `cells`, by looking each neighbour up by position.
     fn rows_by_position(cells: &[[i64; 3]]) -> Vec<Neighbours> {
         let at: std::collections::HashMap<[i64; 3], u32> = cells
@@ -318,13 +329,7 @@ mod tests {
     /// sparse and dense levels, only children of isolated nodes included.
     #[test]
     fn child_rows_are_the_neighbours_by_position() {
-        let mut x = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
         let (mut first, mut out) = (Vec::new(), Vec::new());
         for round in 0..200u64 {
             // Cell density 1/64 … 1, child density 1/8 … 1.
@@ -368,13 +373,7 @@ mod tests {
     /// their definitions compute them one child at a time.
     #[test]
     fn packed_child_counts_match_the_definitions() {
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = xorshift(0x9e37_79b9_7f4a_7c15);
         for _ in 0..20_000 {
             let r = next();
             let present = (r as u32) & ((1 << 27) - 1) & !(1 << 13);
