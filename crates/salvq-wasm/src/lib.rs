@@ -9,9 +9,9 @@
 //! for ring camera 0 of Annex C.2, as `salvq export-ply` does, once the stream is complete.
 //!
 //! Decoding runs on the calling thread (a Web Worker, say). The package is built with
-//! WebAssembly SIMD (`simd128`, the workspace's `.cargo/config.toml`), whose lanes the compiler
-//! uses only for independent values, never reordering or fusing floating-point operations; the
-//! output is the same bits as the native decoder's (§10.3).
+//! WebAssembly SIMD (`simd128`, the workspace's `.cargo/config.toml`); the compiler keeps every
+//! floating-point operation's order and rounding (lane by lane, never a fused multiply-add), so
+//! the output is the same bits as the native decoder's (§10.3).
 
 use wasm_bindgen::prelude::*;
 
