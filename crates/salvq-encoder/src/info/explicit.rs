@@ -313,8 +313,9 @@ impl ExplicitInfo {
             if !over.is_empty() {
                 let _ = writeln!(
                     s,
-                    "rate {}: values at the widest table (k = 63) / escaped: {}",
+                    "rate {}: values at the widest table (k = {}) / escaped: {}",
                     l.rate,
+                    SCALE_COUNT - 1,
                     over.join(", ")
                 );
             }
