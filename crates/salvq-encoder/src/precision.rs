@@ -16,7 +16,9 @@ use salvq::container::payload::ScaffoldPrecision;
 use salvq::model::{Anchors, Mlp, SceneModel};
 use salvq_render::camera::{Bounds, Ring};
 use salvq_render::neural::ScaffoldMlp;
-use salvq_render::neural::{activate, anchor_positions, check_model, forward, neural_gaussians};
+use salvq_render::neural::{
+    activate, anchor_positions, check_model, neural_gaussians, PreparedMlp,
+};
 use salvq_render::raster::render;
 use salvq_render::Image;
 
@@ -116,7 +118,11 @@ pub fn max_change(m: &SceneModel, a: [&Mlp; 3], b: [&Mlp; 3]) -> f64 {
     if views.is_empty() {
         views.push(Vec::new());
     }
-    let (mut ya, mut yb) = (Vec::new(), Vec::new());
+    let (a, b) = (
+        a.map(|m| PreparedMlp::new(m, f + v)),
+        b.map(|m| PreparedMlp::new(m, f + v)),
+    );
+    let (mut ya, mut yb, mut hidden) = (Vec::new(), Vec::new(), Vec::new());
     let mut worst = 0f64;
     for i in 0..p {
         let anchor = i * n / p;
@@ -128,8 +134,8 @@ pub fn max_change(m: &SceneModel, a: [&Mlp; 3], b: [&Mlp; 3]) -> f64 {
                 .chain(view.iter().copied())
                 .collect();
             for (kind, which) in ScaffoldMlp::ALL.into_iter().enumerate() {
-                forward(a[kind], &x, &mut ya);
-                forward(b[kind], &x, &mut yb);
+                a[kind].forward(&x, &mut hidden, &mut ya);
+                b[kind].forward(&x, &mut hidden, &mut yb);
                 activate(which, &mut ya);
                 activate(which, &mut yb);
                 for (p, q) in ya.iter().zip(&yb) {

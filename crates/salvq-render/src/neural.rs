@@ -48,29 +48,109 @@ impl ScaffoldMlp {
     pub const ALL: [ScaffoldMlp; 3] = [ScaffoldMlp::Opacity, ScaffoldMlp::Cov, ScaffoldMlp::Color];
 }
 
-/// `Linear → ReLU → Linear` (spec §2.5) in binary64; `out` receives the raw outputs.
+/// `Linear → ReLU → Linear` (spec §2.5) in binary64; `out` receives the raw outputs
+/// ([`PreparedMlp::forward`]; to run one MLP many times, prepare it once). Every build gives
+/// the same bits, but for the sign and payload of a NaN, which IEEE 754 leaves open.
 pub fn forward(m: &Mlp, x: &[f64], out: &mut Vec<f64>) {
-    let (inp, hidden) = (x.len(), m.b0.len());
-    let h: Vec<f64> = (0..hidden)
-        .map(|j| {
-            let s = f64::from(m.b0[j])
-                + m.w0[j * inp..(j + 1) * inp]
-                    .iter()
-                    .zip(x)
-                    .map(|(&w, &v)| f64::from(w) * v)
-                    .sum::<f64>();
-            s.max(0.0)
-        })
-        .collect();
-    out.clear();
-    out.extend((0..m.b1.len()).map(|o| {
-        f64::from(m.b1[o])
-            + m.w1[o * hidden..(o + 1) * hidden]
-                .iter()
-                .zip(&h)
-                .map(|(&w, &v)| f64::from(w) * v)
-                .sum::<f64>()
-    }));
+    PreparedMlp::new(m, x.len()).forward(x, &mut Vec::new(), out);
+}
+
+/// Rows of a [`PreparedMlp`] block: eight sums in flight at once.
+const BLOCK: usize = 8;
+
+/// One Scaffold-GS MLP laid out for [`PreparedMlp::forward`]: each layer's rows in blocks of
+/// [`BLOCK`] (the last padded with zero rows), each block column by column, in binary64
+/// (`f64::from` of a binary32 weight is exact, so converting once changes no product).
+///
+/// Why: a row's sum is a chain of dependent additions, and one row at a time waited on each
+/// addition (most of a Scaffold-GS anchor's time, natively and in WebAssembly). With a
+/// block's weights for one input side by side, the eight sums advance together in vector
+/// registers.
+#[derive(Debug, Clone)]
+pub struct PreparedMlp {
+    layers: [Layer; 2],
+}
+
+/// One `Linear` layer of a [`PreparedMlp`].
+#[derive(Debug, Clone)]
+struct Layer {
+    /// Inputs.
+    n: usize,
+    /// Outputs (the rows before padding).
+    rows: usize,
+    /// `[block][input][BLOCK]`.
+    w: Vec<f64>,
+    /// `[block · BLOCK]`, padded with zeros.
+    b: Vec<f64>,
+}
+
+impl Layer {
+    /// Rows `w` (`[rows, n]`, row-major) and biases `b` (`[rows]`); rows that `w` or `b` lack
+    /// (a model [`check_model`] would refuse) are zero.
+    fn new(w: &[f32], b: &[f32], n: usize) -> Layer {
+        let rows = b.len();
+        let blocks = rows.div_ceil(BLOCK);
+        let mut wt = vec![0.0; blocks * n * BLOCK];
+        for (r, row) in w.chunks_exact(n.max(1)).take(rows).enumerate() {
+            let (block, k) = (r / BLOCK, r % BLOCK);
+            for (j, &v) in row.iter().enumerate() {
+                wt[(block * n + j) * BLOCK + k] = f64::from(v);
+            }
+        }
+        let mut bias: Vec<f64> = b.iter().map(|&v| f64::from(v)).collect();
+        bias.resize(blocks * BLOCK, 0.0);
+        Layer {
+            n,
+            rows,
+            w: wt,
+            b: bias,
+        }
+    }
+
+    /// `out[r] = b[r] + Σ_j w[r][j]·x[j]` for every padded row, each sum from −0 (which
+    /// adding leaves every value as it is) in increasing j: the order [`Iterator::sum`]
+    /// takes, so the same bits as a plain loop over one row.
+    fn apply(&self, x: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        let x = &x[..self.n.min(x.len())];
+        let block_len = self.n * BLOCK;
+        for (i, bias) in self.b.chunks_exact(BLOCK).enumerate() {
+            let block = &self.w[i * block_len..(i + 1) * block_len];
+            let mut acc = [-0.0f64; BLOCK];
+            for (column, &v) in block.chunks_exact(BLOCK).zip(x) {
+                for (a, &w) in acc.iter_mut().zip(column) {
+                    *a += w * v;
+                }
+            }
+            out.extend(bias.iter().zip(acc).map(|(&b, a)| b + a));
+        }
+    }
+}
+
+impl PreparedMlp {
+    /// `m` for inputs of `inputs` values.
+    pub fn new(m: &Mlp, inputs: usize) -> PreparedMlp {
+        let hidden = m.b0.len();
+        PreparedMlp {
+            layers: [
+                Layer::new(&m.w0, &m.b0, inputs),
+                Layer::new(&m.w1, &m.b1, hidden),
+            ],
+        }
+    }
+
+    /// The raw outputs of input `x` into `out`; `hidden` is scratch. The ReLU takes a NaN
+    /// and −0 to +0 (`f64::max` leaves the sign of a zero result open).
+    pub fn forward(&self, x: &[f64], hidden: &mut Vec<f64>, out: &mut Vec<f64>) {
+        let [first, second] = &self.layers;
+        first.apply(x, hidden);
+        hidden.truncate(first.rows);
+        for v in hidden.iter_mut() {
+            *v = if *v > 0.0 { *v } else { 0.0 };
+        }
+        second.apply(hidden, out);
+        out.truncate(second.rows);
+    }
 }
 
 /// The logistic function.
@@ -191,6 +271,8 @@ pub fn neural_gaussians(m: &SceneModel, camera: [f32; 3]) -> Result<Gaussians> {
     check_model(m)?;
     let positions = anchor_positions(m);
     let n = m.n();
+    let inputs = usize::from(m.dims.feat_dim) + usize::from(m.dims.view_dims);
+    let mlps = [&m.mlp_opacity, &m.mlp_cov, &m.mlp_color].map(|mlp| PreparedMlp::new(mlp, inputs));
     let parts: Vec<Gaussians> = (0..n.div_ceil(ANCHORS_PER_JOB))
         .into_par_iter()
         .map(|job| {
@@ -199,7 +281,7 @@ pub fn neural_gaussians(m: &SceneModel, camera: [f32; 3]) -> Result<Gaussians> {
             let mut scratch = Scratch::default();
             let first = job * ANCHORS_PER_JOB;
             for (anchor, &position) in positions.iter().enumerate().take(end).skip(first) {
-                anchor_gaussians(m, anchor, position, camera, &mut scratch, &mut g);
+                anchor_gaussians(m, &mlps, anchor, position, camera, &mut scratch, &mut g);
             }
             g
         })
@@ -228,6 +310,7 @@ pub fn neural_gaussians(m: &SceneModel, camera: [f32; 3]) -> Result<Gaussians> {
 #[derive(Default)]
 struct Scratch {
     input: Vec<f64>,
+    hidden: Vec<f64>,
     opacity: Vec<f64>,
     cov: Vec<f64>,
     colour: Vec<f64>,
@@ -236,6 +319,7 @@ struct Scratch {
 /// Appends anchor `i`'s Gaussians to `g`.
 fn anchor_gaussians(
     m: &SceneModel,
+    [opacity, cov, colour]: &[PreparedMlp; 3],
     i: usize,
     anchor: [f32; 3],
     camera: [f32; 3],
@@ -262,14 +346,14 @@ fn anchor_gaussians(
     if m.dims.view_dims == 4 {
         s.input.push(dist);
     }
-    forward(&m.mlp_opacity, &s.input, &mut s.opacity);
+    opacity.forward(&s.input, &mut s.hidden, &mut s.opacity);
     activate(ScaffoldMlp::Opacity, &mut s.opacity);
     let kept = |o: usize| mask[o] == 1 && s.opacity[o] > 0.0;
     if !(0..k).any(kept) {
         return;
     }
-    forward(&m.mlp_cov, &s.input, &mut s.cov);
-    forward(&m.mlp_color, &s.input, &mut s.colour);
+    cov.forward(&s.input, &mut s.hidden, &mut s.cov);
+    colour.forward(&s.input, &mut s.hidden, &mut s.colour);
     activate(ScaffoldMlp::Color, &mut s.colour);
     let scaling = &m.anchors.scaling[i * 6..(i + 1) * 6];
     let offsets = &m.anchors.offsets[i * 3 * k..(i + 1) * 3 * k];
@@ -295,5 +379,115 @@ fn anchor_gaussians(
         }));
         let alpha = s.opacity[o].clamp(OPACITY_CLAMP, 1.0 - OPACITY_CLAMP);
         g.opacity_logit.push((alpha / (1.0 - alpha)).ln() as f32);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One row at a time, each sum by [`Iterator::sum`]: the definition the blocked layout
+    /// must reproduce bit for bit.
+    fn forward_by_rows(m: &Mlp, x: &[f64]) -> Vec<f64> {
+        let linear = |w: &[f32], b: &[f32], x: &[f64]| -> Vec<f64> {
+            b.iter()
+                .enumerate()
+                .map(|(r, &bias)| {
+                    let row = &w[r * x.len()..(r + 1) * x.len()];
+                    f64::from(bias)
+                        + row
+                            .iter()
+                            .zip(x)
+                            .map(|(&w, &v)| f64::from(w) * v)
+                            .sum::<f64>()
+                })
+                .collect()
+        };
+        let h: Vec<f64> = linear(&m.w0, &m.b0, x)
+            .into_iter()
+            .map(|v| if v > 0.0 { v } else { 0.0 })
+            .collect();
+        linear(&m.w1, &m.b1, &h)
+    }
+
+    fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+        let mut s = seed;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        }
+    }
+
+    /// Weights and inputs over many magnitudes (so that the order of the additions shows in
+    /// the last bits), with zeros of both signs, infinities and NaN now and then.
+    fn value(next: &mut impl FnMut() -> u64) -> f64 {
+        match next() % 64 {
+            0 => f64::NAN,
+            1 => f64::INFINITY,
+            2 => f64::NEG_INFINITY,
+            3 => 0.0,
+            4 => -0.0,
+            5 => f64::from(f32::MIN_POSITIVE) / 8.0,
+            _ => {
+                let mantissa = (next() % 2000) as f64 / 1000.0 - 1.0;
+                mantissa * 2f64.powi((next() % 40) as i32 - 20)
+            }
+        }
+    }
+
+    #[test]
+    fn prepared_mlp_gives_the_bits_of_one_row_at_a_time() {
+        let mut next = xorshift(0x5eed);
+        let mut compared = 0;
+        for (inputs, hidden, outputs) in [
+            (53, 50, 10),
+            (54, 50, 70),
+            (53, 50, 30),
+            (1, 1, 1),
+            (3, 7, 9),
+            (0, 8, 3),
+            (5, 0, 4),
+            (17, 16, 17),
+        ] {
+            for _ in 0..20 {
+                let mut w =
+                    |n: usize| -> Vec<f32> { (0..n).map(|_| value(&mut next) as f32).collect() };
+                let m = Mlp {
+                    w0: w(hidden * inputs),
+                    b0: w(hidden),
+                    w1: w(outputs * hidden),
+                    b1: w(outputs),
+                };
+                let x: Vec<f64> = (0..inputs).map(|_| value(&mut next)).collect();
+                let want = forward_by_rows(&m, &x);
+                let mut got = Vec::new();
+                forward(&m, &x, &mut got);
+                assert_eq!(got.len(), outputs);
+                for (o, (g, w)) in got.iter().zip(&want).enumerate() {
+                    // A NaN's sign and payload are left open (IEEE 754, and WebAssembly's
+                    // NaNs are nondeterministic): any NaN stands for any other.
+                    let same = g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan());
+                    assert!(
+                        same,
+                        "{inputs}/{hidden}/{outputs}: output {o}: {g:e} vs {w:e}"
+                    );
+                }
+                compared += outputs;
+            }
+        }
+        assert!(compared > 0);
+        // The order of the additions shows: (2^53 + 1) − 2^53 is 0 in increasing order.
+        let big = 2f32.powi(53);
+        let m = Mlp {
+            w0: vec![big, 1.0, -big],
+            b0: vec![0.0],
+            w1: vec![1.0],
+            b1: vec![0.0],
+        };
+        let mut got = Vec::new();
+        forward(&m, &[1.0, 1.0, 1.0], &mut got);
+        assert_eq!(got, [0.0]);
     }
 }
