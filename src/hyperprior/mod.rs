@@ -6,7 +6,7 @@
 pub mod grid;
 pub mod mlp;
 pub mod prior;
-#[cfg(feature = "simd")]
+// Always compiled: without the `simd` feature it holds only the kernel that is never made.
 mod simd;
 pub mod step;
 #[cfg(test)]

@@ -3,8 +3,7 @@
 
 use super::grid::GridLayout;
 use super::mlp::IntMlp;
-#[cfg(all(feature = "simd", target_arch = "x86_64"))]
-use super::simd::avx2::Avx2Mlp;
+use super::simd::FastMlp;
 use super::step::{factor_index, BaseStep, STEP_FACTOR};
 use super::threshold_search::ThresholdSearch;
 use crate::entropy::scale::THRESHOLD_Q16;
@@ -44,9 +43,9 @@ pub struct AnchorContext {
 pub struct Prior {
     pub layout: GridLayout,
     pub mlp: IntMlp,
-    /// The same MLP in the AVX2 kernel's layout, where the CPU has AVX2 (bit-identical).
-    #[cfg(all(feature = "simd", target_arch = "x86_64"))]
-    fast: Option<Avx2Mlp>,
+    /// The same MLP in the layout of this target's kernel, where it has one (AVX2 on x86-64,
+    /// `simd128` on WebAssembly; bit-identical).
+    fast: Option<FastMlp>,
     pub steps: [BaseStep; 3],
     /// Output offsets of (mean, scale) per group, and of the three adjustments.
     mean_at: [usize; 3],
@@ -105,9 +104,8 @@ impl Prior {
             }
         }
         let layout = GridLayout::new(dims, coord_bits);
-        #[cfg(all(feature = "simd", target_arch = "x86_64"))]
         let fast = if layout.features() == mlp.cin {
-            Avx2Mlp::new(&mlp)
+            FastMlp::new(&mlp)
         } else {
             None
         };
@@ -126,7 +124,6 @@ impl Prior {
         Prior {
             layout,
             unit,
-            #[cfg(all(feature = "simd", target_arch = "x86_64"))]
             fast,
             frac,
             lift,
@@ -143,7 +140,6 @@ impl Prior {
     pub fn context(&self) -> AnchorContext {
         // The kernel reads zero-padded inputs and writes padded hidden scratch.
         let (x_len, h_len) = (self.layout.features(), self.mlp.hidden);
-        #[cfg(all(feature = "simd", target_arch = "x86_64"))]
         let (x_len, h_len) = match &self.fast {
             Some(k) => (x_len.max(k.input_len()), h_len.max(k.hidden_len())),
             None => (x_len, h_len),
@@ -182,7 +178,6 @@ impl Prior {
     ) {
         let n = self.layout.features();
         self.layout.interpolate(grid, v, &mut x[..n]);
-        #[cfg(all(feature = "simd", target_arch = "x86_64"))]
         if let Some(k) = &self.fast {
             k.eval(x, h, y);
             return;

@@ -310,141 +310,14 @@ unsafe fn round_shift(acc: __m256i, s: u8) -> __m256i {
 mod tests {
     use super::*;
 
-    struct XorShift(u64);
-    impl XorShift {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            self.0
-        }
-        /// Mostly small values, sometimes the extremes that exercise wrapping.
-        fn i16(&mut self, extreme: bool) -> i16 {
-            let r = self.next();
-            match (r >> 40) % 8 {
-                0 if extreme => i16::MIN,
-                1 if extreme => i16::MAX,
-                _ => (r as i16) >> 4,
-            }
-        }
-    }
-
-    fn random_mlp(
-        rng: &mut XorShift,
-        cin: usize,
-        hidden: usize,
-        cout: usize,
-        shift0: u8,
-        extreme: bool,
-    ) -> IntMlp {
-        IntMlp {
-            cin,
-            hidden,
-            cout,
-            w0: (0..hidden * cin).map(|_| rng.i16(extreme)).collect(),
-            b0: (0..hidden).map(|_| (rng.next() as i32) >> 8).collect(),
-            w0_frac_bits: 12,
-            shift0,
-            w1: (0..cout * hidden).map(|_| rng.i16(extreme)).collect(),
-            b1: (0..cout).map(|_| rng.next() as i32).collect(),
-            w1_frac_bits: vec![12; cout],
-        }
-    }
-
-    /// §5.3 written out in scalar code, independent of the crate's `dot` (SSE2 on x86-64):
-    /// products in i32, every addition modulo 2^32. Also returns, per output, whether its sum
-    /// left the i32 range (so wrapped), and per hidden unit the exact sum before the shift.
-    fn scalar_mlp(m: &IntMlp, x: &[i16]) -> (Vec<i16>, Vec<i32>, Vec<bool>) {
-        let h: Vec<i16> = (0..m.hidden)
-            .map(|r| {
-                let row = &m.w0[r * m.cin..(r + 1) * m.cin];
-                let acc = row.iter().zip(x).fold(m.b0[r], |a, (&w, &v)| {
-                    a.wrapping_add(i32::from(w) * i32::from(v))
-                });
-                let q = crate::hyperprior::mlp::round_shift(acc, m.shift0);
-                q.clamp(0, crate::hyperprior::mlp::HIDDEN_MAX) as i16
-            })
-            .collect();
-        let mut wrapped = Vec::new();
-        let y = (0..m.cout)
-            .map(|o| {
-                let row = &m.w1[o * m.hidden..(o + 1) * m.hidden];
-                let exact = row.iter().zip(&h).fold(i64::from(m.b1[o]), |a, (&w, &v)| {
-                    a + i64::from(w) * i64::from(v)
-                });
-                wrapped.push(i32::try_from(exact).is_err());
-                exact as i32
-            })
-            .collect();
-        (h, y, wrapped)
-    }
-
-    /// The kernel against the scalar definition and the portable path, on random MLPs of
-    /// shapes that need every kind of padding (inputs not a multiple of 16, hidden units not a
-    /// multiple of 16, outputs not a multiple of 8), every shift, and extreme weights. The
-    /// inputs must reach every branch a wrong kernel could get wrong: hidden units clamped to
-    /// 0, saturated at 32767 and in between, and outputs whose sums wrap modulo 2^32; the test
-    /// counts them and fails if any kind never occurred. Layer 1 skips pairs of zero units, so
-    /// runs with every unit 0 and with none 0, and pairs with one unit 0, must occur too.
     #[test]
     fn matches_the_portable_mlp() {
         if !super::super::avx2_or_skip("hyperprior::simd::avx2::tests::matches_the_portable_mlp") {
             return;
         }
-        let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
-        let shapes = [
-            (96, 100, 175),
-            (1, 1, 1),
-            (16, 16, 8),
-            (17, 9, 9),
-            (24, 8, 19),
-            (48, 33, 7),
-        ];
-        // Hidden units at 0, at 32767, in between; outputs that wrapped; vectors compared.
-        // All units 0, pairs with one unit 0, no unit 0.
-        let mut seen = [0usize; 8];
-        for (cin, hidden, cout) in shapes {
-            for shift0 in [0u8, 1, 5, 12, 20, 31] {
-                for extreme in [false, true] {
-                    let m = random_mlp(&mut rng, cin, hidden, cout, shift0, extreme);
-                    let k = Avx2Mlp::new(&m).expect("AVX2 present");
-                    let mut x = vec![0i16; k.input_len()];
-                    let mut hk = vec![0i16; k.hidden_len()];
-                    let (mut h, mut y, mut yk) =
-                        (vec![0i16; hidden], vec![0i32; cout], vec![0i32; cout]);
-                    for _ in 0..20 {
-                        for v in &mut x[..cin] {
-                            *v = rng.i16(extreme);
-                        }
-                        let (hs, ys, wrapped) = scalar_mlp(&m, &x[..cin]);
-                        m.eval(&x[..cin], &mut h, &mut y);
-                        k.eval(&x, &mut hk, &mut yk);
-                        let at = format!("shape {cin}/{hidden}/{cout} shift {shift0}");
-                        assert_eq!(yk, ys, "{at}: kernel vs scalar definition");
-                        assert_eq!(&hk[..hidden], &hs[..], "{at}: hidden units");
-                        assert_eq!(y, ys, "{at}: portable path vs scalar definition");
-                        assert_eq!(h, hs, "{at}: portable hidden units");
-                        seen[0] += hs.iter().filter(|&&v| v == 0).count();
-                        seen[1] += hs.iter().filter(|&&v| v == i16::MAX).count();
-                        seen[2] += hs.iter().filter(|&&v| v > 0 && v < i16::MAX).count();
-                        seen[3] += wrapped.iter().filter(|&&w| w).count();
-                        seen[4] += 1;
-                        let nonzero = hs.iter().filter(|&&v| v != 0).count();
-                        seen[5] += usize::from(nonzero == 0);
-                        seen[6] += hs
-                            .chunks_exact(2)
-                            .filter(|p| (p[0] == 0) != (p[1] == 0))
-                            .count();
-                        seen[7] += usize::from(nonzero == hidden);
-                    }
-                }
-            }
-        }
-        assert!(
-            seen.iter().all(|&c| c > 0),
-            "inputs too tame: hidden 0 / 32767 / between, wrapped outputs, runs, all units 0, \
-             pairs with one unit 0, no unit 0: {seen:?}"
-        );
+        super::super::kernel_tests::matches_the_portable_mlp(|m| {
+            Avx2Mlp::new(m).expect("AVX2 present")
+        });
     }
 
     #[test]

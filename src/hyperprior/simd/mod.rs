@@ -1,4 +1,5 @@
-//! The one place with `unsafe` code: the context MLP (spec §5.3) with x86-64 SIMD.
+//! The one place with `unsafe` code: the context MLP (spec §5.3) with x86-64 SIMD (and the
+//! same kernel with WebAssembly SIMD, which needs none).
 //!
 //! Why: the context MLP is 365 multiply-adds per coded symbol and dominates decoding time
 //! (`cargo bench --bench decode_throughput`); the compiler does not turn the safe loops into
@@ -13,6 +14,8 @@
 //! - [`sse2::dot`]: one dot product, 8 lanes (every x86-64 CPU);
 //! - [`avx2::Avx2Mlp`]: the whole MLP, 16 lanes, 8 rows at a time, selected once per stream
 //!   when the CPU has AVX2;
+//! - `wasm::WasmMlp`: the same plan with WebAssembly SIMD (`simd128`), 8 lanes, 4 rows at a
+//!   time, in builds for `wasm32` with that feature (the wasm package's, `.cargo/config.toml`);
 //! - [`prefetch`]: a hint to load a hash-grid entry ahead of its use (§5.1's corners are
 //!   scattered over megabytes of tables, and waiting for them was most of the
 //!   interpolation's time). A hint changes no result.
@@ -27,8 +30,53 @@ pub mod sse2;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub use sse2::dot;
 
+// Natively in tests too, on emulated vectors (see its `emulated`).
+#[cfg(any(
+    test,
+    all(feature = "simd", target_arch = "wasm32", target_feature = "simd128")
+))]
+pub mod wasm;
+
+#[cfg(test)]
+mod kernel_tests;
+
+/// The whole-MLP kernel of this target (`avx2::Avx2Mlp` on x86-64, `wasm::WasmMlp` on
+/// WebAssembly with SIMD), or one that is never made ([`NoKernel`]).
+#[cfg(all(feature = "simd", target_arch = "x86_64"))]
+pub use avx2::Avx2Mlp as FastMlp;
+#[cfg(all(feature = "simd", target_arch = "wasm32", target_feature = "simd128"))]
+pub use wasm::WasmMlp as FastMlp;
+#[cfg(not(any(
+    all(feature = "simd", target_arch = "x86_64"),
+    all(feature = "simd", target_arch = "wasm32", target_feature = "simd128")
+)))]
+pub use NoKernel as FastMlp;
+
+/// No kernel (a target without one, or the `simd` feature off): [`NoKernel::new`] never
+/// makes one, so the prior always takes the portable path.
+#[derive(Debug, Clone)]
+pub enum NoKernel {}
+
+#[allow(dead_code)]
+impl NoKernel {
+    /// None.
+    pub fn new(_: &super::mlp::IntMlp) -> Option<NoKernel> {
+        None
+    }
+    pub fn input_len(&self) -> usize {
+        match *self {}
+    }
+    pub fn hidden_len(&self) -> usize {
+        match *self {}
+    }
+    pub fn eval(&self, _: &[i16], _: &mut [i16], _: &mut [i32]) {
+        match *self {}
+    }
+}
+
 /// Asks the CPU to bring the cache line of `data[index]` into its caches, where the index is
-/// in bounds; nothing otherwise, and nothing on other targets or without the `simd` feature.
+/// in bounds; nothing otherwise, and nothing on other targets.
+#[cfg(feature = "simd")]
 #[inline(always)]
 pub fn prefetch(data: &[i8], index: usize) {
     #[cfg(all(feature = "simd", target_arch = "x86_64"))]
