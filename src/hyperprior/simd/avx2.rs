@@ -327,19 +327,7 @@ mod tests {
         ) {
             return;
         }
-        let values = [
-            i32::MIN,
-            i32::MIN + 1,
-            -3,
-            -2,
-            -1,
-            0,
-            1,
-            2,
-            3,
-            i32::MAX - 1,
-            i32::MAX,
-        ];
+        let values = super::super::kernel_tests::ROUND_SHIFT_EDGES;
         for s in 0..=31u8 {
             for chunk in values.chunks(8).chain(std::iter::once(&values[3..])) {
                 let mut lanes = [0i32; 8];

@@ -10,16 +10,32 @@ pub(super) trait MlpKernel {
     fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]);
 }
 
-pub(super) struct XorShift(pub(super) u64);
+/// Accumulators at which a rounding shift (§0.5 `rshr`) can go wrong: the ends of i32 and
+/// around 0.
+pub(super) const ROUND_SHIFT_EDGES: [i32; 11] = [
+    i32::MIN,
+    i32::MIN + 1,
+    -3,
+    -2,
+    -1,
+    0,
+    1,
+    2,
+    3,
+    i32::MAX - 1,
+    i32::MAX,
+];
+
+struct XorShift(u64);
 impl XorShift {
-    pub(super) fn next(&mut self) -> u64 {
+    fn next(&mut self) -> u64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
         self.0
     }
     /// Mostly small values, sometimes the extremes that exercise wrapping.
-    pub(super) fn i16(&mut self, extreme: bool) -> i16 {
+    fn i16(&mut self, extreme: bool) -> i16 {
         let r = self.next();
         match (r >> 40) % 8 {
             0 if extreme => i16::MIN,

@@ -356,19 +356,7 @@ mod tests {
 
     #[test]
     fn round_shift_matches_the_definition_at_the_edges() {
-        let values = [
-            i32::MIN,
-            i32::MIN + 1,
-            -3,
-            -2,
-            -1,
-            0,
-            1,
-            2,
-            3,
-            i32::MAX - 1,
-            i32::MAX,
-        ];
+        let values = super::super::kernel_tests::ROUND_SHIFT_EDGES;
         for s in 0..=31u8 {
             for &v in &values {
                 let got = i32x4_extract_lane::<0>(round_shift(i32x4_splat(v), s));
