@@ -58,8 +58,8 @@ pub fn forward(m: &Mlp, x: &[f64], out: &mut Vec<f64>) {
 /// Rows of a [`PreparedMlp`] block: eight sums in flight at once.
 const BLOCK: usize = 8;
 
-/// One Scaffold-GS MLP laid out for [`PreparedMlp::forward`]: each layer's rows in blocks of
-/// [`BLOCK`] (the last padded with zero rows), each block column by column, in binary64
+/// One Scaffold-GS MLP laid out for [`PreparedMlp::forward`]: each layer's rows in blocks of eight
+/// (`BLOCK`; the last padded with zero rows), each block column by column, in binary64
 /// (`f64::from` of a binary32 weight is exact, so converting once changes no product).
 ///
 /// Why: a row's sum is a chain of dependent additions, and one row at a time waited on each
