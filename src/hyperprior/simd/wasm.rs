@@ -166,12 +166,13 @@ impl WasmMlp {
         // Layer 0: s_h = b0[h] + W0[h] . x, then a_h = min(max(rshr(s_h, shift0), 0), 32767).
         let (act, list) = h.split_at_mut(self.hidden_pad);
         let group_len = self.blocks * ROWS;
-        for ((rows, bias), out) in self
-            .w0
-            .chunks_exact(group_len.max(1))
-            .zip(self.b0.chunks_exact(ROWS))
+        for (g, (bias, out)) in self
+            .b0
+            .chunks_exact(ROWS)
             .zip(act.chunks_exact_mut(ROWS))
+            .enumerate()
         {
+            let rows = &self.w0[g * group_len..(g + 1) * group_len];
             let mut acc = [i32x4_splat(0); ROWS];
             for (w, &x) in rows.chunks_exact(ROWS).zip(xv) {
                 for (a, &w) in acc.iter_mut().zip(w) {
