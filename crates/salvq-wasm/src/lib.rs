@@ -11,7 +11,8 @@
 //! Decoding runs on the calling thread (a Web Worker, say). The package is built with
 //! WebAssembly SIMD (`simd128`, the workspace's `.cargo/config.toml`); the compiler keeps every
 //! floating-point operation's order and rounding (lane by lane, never a fused multiply-add), so
-//! the output is the same bits as the native decoder's (§10.3).
+//! the output is the same bits as the native decoder's (§10.3). With it, the anchors' context
+//! MLP (§5.3) runs in the decoder's WebAssembly SIMD kernel (the `simd` feature).
 
 use wasm_bindgen::prelude::*;
 
