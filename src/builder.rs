@@ -73,6 +73,13 @@ impl DecoderBuilder {
         self
     }
 
+    /// Decode only `part` of the (region's) tiles (§10.3.2): one of several workers that
+    /// share no memory, each with its own part; default: every tile.
+    pub fn part(mut self, part: crate::tiles::TilePart) -> Self {
+        self.options.part = Some(part);
+        self
+    }
+
     /// Explicit profile: keep only the Gaussians, not the symbols they were reconstructed
     /// from ([`crate::DecodeOptions::gaussians_only`]).
     pub fn gaussians_only(mut self) -> Self {

@@ -41,6 +41,9 @@ pub struct DecodeOptions {
     /// Decode only the tiles whose box intersects this world-space box (min x, y, z, max x,
     /// y, z; §10.3); `None`: every tile.
     pub region: Option<crate::tiles::RegionBox>,
+    /// Decode only this part of the (region's) tiles (§10.3.2): for several workers that
+    /// share no memory, each decoding one part; `None`: every tile.
+    pub part: Option<crate::tiles::TilePart>,
     /// Explicit profile: keep only the Gaussians, not the lattice coordinates and other
     /// symbols they were reconstructed from ([`crate::explicit::DecodedGaussians::symbols`]
     /// is then empty). What a viewer needs: less memory written, and about a third less at
@@ -80,6 +83,13 @@ impl DecodeOptions {
     #[must_use]
     pub fn with_region(mut self, region: Option<crate::tiles::RegionBox>) -> Self {
         self.region = region;
+        self
+    }
+
+    /// These options keeping only the tiles of `part` (§10.3.2; `None`: all).
+    #[must_use]
+    pub fn with_part(mut self, part: Option<crate::tiles::TilePart>) -> Self {
+        self.part = part;
         self
     }
 
@@ -283,7 +293,8 @@ fn decode_stream(
             }
             ChunkTag::TILS => {
                 let tiles = TileTable::parse(bytes, d.anchors, head.coord_bits)?;
-                p.selected = tiles.select(head.origin, head.voxel_size, options.region);
+                p.selected =
+                    tiles.select(head.origin, head.voxel_size, options.region, options.part);
                 p.tiles = Some(tiles);
             }
             ChunkTag::GRID => {
@@ -333,13 +344,7 @@ pub fn is_explicit(data: &[u8]) -> bool {
 pub fn decode_any(data: &[u8], options: &DecodeOptions) -> Result<Decoded> {
     if is_explicit(data) {
         return in_pool(options, || {
-            crate::explicit::decode::decode_explicit(
-                data,
-                &options.limits,
-                options.rate,
-                options.region,
-                !options.gaussians_only,
-            )
+            crate::explicit::decode::decode_explicit(data, options)
         })
         .map(|d| Decoded::Gaussians(Box::new(d)));
     }

@@ -93,4 +93,4 @@ pub use limits::Limits;
 pub use model::LatticeKind;
 pub use model::SceneModel;
 pub use stream::StreamDecoder;
-pub use tiles::{InvalidRegion, RegionBox};
+pub use tiles::{InvalidRegion, RegionBox, TilePart};

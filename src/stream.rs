@@ -262,11 +262,7 @@ impl StreamDecoder {
                     return Ok(());
                 }
                 self.profile = Profile::Explicit(Box::new(Explicit {
-                    decoder: ExplicitDecoder::new(
-                        &self.options.limits,
-                        self.options.rate,
-                        self.options.region,
-                    ),
+                    decoder: ExplicitDecoder::new(&self.options),
                     gatt: None,
                 }));
                 reader = ChunkReader::new(&rest[..complete], self.at as u64, &self.options.limits);

@@ -116,6 +116,54 @@ impl RegionBox {
     }
 }
 
+/// Part `index` of `count` of a stream's tiles (§10.3.2): what one of several workers that
+/// share no memory (Web Workers, processes) decodes, each part about the same number of
+/// anchors (Gaussians). Only [`TilePart::new`] makes one, so `index < count`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TilePart {
+    index: u32,
+    count: u32,
+}
+
+impl TilePart {
+    /// Part `index` (from 0) of `count`; `None` unless `index < count`.
+    pub fn new(index: u32, count: u32) -> Option<TilePart> {
+        (index < count).then_some(TilePart { index, count })
+    }
+
+    /// Which part, from 0.
+    pub fn index(&self) -> u32 {
+        self.index
+    }
+
+    /// How many parts.
+    pub fn count(&self) -> u32 {
+        self.count
+    }
+}
+
+/// §10.3.2: which part each of the tiles `kept` goes to. Largest tile first (ties by index),
+/// each to the part with the fewest anchors so far (ties by the lowest part): the greedy
+/// plan that evens out the parts' work, the same for every decoder.
+fn part_plan(counts: &[u32], kept: &[bool], parts: u32) -> Vec<Option<u32>> {
+    use std::cmp::Reverse;
+    let mut order: Vec<usize> = (0..counts.len()).filter(|&t| kept[t]).collect();
+    order.sort_by_key(|&t| (Reverse(counts[t]), t));
+    // Only the first `order.len()` parts can receive a tile: all start empty, and a tie goes
+    // to the lowest part.
+    let live = parts.min(u32::try_from(order.len()).unwrap_or(u32::MAX));
+    let mut load: std::collections::BinaryHeap<Reverse<(u64, u32)>> =
+        (0..live).map(|p| Reverse((0, p))).collect();
+    let mut plan = vec![None; counts.len()];
+    for t in order {
+        if let Some(Reverse((sum, p))) = load.pop() {
+            plan[t] = Some(p);
+            load.push(Reverse((sum + u64::from(counts[t]), p)));
+        }
+    }
+    plan
+}
+
 /// The tile table of a stream (§10.1).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TileTable {
@@ -352,7 +400,15 @@ impl TileTable {
     /// §10.1: after the geometry, each tile's box must be its anchors' box, and the tiles'
     /// voxels must follow each other in Morton order (no voxel shared between tiles).
     pub fn check_geometry(&self, voxels: &[[u32; 3]]) -> Result<()> {
-        for t in 0..self.len() {
+        self.check_geometry_of(voxels, None)
+    }
+
+    /// [`TileTable::check_geometry`] for the tiles `decoded` marks (all without it): an
+    /// explicit-profile part decode's (§10.3.2), which checks each of its tiles' box, and its
+    /// order where the tile before it is decoded too.
+    pub fn check_geometry_of(&self, voxels: &[[u32; 3]], decoded: Option<&[bool]>) -> Result<()> {
+        let is_decoded = |t: usize| decoded.map_or(true, |d| d.get(t).copied().unwrap_or(false));
+        for t in (0..self.len()).filter(|&t| is_decoded(t)) {
             let r = self.range(t);
             let actual = bounding_box(&voxels[r.clone()]);
             if actual != self.boxes[t] {
@@ -362,7 +418,10 @@ impl TileTable {
                     actual,
                 });
             }
-            if t > 0 && morton3(voxels[r.start]) <= morton3(voxels[r.start - 1]) {
+            if t > 0
+                && is_decoded(t - 1)
+                && morton3(voxels[r.start]) <= morton3(voxels[r.start - 1])
+            {
                 return Err(Error::TileOrder { tile: t as u32 });
             }
         }
@@ -384,22 +443,32 @@ impl TileTable {
         w
     }
 
-    /// §10.3.1 step 2: the tiles whose world box meets `region` (closed on both sides);
-    /// every tile without a region.
+    /// The tiles a decode keeps: those whose world box meets `region` (§10.3.1 step 2,
+    /// closed on both sides; every tile without a region), and of those, the ones `part`
+    /// takes (§10.3.2; all of them without a part).
     pub fn select(
         &self,
         origin: [f32; 3],
         voxel_size: f32,
         region: Option<RegionBox>,
+        part: Option<TilePart>,
     ) -> Vec<bool> {
-        let Some(r) = region else {
-            return vec![true; self.len()];
+        let kept: Vec<bool> = match region {
+            None => vec![true; self.len()],
+            Some(r) => (0..self.len())
+                .map(|t| {
+                    let w = self.world_box(t, origin, voxel_size);
+                    (0..3).all(|a| w[a] <= r.max[a] && r.min[a] <= w[3 + a])
+                })
+                .collect(),
         };
-        (0..self.len())
-            .map(|t| {
-                let w = self.world_box(t, origin, voxel_size);
-                (0..3).all(|a| w[a] <= r.max[a] && r.min[a] <= w[3 + a])
-            })
+        let Some(part) = part else {
+            return kept;
+        };
+        let counts: Vec<u32> = (0..self.len()).map(|t| self.count(t)).collect();
+        part_plan(&counts, &kept, part.count)
+            .into_iter()
+            .map(|p| p == Some(part.index))
             .collect()
     }
 }
@@ -447,4 +516,49 @@ pub fn join_bodies(bodies: &[Vec<u8>]) -> Vec<u8> {
         out.extend_from_slice(b);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn part_plan_gives_each_tile_to_the_least_loaded_part() {
+        // Largest first: 9 (tile 1) to part 0, 9 (tile 4) to part 1, 5 (tile 5) to part 2,
+        // then 3 (tile 0) to part 2 (load 5), 3 (tile 2) to part 2 (8 < 9), 1 (tile 3) to
+        // part 0 (9, tie with part 1, lowest part).
+        let counts = [3, 9, 3, 1, 9, 5];
+        let plan = part_plan(&counts, &[true; 6], 3);
+        assert_eq!(plan, [Some(2), Some(0), Some(2), Some(0), Some(1), Some(2)]);
+        // Tiles a region dropped take no part; more parts than tiles leave parts empty.
+        let kept = [true, false, true, false, false, true];
+        let plan = part_plan(&counts, &kept, 5);
+        assert_eq!(plan, [Some(1), None, Some(2), None, None, Some(0)]);
+        assert_eq!(part_plan(&counts, &[true; 6], u32::MAX).len(), 6);
+    }
+
+    #[test]
+    fn parts_split_the_kept_tiles() {
+        let counts: Vec<u32> = (0..41).map(|i| (i * 7919 % 97) + 1).collect();
+        let kept: Vec<bool> = (0..41).map(|i| i % 5 != 3).collect();
+        for parts in 1..=6u32 {
+            let plan = part_plan(&counts, &kept, parts);
+            let mut load = vec![0u32; parts as usize];
+            for t in 0..41 {
+                // Every kept tile in exactly one part, no other tile in any.
+                assert_eq!(plan[t].is_some(), kept[t], "tile {t} of {parts} parts");
+                if let Some(p) = plan[t] {
+                    load[p as usize] += counts[t];
+                }
+            }
+            // Greedy largest-first: no part exceeds another by more than the largest tile.
+            let (lo, hi) = (load.iter().min(), load.iter().max());
+            assert!(hi.unwrap() - lo.unwrap() <= *counts.iter().max().unwrap());
+        }
+        assert!(TilePart::new(2, 2).is_none() && TilePart::new(0, 0).is_none());
+        assert_eq!(
+            TilePart::new(1, 2).map(|p| (p.index(), p.count())),
+            Some((1, 2))
+        );
+    }
 }

@@ -282,6 +282,127 @@ fn a_region_decodes_only_the_tiles_it_meets() {
 }
 
 #[test]
+fn the_parts_of_a_stream_are_its_tiles_once_each() {
+    // §10.3.2, with and without a region: every kept tile in exactly one part, each part's
+    // Gaussians those of its tiles in the full decode, the same whole or as bytes arrive.
+    let e = encode_synthetic(
+        &GaussianParams::new(900, 1, 7),
+        plans(1, 5),
+        ExplicitOptions {
+            tile_gaussians: 60,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let gaussians = |o: &DecodeOptions| match decode_any(&e.stream, o).unwrap() {
+        Decoded::Gaussians(d) => d,
+        Decoded::Anchors(_) => panic!("an explicit stream"),
+    };
+    let full = gaussians(&DecodeOptions::default());
+    let nt = full.tiles.len();
+    assert!(nt > 6, "{nt} tiles");
+    let region = salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap();
+    for region in [None, Some(region)] {
+        let kept = full
+            .tiles
+            .select(full.header.origin, full.layer.voxel_size, region, None);
+        assert!(kept.iter().filter(|&&k| k).count() > 3, "{region:?}");
+        for count in [2, 3] {
+            let mut owner = vec![None; nt];
+            for index in 0..count {
+                let part = salvq::TilePart::new(index, count);
+                let o = DecodeOptions::default()
+                    .with_threads(Some(2))
+                    .with_region(region)
+                    .with_part(part)
+                    .with_gaussians_only(true);
+                let d = gaussians(&o);
+                let mine =
+                    full.tiles
+                        .select(full.header.origin, full.layer.voxel_size, region, part);
+                let rows: Vec<usize> = (0..nt)
+                    .filter(|&t| mine[t])
+                    .inspect(|&t| {
+                        assert!(kept[t] && owner[t].is_none(), "tile {t}");
+                        owner[t] = Some(index);
+                    })
+                    .flat_map(|t| full.tiles.range(t))
+                    .collect();
+                let what = format!("part {index} of {count}, region {region:?}");
+                assert_eq!(d.gaussians.len(), rows.len(), "{what}");
+                for (j, &i) in rows.iter().enumerate() {
+                    assert_eq!(d.gaussians.positions[j], full.gaussians.positions[i]);
+                    assert_eq!(d.gaussians.f_dc[j], full.gaussians.f_dc[i]);
+                    assert_eq!(d.gaussians.rotations[j], full.gaussians.rotations[i]);
+                }
+                // The streaming decoder keeps the same tiles.
+                let mut stream = salvq::StreamDecoder::new(o.clone());
+                for piece in e.stream.chunks(999) {
+                    stream.feed(piece).unwrap();
+                }
+                let Decoded::Gaussians(streamed) = stream.finish().unwrap() else {
+                    panic!("an explicit stream")
+                };
+                assert_eq!(streamed.gaussians, d.gaussians, "{what}, streamed");
+            }
+            for t in 0..nt {
+                assert_eq!(owner[t].is_some(), kept[t], "tile {t}, {count} parts");
+            }
+        }
+    }
+}
+
+/// §10.3.2: an explicit-profile part decodes its own tiles' geometry only, so a broken
+/// `APOS` body of another part's tile is not its error (a full decode reports it).
+#[test]
+fn a_part_reads_only_its_own_tiles_geometry() {
+    use salvq::container::chunk::ChunkTag;
+    let e = encode_synthetic(
+        &GaussianParams::new(900, 1, 6),
+        plans(1, 5),
+        ExplicitOptions {
+            tile_gaussians: 100,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let Decoded::Gaussians(full) = decode_any(&e.stream, &DecodeOptions::default()).unwrap() else {
+        panic!("an explicit stream")
+    };
+    let nt = full.tiles.len();
+    let parts = [0, 1].map(|k| salvq::TilePart::new(k, 2));
+    let owned_by = |part| {
+        full.tiles
+            .select(full.header.origin, full.layer.voxel_size, None, part)
+    };
+    // A tile of part 1, its body's first words overwritten (a state the encoder never ends on).
+    let broken_tile = (0..nt).find(|&t| owned_by(parts[1])[t]).unwrap();
+    let broken = common::edit_payload(&e.stream, ChunkTag::APOS, |p| {
+        let at = common::tile_body_starts(p, nt)[broken_tile];
+        p[at..at + 8].copy_from_slice(&[0xA5; 8]);
+    });
+    for threads in [1, 2] {
+        let o = DecodeOptions::default().with_threads(Some(threads));
+        let whole = decode_any(&broken, &o).map(|_| ()).unwrap_err();
+        assert!(whole.to_string().starts_with("APOS"), "{whole}");
+        let Decoded::Gaussians(mine) = decode_any(&broken, &o.clone().with_part(parts[0]))
+            .unwrap_or_else(|err| panic!("part 0 fails on part 1's tile: {err}"))
+        else {
+            panic!("an explicit stream")
+        };
+        let rows = (0..nt).filter(|&t| owned_by(parts[0])[t]);
+        assert_eq!(
+            mine.gaussians.len(),
+            rows.map(|t| full.tiles.range(t).len()).sum::<usize>()
+        );
+        let theirs = decode_any(&broken, &o.with_part(parts[1]))
+            .map(|_| ())
+            .unwrap_err();
+        assert_eq!(theirs, whole, "{threads} threads");
+    }
+}
+
+#[test]
 fn the_anchors_decoder_names_the_other_profile() {
     let e = encode_synthetic(
         &GaussianParams::new(10, 0, 1),

@@ -88,6 +88,7 @@ fn a_region_decodes_the_intersecting_tiles_only() {
         full.origin,
         full.voxel_size,
         Some(salvq::RegionBox::from_array(region).unwrap()),
+        None,
     );
     assert!(selected[pick]);
     assert!(selected.iter().filter(|&&s| s).count() < nt / 2);
@@ -121,6 +122,55 @@ fn a_region_decodes_the_intersecting_tiles_only() {
     // The partial model is a valid model file.
     let bytes = salvq_render::interchange::model_to_safetensors(&part);
     salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
+}
+
+#[test]
+fn the_parts_of_a_stream_are_its_tiles_once_each() {
+    // §10.3.2: each part decodes as a region decode of its tiles; together they are the
+    // full decode, every tile in exactly one part, and the parts about equal in anchors.
+    let m = model(1200);
+    let e = tiled(&m, 100);
+    let full = e.expected();
+    let tiles = TileTable::cut(&full.anchors.voxel, 100);
+    let (f, k) = (16, usize::from(full.dims.offsets));
+    for count in [1, 2, 3, 5] {
+        let mut owner = vec![None; tiles.len()];
+        let mut sizes = Vec::new();
+        for index in 0..count {
+            let part = salvq::TilePart::new(index, count).unwrap();
+            let options = with(Some(2), None).with_part(Some(part));
+            let d = decode_with_options(&e.stream, &options).unwrap();
+            let mine = tiles.select(full.origin, full.voxel_size, None, Some(part));
+            let rows: Vec<usize> = (0..tiles.len())
+                .filter(|&t| mine[t])
+                .inspect(|&t| {
+                    assert_eq!(owner[t], None, "tile {t} in two parts");
+                    owner[t] = Some(index);
+                })
+                .flat_map(|t| tiles.range(t))
+                .collect();
+            assert_eq!(d.anchors.voxel.len(), rows.len());
+            for (j, &i) in rows.iter().enumerate() {
+                assert_eq!(d.anchors.voxel[j], full.anchors.voxel[i]);
+                assert_eq!(
+                    d.anchors.feat[j * f..][..f],
+                    full.anchors.feat[i * f..][..f]
+                );
+                assert_eq!(
+                    d.anchors.offsets[j * 3 * k..][..3 * k],
+                    full.anchors.offsets[i * 3 * k..][..3 * k]
+                );
+            }
+            assert_eq!(d.grid, full.grid);
+            sizes.push(rows.len());
+        }
+        assert!(
+            owner.iter().all(Option::is_some),
+            "{count} parts miss a tile"
+        );
+        let (lo, hi) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
+        assert!(hi - lo <= 100, "{count} parts: {sizes:?}");
+    }
 }
 
 /// 900 anchors with three spatial feature regions (§7.6), in tiles of 100.

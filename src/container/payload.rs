@@ -273,17 +273,32 @@ pub fn read_apos(
     tiles: &TileTable,
     tables: &GaussianTables,
 ) -> Result<Vec<[u32; 3]>> {
+    read_apos_of(payload, tiles, tables, None)
+}
+
+/// [`read_apos`], decoding only the tiles `only` marks (all without it): an explicit-profile
+/// part decode's (§10.3.2). Another tile's voxels are left as (0, 0, 0), never output, and
+/// §10.1's pass checks the decoded tiles ([`TileTable::check_geometry_of`]).
+pub fn read_apos_of(
+    payload: &[u8],
+    tiles: &TileTable,
+    tables: &GaussianTables,
+    only: Option<&[bool]>,
+) -> Result<Vec<[u32; 3]>> {
     let bodies = apos_bodies(payload, tiles)?;
     let pool = Pool::<WalkScratch>::new();
     let size = |t: usize| tiles.range(t).len();
     let decoded = map_largest_first(bodies, size, |t, b| {
+        if only.is_some_and(|o| !o.get(t).copied().unwrap_or(false)) {
+            return Ok(vec![[0; 3]; tiles.range(t).len()]);
+        }
         pool.with(|scratch| read_apos_tile(b, t, tiles, tables, scratch))
     });
     let mut voxels = Vec::with_capacity(tiles.anchors as usize);
     for d in decoded {
         voxels.extend_from_slice(&d?);
     }
-    tiles.check_geometry(&voxels)?;
+    tiles.check_geometry_of(&voxels, only)?;
     Ok(voxels)
 }
 

@@ -4,7 +4,7 @@
 use crate::par::*;
 
 use crate::container::chunk::{ChunkReader, ChunkTag};
-use crate::container::payload::{apos_bodies, body, read_apos, read_apos_tile, METHOD_CODED};
+use crate::container::payload::{apos_bodies, body, read_apos_of, read_apos_tile, METHOD_CODED};
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
@@ -19,6 +19,7 @@ use crate::geometry::WalkScratch;
 use crate::limits::Limits;
 use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
+use crate::DecodeOptions;
 
 /// A decoded explicit-profile stream: the Gaussians of the selected layer and the integer
 /// results conformance compares (§11).
@@ -93,18 +94,12 @@ pub fn decode_gaussians(
     decode_gaussians_in(data, limits, rate, None)
 }
 
-/// [`decode_gaussians_in`], keeping the symbols or not (`crate::DecodeOptions::gaussians_only`).
-pub(crate) fn decode_explicit(
-    data: &[u8],
-    limits: &Limits,
-    rate: Option<u8>,
-    region: Option<crate::tiles::RegionBox>,
-    keep_symbols: bool,
-) -> Result<DecodedGaussians> {
+/// [`decode_gaussians_in`] with `options`: its rate, region, part and limits, keeping the
+/// symbols unless [`DecodeOptions::gaussians_only`] (threads are the caller's pool).
+pub(crate) fn decode_explicit(data: &[u8], options: &DecodeOptions) -> Result<DecodedGaussians> {
     let (_sig, rest) = Signature::parse(data)?;
-    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
-    let mut state = ExplicitDecoder::new(limits, rate, region);
-    state.keep_symbols = keep_symbols;
+    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, &options.limits);
+    let mut state = ExplicitDecoder::new(options);
     loop {
         // §1.5 rule 4: the stream ends only with SEND.
         let chunk = reader.next_before_send()?;
@@ -123,7 +118,11 @@ pub fn decode_gaussians_in(
     rate: Option<u8>,
     region: Option<crate::tiles::RegionBox>,
 ) -> Result<DecodedGaussians> {
-    decode_explicit(data, limits, rate, region, true)
+    let options = DecodeOptions::default()
+        .with_limits(*limits)
+        .with_rate(rate)
+        .with_region(region);
+    decode_explicit(data, &options)
 }
 
 /// What the critical chunk at the current position does (§3.7): which check failed, or
@@ -145,6 +144,7 @@ pub(crate) struct ExplicitDecoder {
     limits: Limits,
     rate: Option<u8>,
     region: Option<crate::tiles::RegionBox>,
+    part: Option<crate::tiles::TilePart>,
     /// Position of the next critical chunk (0 = `GHED`).
     next: usize,
     header: Option<GaussianHeader>,
@@ -177,15 +177,13 @@ fn missing(tag: ChunkTag) -> Error {
 }
 
 impl ExplicitDecoder {
-    pub(crate) fn new(
-        limits: &Limits,
-        rate: Option<u8>,
-        region: Option<crate::tiles::RegionBox>,
-    ) -> Self {
+    /// A decoder with `options`' limits, rate, region, part and symbols choice.
+    pub(crate) fn new(options: &DecodeOptions) -> Self {
         ExplicitDecoder {
-            limits: *limits,
-            rate,
-            region,
+            limits: options.limits,
+            rate: options.rate,
+            region: options.region,
+            part: options.part,
             next: 0,
             header: None,
             groups: None,
@@ -197,7 +195,7 @@ impl ExplicitDecoder {
             tiles: None,
             voxels: None,
             selected: Vec::new(),
-            keep_symbols: true,
+            keep_symbols: !options.gaussians_only,
             decoded: None,
             early_gatt: None,
         }
@@ -269,8 +267,9 @@ impl ExplicitDecoder {
             ChunkTag::APOS => match next_gatt(rest, &self.limits) {
                 Some(gatt) => self.fused(bytes, gatt, tables)?,
                 None => {
+                    let only = self.geometry_only()?;
                     let t = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-                    self.voxels = Some(read_apos(bytes, t, tables)?);
+                    self.voxels = Some(read_apos_of(bytes, t, tables, only.as_deref())?);
                 }
             },
             ChunkTag::GATT => {
@@ -306,7 +305,7 @@ impl ExplicitDecoder {
     fn fused(&mut self, apos: &[u8], gatt: &[u8], tables: &GaussianTables) -> Result<()> {
         let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
         let geometry = apos_bodies(apos, tiles)?;
-        self.select_tiles()?;
+        let only = self.geometry_only()?;
         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
         let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
         let g = self.groups.as_deref().ok_or(missing(ChunkTag::GQUA))?;
@@ -325,6 +324,10 @@ impl ExplicitDecoder {
         let jobs: Vec<_> = geometry.into_iter().zip(outputs).collect();
         let size = |t: usize| tiles.range(t).len();
         let results: Vec<Fused> = map_largest_first(jobs, size, |t, (b, output)| {
+            if only.as_ref().is_some_and(|o| !o[t]) {
+                // Another part's tile (§10.3.2): neither its geometry nor its attributes.
+                return (Ok(vec![[0; 3]; tiles.range(t).len()]), Some(Ok(())));
+            }
             pool.with(|scratch| {
                 let voxels = read_apos_tile(b, t, tiles, tables, &mut scratch.0);
                 let tile = match (&voxels, &attributes, output) {
@@ -347,7 +350,7 @@ impl ExplicitDecoder {
             voxels.extend_from_slice(&v?);
             outcomes.push(tile);
         }
-        tiles.check_geometry(&voxels)?;
+        tiles.check_geometry_of(&voxels, only.as_deref())?;
         self.voxels = Some(voxels);
         // Every tile's geometry decoded, so every tile has an outcome where `GATT` was
         // framed; the lowest tile's error is reported (§10.3).
@@ -360,13 +363,22 @@ impl ExplicitDecoder {
         Ok(())
     }
 
-    /// The tiles the region keeps (§10.3), fixed before the selected layer's `GATT` is decoded
+    /// The tiles whose geometry (`APOS`) is decoded, where not all of them: a part decode's
+    /// own tiles (§10.3.2). A region decode reads every tile's (§10.3.1 step 3). Fixes the
+    /// selection ([`Self::select_tiles`]).
+    fn geometry_only(&mut self) -> Result<Option<Vec<bool>>> {
+        let part = self.part.is_some();
+        let selected = self.select_tiles()?;
+        Ok(part.then(|| selected.to_vec()))
+    }
+
+    /// The tiles the region and part keep (§10.3), fixed before the selected layer's `GATT` is decoded
     /// (with `APOS` where the two are decoded together).
     pub(crate) fn select_tiles(&mut self) -> Result<&[bool]> {
         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
         let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
         let t = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-        self.selected = t.select(h.origin, l.voxel_size, self.region);
+        self.selected = t.select(h.origin, l.voxel_size, self.region, self.part);
         Ok(&self.selected)
     }
 

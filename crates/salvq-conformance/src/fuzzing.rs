@@ -132,6 +132,7 @@ pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
             decoded,
             "streamed in pieces of {piece} bytes"
         );
+        check_parts(data, &options, &decoded);
     }
     let model = match decoded {
         Ok(salvq::decoder::Decoded::Anchors(model)) => model,
@@ -149,6 +150,40 @@ pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
     if let Ok(e) = encode_full(&model, &EncodeOptions::default()) {
         let again = decode_with_options(&e.stream, &DecodeOptions::default());
         assert!(again.is_ok(), "re-encoded stream fails: {:?}", again.err());
+    }
+}
+
+/// Part decodes (§10.3.2) of an explicit-profile stream never panic, and where the whole
+/// stream decodes, so does each of two parts, to its tiles' Gaussians of the whole decode.
+fn check_parts(
+    data: &[u8],
+    options: &DecodeOptions,
+    whole: &salvq::Result<salvq::decoder::Decoded>,
+) {
+    for index in 0..2 {
+        let part = salvq::TilePart::new(index, 2);
+        let decoded = salvq::decoder::decode_any(data, &options.clone().with_part(part));
+        let Ok(salvq::decoder::Decoded::Gaussians(whole)) = whole else {
+            continue;
+        };
+        let Ok(salvq::decoder::Decoded::Gaussians(mine)) = decoded else {
+            panic!("part {index} of 2 fails where the whole stream decodes: {decoded:?}");
+        };
+        let t = &whole.tiles;
+        let kept = t.select(whole.header.origin, whole.layer.voxel_size, None, part);
+        let rows: Vec<usize> = (0..t.len())
+            .filter(|&i| kept[i])
+            .flat_map(|i| t.range(i))
+            .collect();
+        assert_eq!(mine.gaussians.len(), rows.len(), "part {index} of 2");
+        for (j, &i) in rows.iter().enumerate() {
+            assert_eq!(mine.voxels[j], whole.voxels[i], "part {index} of 2");
+            assert_eq!(
+                mine.gaussians.positions[j].map(f32::to_bits),
+                whole.gaussians.positions[i].map(f32::to_bits),
+                "part {index} of 2"
+            );
+        }
     }
 }
 

@@ -35,7 +35,9 @@ impl TileGrid {
     }
 
     fn select(&self, b: RegionBox) -> Vec<usize> {
-        let s = self.tiles.select(self.origin, self.voxel_size, Some(b));
+        let s = self
+            .tiles
+            .select(self.origin, self.voxel_size, Some(b), None);
         (0..s.len()).filter(|&t| s[t]).collect()
     }
 

@@ -8,7 +8,9 @@
 //! model whose Gaussians depend on the camera (Scaffold-GS, Annex C.1); they are computed
 //! for ring camera 0 of Annex C.2, as `salvq export-ply` does, once the stream is complete.
 //!
-//! Decoding runs on the calling thread (a Web Worker, say). The package is built with
+//! Decoding runs on the calling thread (a Web Worker, say). Several workers decode an
+//! explicit-profile stream together with [`decode_part`]: each is given the whole stream and
+//! decodes its part of the tiles (spec §10.3.2). The package is built with
 //! WebAssembly SIMD (`simd128`, the workspace's `.cargo/config.toml`); the compiler keeps every
 //! floating-point operation's order and rounding (lane by lane, never a fused multiply-add), so
 //! the output is the same bits as the native decoder's (§10.3). With it, the anchors' context
@@ -18,7 +20,7 @@ use wasm_bindgen::prelude::*;
 
 use salvq::explicit::Gaussians;
 use salvq::stream::StreamDecoder;
-use salvq::{DecodeOptions, Decoded};
+use salvq::{DecodeOptions, Decoded, TilePart};
 use salvq_render::camera::{Bounds, Ring};
 use salvq_render::neural;
 
@@ -28,6 +30,10 @@ pub struct Batch {
     gaussians: Gaussians,
     /// Tiles in the batch (explicit profile; 0 for an anchors-profile stream).
     tiles: usize,
+    /// The tiles whose Gaussians the batch holds, in order, and their Gaussian counts
+    /// (explicit profile; empty for an anchors-profile stream).
+    tile_indices: Vec<u32>,
+    tile_counts: Vec<u32>,
 }
 
 #[wasm_bindgen]
@@ -42,6 +48,20 @@ impl Batch {
     #[wasm_bindgen(getter)]
     pub fn tiles(&self) -> usize {
         self.tiles
+    }
+
+    /// The `TILS` index (§10.1) of each tile whose Gaussians the batch holds, in the order
+    /// they come (explicit profile; empty for an anchors-profile stream). With
+    /// `tileCounts`, what puts the batches of several workers back in stream order.
+    #[wasm_bindgen(getter, js_name = tileIndices)]
+    pub fn tile_indices(&self) -> Vec<u32> {
+        self.tile_indices.clone()
+    }
+
+    /// The Gaussian count of each tile of `tileIndices`.
+    #[wasm_bindgen(getter, js_name = tileCounts)]
+    pub fn tile_counts(&self) -> Vec<u32> {
+        self.tile_counts.clone()
     }
 
     /// SH degree, 0 … 3.
@@ -116,14 +136,63 @@ fn gaussians_of(decoded: Decoded) -> Result<Gaussians, JsError> {
     }
 }
 
-/// Decodes a whole stream at `rate` (default: the lowest coded rate).
-#[wasm_bindgen]
-pub fn decode(bytes: &[u8], rate: Option<u8>) -> Result<Batch, JsError> {
-    let decoded = salvq::decode_any(bytes, &options(rate)).map_err(to_js)?;
+/// A decoded stream as one batch: for an explicit stream, with the tiles `part` kept.
+fn batch_of(decoded: Decoded, part: Option<TilePart>) -> Result<Batch, JsError> {
+    let (mut tile_indices, mut tile_counts) = (Vec::new(), Vec::new());
+    if let Decoded::Gaussians(d) = &decoded {
+        let kept = d
+            .tiles
+            .select(d.header.origin, d.layer.voxel_size, None, part);
+        for t in (0..d.tiles.len()).filter(|&t| kept[t]) {
+            tile_indices.push(t as u32);
+            tile_counts.push(d.tiles.count(t));
+        }
+    }
     Ok(Batch {
         gaussians: gaussians_of(decoded)?,
         tiles: 0,
+        tile_indices,
+        tile_counts,
     })
+}
+
+/// Decodes a whole stream at `rate` (default: the lowest coded rate).
+#[wasm_bindgen]
+pub fn decode(bytes: &[u8], rate: Option<u8>) -> Result<Batch, JsError> {
+    batch_of(
+        salvq::decode_any(bytes, &options(rate)).map_err(to_js)?,
+        None,
+    )
+}
+
+/// Decodes part `part` (from 0) of `parts` of an explicit-profile stream's tiles at `rate`
+/// (spec §10.3.2): `parts` workers, each given the whole stream and its own `part`, decode
+/// it together, every tile once. `tileIndices` and `tileCounts` say which tiles a batch
+/// holds. An anchors-profile stream is refused: its Gaussians depend on a camera chosen
+/// from every anchor (Annex C.2), so it decodes whole.
+#[wasm_bindgen(js_name = decodePart)]
+pub fn decode_part(
+    bytes: &[u8],
+    rate: Option<u8>,
+    part: u32,
+    parts: u32,
+) -> Result<Batch, JsError> {
+    let part = TilePart::new(part, parts).ok_or_else(|| {
+        JsError::new(&format!(
+            "part {part} of {parts}: a part is from 0 to parts - 1 [§10.3.2]"
+        ))
+    })?;
+    if !salvq::decoder::is_explicit(bytes) {
+        return Err(JsError::new(
+            "decodePart: not an explicit-profile stream (an anchors-profile stream decodes \
+             whole: its Gaussians depend on a camera chosen from every anchor) [§10.3.2]",
+        ));
+    }
+    let options = options(rate).with_part(Some(part));
+    batch_of(
+        salvq::decode_any(bytes, &options).map_err(to_js)?,
+        Some(part),
+    )
 }
 
 /// A stream decoded as its bytes arrive: [`Stream::feed`] each piece, [`Stream::take`] the
@@ -158,7 +227,10 @@ impl Stream {
     /// [`Stream::finish`] confirms the stream).
     pub fn take(&mut self) -> Result<Batch, JsError> {
         let inner = self.inner.as_mut().ok_or_else(finished)?;
-        let tiles = inner.tiles().len() - self.tiles_taken;
+        let new_tiles = &inner.tiles()[self.tiles_taken..];
+        let tile_indices = new_tiles.iter().map(|t| t.index as u32).collect();
+        let tile_counts = new_tiles.iter().map(|t| t.gaussians.len() as u32).collect();
+        let tiles = new_tiles.len();
         self.tiles_taken = inner.tiles().len();
         let all = inner.gaussians();
         let from = self.taken;
@@ -166,6 +238,8 @@ impl Stream {
         Ok(Batch {
             gaussians: slice(all, from),
             tiles,
+            tile_indices,
+            tile_counts,
         })
     }
 
@@ -179,11 +253,20 @@ impl Stream {
     pub fn finish(&mut self) -> Result<Batch, JsError> {
         let inner = self.inner.take().ok_or_else(finished)?;
         let decoded = inner.finish().map_err(to_js)?;
+        // An explicit stream's tiles complete in order: the ones not yet taken are the rest.
+        let (tile_indices, tile_counts) = match &decoded {
+            Decoded::Gaussians(d) => (self.tiles_taken..d.tiles.len())
+                .map(|t| (t as u32, d.tiles.count(t)))
+                .unzip(),
+            Decoded::Anchors(_) => (Vec::new(), Vec::new()),
+        };
         let all = gaussians_of(decoded)?;
         let from = self.taken.min(all.len());
         Ok(Batch {
             gaussians: slice(&all, from),
             tiles: 0,
+            tile_indices,
+            tile_counts,
         })
     }
 }

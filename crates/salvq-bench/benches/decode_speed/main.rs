@@ -3,7 +3,8 @@
 //! default settings, rate 0 extracted (`salvq extract --rate 0`, what a viewer receives for
 //! the best rate), decoded in process with `salvq::Decoder::builder().threads(1 | 2)
 //! .gaussians_only()` (what a viewer needs; the wasm package decodes so too); the
-//! same stream decoded by salvq-wasm's `decode` in Node; the whole `salvq decode s.salvq -o
+//! same stream decoded by salvq-wasm's `decode` in Node, and by its `decodePart` in 1 and 2
+//! Node worker threads (§10.3.2: each worker its part of the tiles); the whole `salvq decode s.salvq -o
 //! out.ply` command; splat-transform reading the scene's SPZ and SOG (written by it from the
 //! same PLY) into a PLY and into `null`; the time to receive the stream's bytes at 50 Mbit/s.
 //! For generated anchors-profile scenes (`GenParams::new(N, 1)` without a feature basis,
@@ -22,7 +23,7 @@
 //! wasm only with `SALVQ_BENCH_WASM=1`.
 //!
 //! Checks what it measures (any difference fails): every timed decode (1 and 2 threads, the
-//! wasm package, the CLI's PLY) equals the reference decode of the same stream (one thread);
+//! wasm package, its workers' parts put back in stream order, the CLI's PLY) equals the reference decode of the same stream (one thread);
 //! the explicit stream holds N · (sum of its groups' dimensions) lattice coordinates; the
 //! anchors stream's symbols are N · (F + S) plus 3 per set offset mask bit, and equal the
 //! encoder's count when it was encoded in this run; splat-transform's PLYs hold N Gaussians.
@@ -240,6 +241,9 @@ struct Row {
     floor_outside: usize,
     /// salvq-wasm's `decode` in Node: median of the runs after the first, and the first.
     wasm: Option<(f64, f64)>,
+    /// Explicit profile: salvq-wasm's `decodePart` in 1 and 2 Node worker threads (§10.3.2),
+    /// until the arrays reach the main thread: medians of the runs after the first.
+    wasm_workers: Option<[f64; 2]>,
     /// Native equivalent of the wasm call (anchors: decode + neural Gaussians of camera 0,
     /// one thread; explicit: = `one`).
     wasm_native: f64,
@@ -449,13 +453,10 @@ fn explicit_scene(
         row.peers = Some(peers.map(|mut v| median(&mut v)));
     }
     if let Some(pkg) = pkg {
-        row.wasm = Some(wasm_times(
-            pkg,
-            &path,
-            a.rounds,
-            &dump(&reference.gaussians),
-            scene,
-        )?);
+        let expected = dump(&reference.gaussians);
+        row.wasm = Some(wasm_times(pkg, &path, a.rounds, &expected, scene, 0)?);
+        let on = |workers| wasm_times(pkg, &path, a.rounds, &expected, scene, workers);
+        row.wasm_workers = Some([on(1)?.0, on(2)?.0]);
     }
     println!(
         "{scene}: {n} Gaussians, {} B; 1 thread {:.4} s, 2 threads {:.4} s",
@@ -579,7 +580,7 @@ fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) -> Res<Row>
     row.two_over_one = median(&mut ratio);
     if let (Some(pkg), Some(g)) = (pkg, &neural) {
         row.wasm_native = median(&mut tw);
-        row.wasm = Some(wasm_times(pkg, &path, a.rounds, &dump(g), &row.scene)?);
+        row.wasm = Some(wasm_times(pkg, &path, a.rounds, &dump(g), &row.scene, 0)?);
     }
     println!(
         "{n} anchors: {} B; 1 thread {:.4} s, 2 threads {:.4} s",

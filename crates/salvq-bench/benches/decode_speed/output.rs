@@ -74,6 +74,23 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
             }
         }
     }
+    if rows.iter().any(|r| r.wasm_workers.is_some()) {
+        t += "\nWebAssembly in Node worker threads (salvq-wasm `decodePart`, spec §10.3.2: each worker its part of the tiles; from sending the bytes to the last part's arrays on the main thread)\n";
+        for r in rows {
+            if let Some([w1, w2]) = r.wasm_workers {
+                t += &format!(
+                    "  {} {}: 1 worker {:.1} ms, 2 workers {:.1} ms = {:.3e} per s: 2 workers / 1 {:.2}, 2 workers / native 2 threads {:.2}\n",
+                    r.profile,
+                    r.scene,
+                    w1 * 1e3,
+                    w2 * 1e3,
+                    r.size as f64 / w2,
+                    w2 / w1,
+                    w2 / r.two
+                );
+            }
+        }
+    }
     if explicit.iter().any(|r| r.command.is_some()) {
         t += "\nwhole process (wall clock, output written; splat-transform runs in Node, its startup included)\n";
         t += "| scene | salvq decode -o out.ply | splat-transform SPZ -> PLY | SOG -> PLY | SPZ -> null | SOG -> null | splat-transform --version |\n|---|---:|---:|---:|---:|---:|---:|\n";
@@ -96,13 +113,13 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
 
 pub(crate) fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
+        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,wasm_1_worker_s,wasm_2_workers_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6}"));
     for r in rows {
         let p = |i: usize| o(r.peers.map(|p| p[i]));
         s += &format!(
-            "{},{},{},{},{},{},{:.6},{:.6},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{:.6},{:.6},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{},{},{}\n",
             r.profile,
             r.scene,
             r.size,
@@ -118,6 +135,8 @@ pub(crate) fn csv(rows: &[Row]) -> String {
             o(r.wasm.map(|w| w.0)),
             o(r.wasm.map(|w| w.1)),
             r.wasm_native,
+            o(r.wasm_workers.map(|w| w[0])),
+            o(r.wasm_workers.map(|w| w[1])),
             o(r.command),
             p(0),
             p(1),
@@ -139,7 +158,7 @@ type Series = (
 );
 
 pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
-    let series: [Series; 11] = [
+    let series: [Series; 12] = [
         (
             "explicit, native, 1 thread",
             RGBColor(0, 114, 178),
@@ -160,6 +179,13 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
             false,
             "explicit",
             |r| r.wasm.map(|w| w.0),
+        ),
+        (
+            "explicit, wasm (Node V8, 2 workers, decodePart)",
+            RGBColor(0, 158, 115),
+            true,
+            "explicit",
+            |r| r.wasm_workers.map(|w| w[1]),
         ),
         (
             "explicit, bare ANS coder on its lattice coordinates",

@@ -41,8 +41,15 @@ pub(crate) fn build_wasm() -> Res<PathBuf> {
 }
 
 /// Decodes `stream` `runs` times in Node: each run's milliseconds and the last output's
-/// arrays (see [`dump`]).
-pub(crate) fn wasm_decode(pkg: &Path, stream: &Path, runs: usize) -> Res<(Vec<f64>, Vec<u8>)> {
+/// arrays (see [`dump`]). `workers` 0: `decode` on Node's main thread; W ≥ 1: W worker
+/// threads, each decoding its part with `decodePart` (§10.3.2), timed until the last part's
+/// arrays reach the main thread (`wasm/decode_time.cjs`).
+pub(crate) fn wasm_decode(
+    pkg: &Path,
+    stream: &Path,
+    runs: usize,
+    workers: usize,
+) -> Res<(Vec<f64>, Vec<u8>)> {
     let dump_path = pkg.join("dump.bin");
     let out = Command::new("node")
         .arg(pkg.join("decode_time.cjs"))
@@ -50,6 +57,7 @@ pub(crate) fn wasm_decode(pkg: &Path, stream: &Path, runs: usize) -> Res<(Vec<f6
         .arg(stream)
         .arg(runs.to_string())
         .arg(&dump_path)
+        .arg(workers.to_string())
         .output()?;
     let text = String::from_utf8_lossy(&out.stdout);
     let line = text
@@ -68,19 +76,20 @@ pub(crate) fn wasm_decode(pkg: &Path, stream: &Path, runs: usize) -> Res<(Vec<f6
     Ok((ms, std::fs::read(&dump_path)?))
 }
 
-/// The wasm decode's median (runs after the first) and first run, seconds; checks its
-/// output against `expected`.
+/// The wasm decode's median (runs after the first) and first run, seconds, on `workers`
+/// as [`wasm_decode`] says; checks its output against `expected`.
 pub(crate) fn wasm_times(
     pkg: &Path,
     stream: &Path,
     rounds: usize,
     expected: &[u8],
     what: &str,
+    workers: usize,
 ) -> Res<(f64, f64)> {
-    let (ms, out) = wasm_decode(pkg, stream, rounds + 1)?;
+    let (ms, out) = wasm_decode(pkg, stream, rounds + 1, workers)?;
     assert!(
         out == expected,
-        "{what}: the wasm decode equals the native one"
+        "{what}: the wasm decode on {workers} workers equals the native one"
     );
     let first = ms[0] * 1e-3;
     let mut rest: Vec<f64> = ms[1..].iter().map(|m| m * 1e-3).collect();
