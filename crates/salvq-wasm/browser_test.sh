@@ -4,7 +4,9 @@
 # (the page fetches the stream, decodes it in a Web Worker as the bytes arrive, and draws it
 # with the PlayCanvas engine), screenshots it, and compares the screenshot with
 # `salvq render` of the same stream from the same camera. Fails unless the picture matches
-# (and matches the wrong camera clearly worse).
+# (and matches the wrong camera clearly worse). The page also times the whole stream decoded
+# by 1 and by 2 Web Workers, each its part of the tiles (decodePart, spec §10.3.2); fails
+# unless the two parts hold every tile once and every Gaussian.
 # usage: crates/salvq-wasm/browser_test.sh [SCENE.ply]   (default ../shared/data/fruit_drops.ply)
 #   needs target/release/salvq, wasm-bindgen (0.2.130, as the crate pins), node >= 18 with npm,
 #   /usr/bin/chromium (or $CHROMIUM), python3 with numpy and pillow. WORK=dir keeps the files.
@@ -25,7 +27,7 @@ raw=$(stat -c %s "$WORK/www/pkg/salvq_wasm_bg.wasm")
 gz=$(gzip -9 -c "$WORK/www/pkg/salvq_wasm_bg.wasm" | wc -c)
 echo "wasm: $raw bytes, $gz gzipped"
 
-cp "$REPO"/crates/salvq-wasm/www/{index.html,worker.js} "$WORK/www/"
+cp "$REPO"/crates/salvq-wasm/www/{index.html,worker.js,part_worker.js} "$WORK/www/"
 cp "$REPO"/tools/viewer_check/{package.json,package-lock.json,shoot.mjs,compare.py,ring_camera.py} "$WORK/www/"
 (cd "$WORK/www" && npm ci --no-audit --no-fund --loglevel=error > /dev/null)
 
@@ -50,7 +52,7 @@ trap 'kill $server 2> /dev/null || true' EXIT
 sleep 1
 echo "-- the page in headless Chromium"
 (cd "$WORK/www" && WIDTH=512 HEIGHT=384 node shoot.mjs \
-  "http://127.0.0.1:$PORT/index.html?stream=data/scene.salvq&rate=0&slice=8192&bg=0,0,0&$cam" "$WORK/out/browser.png") \
+  "http://127.0.0.1:$PORT/index.html?stream=data/scene.salvq&rate=0&slice=8192&parts=2&bg=0,0,0&$cam" "$WORK/out/browser.png") \
   | grep -v 'GL Driver Message' | tee "$WORK/out/browser.log"
 python3 "$WORK/www/compare.py" "$WORK/out/browser.png" "$WORK/out/salvq_render.png" | tee "$WORK/out/compare.txt"
 python3 "$WORK/www/compare.py" "$WORK/out/browser.png" "$WORK/out/salvq_render_wrong.png" | tee -a "$WORK/out/compare.txt"
@@ -66,6 +68,14 @@ print(f"streamed: {result['gaussians']} Gaussians in {result['batches']} batches
 browser = statistics.median(w['wholeDecodeMs'])
 print(f"whole decode in the browser (median of 5): {browser:.1f} ms; native, one thread (best of 3): "
       f"{1000 * native:.1f} ms; browser / native {browser / (1000 * native):.2f}")
+p = result['parts']
+one, two = statistics.median(p['oneWorkerMs']), statistics.median(p['nWorkersMs'])
+print(f"whole decode on Web Workers, each its part of the tiles (decodePart, median of 5): 1 worker "
+      f"{one:.1f} ms, {p['workers']} workers {two:.1f} ms ({p['workers']} / 1: {two / one:.2f}; tiles "
+      f"{[len(t) for t in p['tiles']]}, Gaussians {p['counts']})")
+tiles = sorted(t for part in p['tiles'] for t in part)
+if tiles != list(range(len(tiles))) or sum(p['counts']) != result['gaussians']:
+    sys.exit("the parts do not hold every tile once and every Gaussian")
 if right < 22 or right < wrong + 5:
     sys.exit("the browser's picture does not match salvq render of the same camera")
 if result['batches'] < 2 or w['firstTile']['bytes'] >= w['received']:
