@@ -36,6 +36,28 @@ fn plans(m: usize, groups: usize) -> Vec<RatePlan> {
         .collect()
 }
 
+/// `count` synthetic Gaussians of SH degree `sh` (seed `seed`), one rate, in tiles of at most
+/// `tile` Gaussians.
+fn tiled(count: usize, sh: u8, seed: u64, tile: u32) -> salvq_encoder::explicit::EncodedGaussians {
+    encode_synthetic(
+        &GaussianParams::new(count, sh, seed),
+        plans(1, 5),
+        ExplicitOptions {
+            tile_gaussians: tile,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+/// `decode_any` of a stream that must be explicit and must decode.
+fn gaussians_of(stream: &[u8], o: &DecodeOptions) -> DecodedGaussians {
+    match decode_any(stream, o).unwrap() {
+        Decoded::Gaussians(d) => *d,
+        Decoded::Anchors(_) => panic!("an explicit stream"),
+    }
+}
+
 fn decode(stream: &[u8], rate: u8) -> DecodedGaussians {
     decode_gaussians(stream, &Limits::default(), Some(rate)).expect("the stream decodes")
 }
@@ -156,10 +178,7 @@ fn one_and_two_threads_decode_the_same() {
     .unwrap();
     let with = |threads| {
         let o = DecodeOptions::default().with_threads(Some(threads));
-        match decode_any(&e.stream, &o).unwrap() {
-            Decoded::Gaussians(d) => d.gaussians,
-            Decoded::Anchors(_) => panic!("an explicit stream"),
-        }
+        gaussians_of(&e.stream, &o).gaussians
     };
     assert!(e.layers[0].0.tiles > 4);
     assert_eq!(with(1), with(2));
@@ -172,16 +191,8 @@ fn one_and_two_threads_decode_the_same() {
 fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
     use salvq::container::chunk::ChunkTag;
     use salvq::error::AnsFault;
-    let e = encode_synthetic(
-        &GaussianParams::new(900, 1, 6),
-        plans(1, 5),
-        ExplicitOptions {
-            tile_gaussians: 100,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let nt = e.layers[0].0.tiles as usize;
+    let e = tiled(900, 1, 6, 100);
+    let nt = e.layers[0].0.tiles;
     assert!(nt > 4, "{nt} tiles");
     for tag in [ChunkTag::APOS, ChunkTag::GATT] {
         // Tiles 2.. get a state the encoder never ends on; tile 1 gets a zero top word.
@@ -213,15 +224,7 @@ fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
 
 #[test]
 fn gaussians_only_decodes_the_same_gaussians_without_the_symbols() {
-    let e = encode_synthetic(
-        &GaussianParams::new(700, 1, 4),
-        plans(1, 5),
-        ExplicitOptions {
-            tile_gaussians: 64,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let e = tiled(700, 1, 4, 64);
     assert!(e.layers[0].0.tiles > 4);
     let region = salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap();
     for threads in [1, 2] {
@@ -229,10 +232,7 @@ fn gaussians_only_decodes_the_same_gaussians_without_the_symbols() {
             let o = DecodeOptions::default()
                 .with_threads(Some(threads))
                 .with_region(region);
-            let decode = |o: &DecodeOptions| match decode_any(&e.stream, o).unwrap() {
-                Decoded::Gaussians(d) => d,
-                Decoded::Anchors(_) => panic!("an explicit stream"),
-            };
+            let decode = |o: &DecodeOptions| gaussians_of(&e.stream, o);
             let (full, only) = (decode(&o), decode(&o.clone().with_gaussians_only(true)));
             let what = format!("{threads} threads, region {region:?}");
             assert!(!full.gaussians.is_empty(), "{what}");
@@ -285,20 +285,8 @@ fn a_region_decodes_only_the_tiles_it_meets() {
 fn the_parts_of_a_stream_are_its_tiles_once_each() {
     // §10.3.2, with and without a region: every kept tile in exactly one part, each part's
     // Gaussians those of its tiles in the full decode, the same whole or as bytes arrive.
-    let e = encode_synthetic(
-        &GaussianParams::new(900, 1, 7),
-        plans(1, 5),
-        ExplicitOptions {
-            tile_gaussians: 60,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let gaussians = |o: &DecodeOptions| match decode_any(&e.stream, o).unwrap() {
-        Decoded::Gaussians(d) => d,
-        Decoded::Anchors(_) => panic!("an explicit stream"),
-    };
-    let full = gaussians(&DecodeOptions::default());
+    let e = tiled(900, 1, 7, 60);
+    let full = gaussians_of(&e.stream, &DecodeOptions::default());
     let nt = full.tiles.len();
     assert!(nt > 6, "{nt} tiles");
     let region = salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap();
@@ -316,7 +304,7 @@ fn the_parts_of_a_stream_are_its_tiles_once_each() {
                     .with_region(region)
                     .with_part(part)
                     .with_gaussians_only(true);
-                let d = gaussians(&o);
+                let d = gaussians_of(&e.stream, &o);
                 let mine =
                     full.tiles
                         .select(full.header.origin, full.layer.voxel_size, region, part);
@@ -357,18 +345,8 @@ fn the_parts_of_a_stream_are_its_tiles_once_each() {
 #[test]
 fn a_part_reads_only_its_own_tiles_geometry() {
     use salvq::container::chunk::ChunkTag;
-    let e = encode_synthetic(
-        &GaussianParams::new(900, 1, 6),
-        plans(1, 5),
-        ExplicitOptions {
-            tile_gaussians: 100,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let Decoded::Gaussians(full) = decode_any(&e.stream, &DecodeOptions::default()).unwrap() else {
-        panic!("an explicit stream")
-    };
+    let e = tiled(900, 1, 6, 100);
+    let full = gaussians_of(&e.stream, &DecodeOptions::default());
     let nt = full.tiles.len();
     let parts = [0, 1].map(|k| salvq::TilePart::new(k, 2));
     let owned_by = |part| {
@@ -385,11 +363,8 @@ fn a_part_reads_only_its_own_tiles_geometry() {
         let o = DecodeOptions::default().with_threads(Some(threads));
         let whole = decode_any(&broken, &o).map(|_| ()).unwrap_err();
         assert!(whole.to_string().starts_with("APOS"), "{whole}");
-        let Decoded::Gaussians(mine) = decode_any(&broken, &o.clone().with_part(parts[0]))
-            .unwrap_or_else(|err| panic!("part 0 fails on part 1's tile: {err}"))
-        else {
-            panic!("an explicit stream")
-        };
+        // Part 0 decodes: the broken tile is part 1's.
+        let mine = gaussians_of(&broken, &o.clone().with_part(parts[0]));
         let rows = (0..nt).filter(|&t| owned_by(parts[0])[t]);
         assert_eq!(
             mine.gaussians.len(),
