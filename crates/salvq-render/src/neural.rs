@@ -268,25 +268,35 @@ const ANCHORS_PER_JOB: usize = 512;
 /// The neural Gaussians that a camera at `camera` sees (Annex C.1), as standard 3DGS
 /// Gaussians of SH degree 0.
 pub fn neural_gaussians(m: &SceneModel, camera: [f32; 3]) -> Result<Gaussians> {
+    neural_gaussians_counted(m, camera).map(|(g, _)| g)
+}
+
+/// [`neural_gaussians`], and how many of them each anchor gave (the opacity test of Annex
+/// C.1 keeps 0 … k): anchor `i`'s are the next `counts[i]` after those of anchors `0 … i`.
+pub fn neural_gaussians_counted(m: &SceneModel, camera: [f32; 3]) -> Result<(Gaussians, Vec<u32>)> {
     check_model(m)?;
     let positions = anchor_positions(m);
     let n = m.n();
     let inputs = usize::from(m.dims.feat_dim) + usize::from(m.dims.view_dims);
     let mlps = [&m.mlp_opacity, &m.mlp_cov, &m.mlp_color].map(|mlp| PreparedMlp::new(mlp, inputs));
-    let parts: Vec<Gaussians> = (0..n.div_ceil(ANCHORS_PER_JOB))
+    let parts: Vec<(Gaussians, Vec<u32>)> = (0..n.div_ceil(ANCHORS_PER_JOB))
         .into_par_iter()
         .map(|job| {
             let mut g = Gaussians::default();
             let end = ((job + 1) * ANCHORS_PER_JOB).min(n);
             let mut scratch = Scratch::default();
             let first = job * ANCHORS_PER_JOB;
+            let mut counts = Vec::with_capacity(end - first);
             for (anchor, &position) in positions.iter().enumerate().take(end).skip(first) {
+                let before = g.len();
                 anchor_gaussians(m, &mlps, anchor, position, camera, &mut scratch, &mut g);
+                counts.push((g.len() - before) as u32);
             }
-            g
+            (g, counts)
         })
         .collect();
-    let total = parts.iter().map(Gaussians::len).sum();
+    let total = parts.iter().map(|(g, _)| g.len()).sum();
+    let mut counts = Vec::with_capacity(n);
     let mut out = Gaussians {
         positions: Vec::with_capacity(total),
         sh_degree: 0,
@@ -296,14 +306,15 @@ pub fn neural_gaussians(m: &SceneModel, camera: [f32; 3]) -> Result<Gaussians> {
         log_scales: Vec::with_capacity(total),
         rotations: Vec::with_capacity(total),
     };
-    for p in parts {
+    for (p, c) in parts {
         out.positions.extend(p.positions);
         out.f_dc.extend(p.f_dc);
         out.opacity_logit.extend(p.opacity_logit);
         out.log_scales.extend(p.log_scales);
         out.rotations.extend(p.rotations);
+        counts.extend(c);
     }
-    Ok(out)
+    Ok((out, counts))
 }
 
 /// Per-thread buffers of [`anchor_gaussians`].

@@ -8,9 +8,9 @@
 //! model whose Gaussians depend on the camera (Scaffold-GS, Annex C.1); they are computed
 //! for ring camera 0 of Annex C.2, as `salvq export-ply` does, once the stream is complete.
 //!
-//! Decoding runs on the calling thread (a Web Worker, say). Several workers decode an
-//! explicit-profile stream together with [`decode_part`]: each is given the whole stream and
-//! decodes its part of the tiles (spec §10.3.2). The package is built with
+//! Decoding runs on the calling thread (a Web Worker, say). Several workers decode a stream
+//! together with [`decode_part`]: each is given the whole stream and decodes its part of the
+//! tiles (spec §10.3.2). The package is built with
 //! WebAssembly SIMD (`simd128`, the workspace's `.cargo/config.toml`); the compiler keeps every
 //! floating-point operation's order and rounding (lane by lane, never a fused multiply-add), so
 //! the output is the same bits as the native decoder's (§10.3). With it, the anchors' context
@@ -18,9 +18,15 @@
 
 use wasm_bindgen::prelude::*;
 
+use salvq::container::chunk::{ChunkReader, ChunkTag};
+use salvq::container::payload::read_apos;
+use salvq::container::preflight::Preflight;
+use salvq::container::signature::{Signature, SIGNATURE_LEN};
+use salvq::entropy::GaussianTables;
 use salvq::explicit::Gaussians;
 use salvq::stream::StreamDecoder;
-use salvq::{DecodeOptions, Decoded, TilePart};
+use salvq::tiles::TileTable;
+use salvq::{DecodeOptions, Decoded, Limits, SceneModel, TilePart};
 use salvq_render::camera::{Bounds, Ring};
 use salvq_render::neural;
 
@@ -31,7 +37,7 @@ pub struct Batch {
     /// Tiles in the batch (explicit profile; 0 for an anchors-profile stream).
     tiles: usize,
     /// The tiles whose Gaussians the batch holds, in order, and their Gaussian counts
-    /// (explicit profile; empty for an anchors-profile stream).
+    /// (explicit profile, and an anchors stream's part; empty for a whole anchors stream).
     tile_indices: Vec<u32>,
     tile_counts: Vec<u32>,
 }
@@ -51,7 +57,8 @@ impl Batch {
     }
 
     /// The `TILS` index (§10.1) of each tile whose Gaussians the batch holds, in the order
-    /// they come (explicit profile; empty for an anchors-profile stream). With
+    /// they come (explicit profile, and an anchors stream's `decodePart`; empty for a whole
+    /// anchors stream). With
     /// `tileCounts`, what puts the batches of several workers back in stream order.
     #[wasm_bindgen(getter, js_name = tileIndices)]
     pub fn tile_indices(&self) -> Vec<u32> {
@@ -129,11 +136,61 @@ fn gaussians_of(decoded: Decoded) -> Result<Gaussians, JsError> {
     match decoded {
         Decoded::Gaussians(d) => Ok(d.gaussians),
         Decoded::Anchors(m) => {
-            let bounds = Bounds::of_points(&neural::anchor_positions(&m));
-            let camera = Ring::default().camera(&bounds, 0, 64, 48).map_err(to_js)?;
-            neural::neural_gaussians(&m, camera.position).map_err(to_js)
+            let positions = neural::anchor_positions(&m);
+            Ok(anchor_gaussians(&m, &positions)?.0)
         }
     }
+}
+
+/// The neural Gaussians of `m`'s anchors seen from ring camera 0 of the scene whose anchors
+/// are at `scene` (Annex C.2: the camera follows from every anchor, also for a part), and
+/// how many each anchor gave.
+fn anchor_gaussians(m: &SceneModel, scene: &[[f32; 3]]) -> Result<(Gaussians, Vec<u32>), JsError> {
+    let camera = Ring::default()
+        .camera(&Bounds::of_points(scene), 0, 64, 48)
+        .map_err(to_js)?;
+    neural::neural_gaussians_counted(m, camera.position).map_err(to_js)
+}
+
+/// Every anchor's world position (as `neural::anchor_positions` gives them) and the tile
+/// table of an anchors-profile stream, from its `HEAD`, `TILS` and `APOS` alone: what a part
+/// decode, which outputs its own tiles' anchors, needs for the whole scene's camera.
+fn scene_anchors(bytes: &[u8]) -> salvq::Result<(Vec<[f32; 3]>, TileTable)> {
+    let limits = Limits::default();
+    let (_, rest) = Signature::parse(bytes)?;
+    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, &limits);
+    let (mut head, mut tiles) = (None, None);
+    while let Some(chunk) = reader.next_chunk()? {
+        match chunk.tag {
+            ChunkTag::HEAD => head = Some(Preflight::parse(chunk.payload, &limits)?),
+            ChunkTag::TILS => {
+                if let Some(h) = &head {
+                    tiles = Some(TileTable::parse(
+                        chunk.payload,
+                        h.dims.anchors,
+                        h.coord_bits,
+                    )?);
+                }
+            }
+            ChunkTag::APOS => {
+                let (Some(h), Some(t)) = (head, tiles) else {
+                    break;
+                };
+                let voxels = read_apos(chunk.payload, &t, GaussianTables::standard())?;
+                let positions = voxels
+                    .iter()
+                    .map(|v| std::array::from_fn(|a| h.origin[a] + h.voxel_size * v[a] as f32))
+                    .collect();
+                return Ok((positions, t));
+            }
+            _ => {}
+        }
+    }
+    // Unreachable after a part decode of the same bytes succeeded: it read all three.
+    Err(salvq::Error::ChunkOrder {
+        found: ChunkTag::SEND,
+        expected: ChunkTag::APOS,
+    })
 }
 
 /// A decoded stream as one batch: for an explicit stream, with the tiles `part` kept.
@@ -165,11 +222,11 @@ pub fn decode(bytes: &[u8], rate: Option<u8>) -> Result<Batch, JsError> {
     )
 }
 
-/// Decodes part `part` (from 0) of `parts` of an explicit-profile stream's tiles at `rate`
-/// (spec §10.3.2): `parts` workers, each given the whole stream and its own `part`, decode
-/// it together, every tile once. `tileIndices` and `tileCounts` say which tiles a batch
-/// holds. An anchors-profile stream is refused: its Gaussians depend on a camera chosen
-/// from every anchor (Annex C.2), so it decodes whole.
+/// Decodes part `part` (from 0) of `parts` of a stream's tiles at `rate` (spec §10.3.2):
+/// `parts` workers, each given the whole stream and its own `part`, decode it together,
+/// every tile once. `tileIndices` and `tileCounts` say which tiles a batch holds. For an
+/// anchors-profile stream, the part's anchors' neural Gaussians as [`decode`] computes them
+/// (the camera follows from every anchor, whose positions the part reads again from `APOS`).
 #[wasm_bindgen(js_name = decodePart)]
 pub fn decode_part(
     bytes: &[u8],
@@ -182,17 +239,32 @@ pub fn decode_part(
             "part {part} of {parts}: a part is from 0 to parts - 1 [§10.3.2]"
         ))
     })?;
-    if !salvq::decoder::is_explicit(bytes) {
-        return Err(JsError::new(
-            "decodePart: not an explicit-profile stream (an anchors-profile stream decodes \
-             whole: its Gaussians depend on a camera chosen from every anchor) [§10.3.2]",
-        ));
-    }
     let options = options(rate).with_part(Some(part));
-    batch_of(
-        salvq::decode_any(bytes, &options).map_err(to_js)?,
-        Some(part),
-    )
+    match salvq::decode_any(bytes, &options).map_err(to_js)? {
+        Decoded::Anchors(m) => anchors_part(bytes, &m, part),
+        explicit => batch_of(explicit, Some(part)),
+    }
+}
+
+/// [`decode_part`] of an anchors-profile stream, its part decoded into `m`.
+fn anchors_part(bytes: &[u8], m: &SceneModel, part: TilePart) -> Result<Batch, JsError> {
+    let (scene, tiles) = scene_anchors(bytes).map_err(to_js)?;
+    let (gaussians, per_anchor) = anchor_gaussians(m, &scene)?;
+    let kept = tiles.select(m.origin, m.voxel_size, None, Some(part));
+    let (mut tile_indices, mut tile_counts, mut at) = (Vec::new(), Vec::new(), 0);
+    for t in (0..tiles.len()).filter(|&t| kept[t]) {
+        let n = tiles.range(t).len();
+        let count = per_anchor.get(at..at + n).map_or(0, |c| c.iter().sum());
+        tile_indices.push(t as u32);
+        tile_counts.push(count);
+        at += n;
+    }
+    Ok(Batch {
+        gaussians,
+        tiles: 0,
+        tile_indices,
+        tile_counts,
+    })
 }
 
 /// A stream decoded as its bytes arrive: [`Stream::feed`] each piece, [`Stream::take`] the
@@ -286,5 +358,78 @@ fn slice(g: &Gaussians, from: usize) -> Gaussians {
         opacity_logit: g.opacity_logit[from..].to_vec(),
         log_scales: g.log_scales[from..].to_vec(),
         rotations: g.rotations[from..].to_vec(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The arrays of `batches` put back in stream order by their tiles, as a page with
+    /// several workers does: positions and opacity logits, float bits.
+    fn in_stream_order(batches: &[Batch]) -> (Vec<u32>, Vec<u32>) {
+        let mut pieces = Vec::new();
+        for b in batches {
+            let mut at = 0;
+            for (&t, &n) in b.tile_indices.iter().zip(&b.tile_counts) {
+                pieces.push((t, b, at, n as usize));
+                at += n as usize;
+            }
+            assert_eq!(at, b.count(), "a batch's tiles hold its Gaussians");
+        }
+        pieces.sort_by_key(|p| p.0);
+        let (mut positions, mut opacity) = (Vec::new(), Vec::new());
+        for (_, b, at, n) in pieces {
+            let p = b.positions();
+            positions.extend(p[3 * at..3 * (at + n)].iter().map(|x| x.to_bits()));
+            let o = b.opacity_logits();
+            opacity.extend(o[at..at + n].iter().map(|x| x.to_bits()));
+        }
+        (positions, opacity)
+    }
+
+    fn check_parts(stream: &[u8], what: &str) {
+        let whole = decode(stream, None).unwrap_or_else(|_| panic!("{what} decodes"));
+        let bits = |v: Vec<f32>| v.into_iter().map(f32::to_bits).collect::<Vec<_>>();
+        let expected = (bits(whole.positions()), bits(whole.opacity_logits()));
+        assert!(!expected.1.is_empty(), "{what}");
+        for parts in [1, 2, 3] {
+            let batches: Vec<Batch> = (0..parts)
+                .map(|k| decode_part(stream, None, k, parts).unwrap_or_else(|_| panic!("{what}")))
+                .collect();
+            if parts > 1 {
+                assert!(batches.iter().all(|b| b.count() < whole.count()), "{what}");
+            }
+            assert_eq!(in_stream_order(&batches), expected, "{what}, {parts} parts");
+        }
+    }
+
+    #[test]
+    fn parts_put_together_are_the_whole_decode() {
+        // Anchors: 1 200 anchors in tiles of at most 100; the parts' neural Gaussians use the
+        // whole scene's camera.
+        let model = salvq_gen::generate(&salvq_gen::GenParams::small(1200, 5));
+        let options = salvq_encoder::EncodeOptions {
+            tile_anchors: 100,
+            ..Default::default()
+        };
+        let anchors = salvq_encoder::encode_full(&model, &options).unwrap();
+        check_parts(&anchors.stream, "anchors");
+        // Explicit: 900 Gaussians in tiles of at most 60.
+        let explicit = salvq_conformance::explicit_vectors::encode_synthetic(
+            &salvq_gen::gaussians::GaussianParams::new(900, 1, 7),
+            vec![salvq_encoder::explicit::RatePlan {
+                voxel: 0.05,
+                refine: [3, 2, 1, 0],
+                steps: vec![0.1, 0.25, 0.03, 0.03, 0.04],
+                shift: vec![[1, 0, 0, -1]; 4],
+            }],
+            salvq_encoder::explicit::ExplicitOptions {
+                tile_gaussians: 60,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        check_parts(&explicit.stream, "explicit");
     }
 }

@@ -9,7 +9,8 @@
 //! same PLY) into a PLY and into `null`; the time to receive the stream's bytes at 50 Mbit/s.
 //! For generated anchors-profile scenes (`GenParams::new(N, 1)` without a feature basis,
 //! `EncodeOptions::default()`, as `decode_throughput`): the native decode on 1 and 2 threads,
-//! and the bare ANS coder (one static model, [`salvq_bench::coder`]) on the stream's own
+//! the wasm decode with the neural Gaussians a viewer draws (on the main thread and on 1 and
+//! 2 workers), and the bare ANS coder (one static model, [`salvq_bench::coder`]) on the stream's own
 //! symbols as the floor. Writes `speed.svg` (decode time vs scene size, log-log),
 //! `speed.csv` and `speed.txt` to `--out`.
 //!
@@ -241,8 +242,9 @@ struct Row {
     floor_outside: usize,
     /// salvq-wasm's `decode` in Node: median of the runs after the first, and the first.
     wasm: Option<(f64, f64)>,
-    /// Explicit profile: salvq-wasm's `decodePart` in 1 and 2 Node worker threads (§10.3.2),
-    /// until the arrays reach the main thread: medians of the runs after the first.
+    /// salvq-wasm's `decodePart` in 1 and 2 Node worker threads (§10.3.2), until the arrays
+    /// reach the main thread (anchors: with their neural Gaussians): medians of the runs
+    /// after the first.
     wasm_workers: Option<[f64; 2]>,
     /// Native equivalent of the wasm call (anchors: decode + neural Gaussians of camera 0,
     /// one thread; explicit: = `one`).
@@ -580,7 +582,10 @@ fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) -> Res<Row>
     row.two_over_one = median(&mut ratio);
     if let (Some(pkg), Some(g)) = (pkg, &neural) {
         row.wasm_native = median(&mut tw);
-        row.wasm = Some(wasm_times(pkg, &path, a.rounds, &dump(g), &row.scene, 0)?);
+        let expected = dump(g);
+        row.wasm = Some(wasm_times(pkg, &path, a.rounds, &expected, &row.scene, 0)?);
+        let on = |workers| wasm_times(pkg, &path, a.rounds, &expected, &row.scene, workers);
+        row.wasm_workers = Some([on(1)?.0, on(2)?.0]);
     }
     println!(
         "{n} anchors: {} B; 1 thread {:.4} s, 2 threads {:.4} s",
