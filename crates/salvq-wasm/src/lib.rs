@@ -193,18 +193,25 @@ fn scene_anchors(bytes: &[u8]) -> salvq::Result<(Vec<[f32; 3]>, TileTable)> {
     })
 }
 
+/// The tiles `kept` marks, in order, and the Gaussian count `count(t)` of each.
+fn tile_list(kept: &[bool], mut count: impl FnMut(usize) -> u32) -> (Vec<u32>, Vec<u32>) {
+    (0..kept.len())
+        .filter(|&t| kept[t])
+        .map(|t| (t as u32, count(t)))
+        .unzip()
+}
+
 /// A decoded stream as one batch: for an explicit stream, with the tiles `part` kept.
 fn batch_of(decoded: Decoded, part: Option<TilePart>) -> Result<Batch, JsError> {
-    let (mut tile_indices, mut tile_counts) = (Vec::new(), Vec::new());
-    if let Decoded::Gaussians(d) = &decoded {
-        let kept = d
-            .tiles
-            .select(d.header.origin, d.layer.voxel_size, None, part);
-        for t in (0..d.tiles.len()).filter(|&t| kept[t]) {
-            tile_indices.push(t as u32);
-            tile_counts.push(d.tiles.count(t));
+    let (tile_indices, tile_counts) = match &decoded {
+        Decoded::Gaussians(d) => {
+            let kept = d
+                .tiles
+                .select(d.header.origin, d.layer.voxel_size, None, part);
+            tile_list(&kept, |t| d.tiles.count(t))
         }
-    }
+        Decoded::Anchors(_) => (Vec::new(), Vec::new()),
+    };
     Ok(Batch {
         gaussians: gaussians_of(decoded)?,
         tiles: 0,
@@ -251,14 +258,13 @@ fn anchors_part(bytes: &[u8], m: &SceneModel, part: TilePart) -> Result<Batch, J
     let (scene, tiles) = scene_anchors(bytes).map_err(to_js)?;
     let (gaussians, per_anchor) = anchor_gaussians(m, &scene)?;
     let kept = tiles.select(m.origin, m.voxel_size, None, Some(part));
-    let (mut tile_indices, mut tile_counts, mut at) = (Vec::new(), Vec::new(), 0);
-    for t in (0..tiles.len()).filter(|&t| kept[t]) {
+    // The part's anchors are its tiles', in order: each tile's count sums its anchors'.
+    let mut at = 0;
+    let (tile_indices, tile_counts) = tile_list(&kept, |t| {
         let n = tiles.range(t).len();
-        let count = per_anchor.get(at..at + n).map_or(0, |c| c.iter().sum());
-        tile_indices.push(t as u32);
-        tile_counts.push(count);
         at += n;
-    }
+        per_anchor.get(at - n..at).map_or(0, |c| c.iter().sum())
+    });
     Ok(Batch {
         gaussians,
         tiles: 0,
