@@ -7,7 +7,7 @@ from .errors import SalvqError
 
 MAGIC = b"\x89SALVQ\r\n"
 MAJOR = 0
-MINOR = 12
+MINOR = 13
 
 
 @dataclass

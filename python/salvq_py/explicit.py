@@ -208,13 +208,20 @@ class GLayer:
     scale_offset: list = field(default_factory=list)  # scale_offset[g - 1][c]
     predict: list = field(default_factory=list)       # predict[g]
     scale_table: list = field(default_factory=list)   # scale_table[v][x]
+    rest_count_freq: list = field(default_factory=list)  # node m of the sh_rest count's tree at m − 1
+
+
+def rest_count_bits(h: GHead) -> int:
+    """L = bitlen(d) for the sh_rest group's d = 3B values (§3.5); 0 without the group."""
+    return (h.D - 10).bit_length() if h.G == 5 else 0
 
 
 def glay_length(h: GHead) -> int:
     """Payload length: coding_method, 28 bytes of fixed fields, shift, scale_offset, predict,
-    scale_table. (§3.4 writes `1 + 25 + …`; the fixed fields take 1 + 4 + 1 + 6 + 12 + 4 = 28
-    bytes, as the vectors' `GLAY` lengths confirm.)"""
-    return 1 + 28 + 2 * SIZE_CLASSES * (h.G - 1) + h.G + CONTEXT_CLASSES * h.D
+    rest_count_freq, scale_table. (§3.4 writes `1 + 25 + …`; the fixed fields take
+    1 + 4 + 1 + 6 + 12 + 4 = 28 bytes, as the vectors' `GLAY` lengths confirm.)"""
+    nodes = (1 << rest_count_bits(h)) - 1
+    return 1 + 28 + 2 * SIZE_CLASSES * (h.G - 1) + h.G + 2 * nodes + CONTEXT_CLASSES * h.D
 
 
 def parse_glay(payload: bytes, h: GHead) -> GLayer:
@@ -273,9 +280,13 @@ def parse_glay(payload: bytes, h: GHead) -> GLayer:
     predict = [r.u8() for _ in range(h.G)]
     for g, p in enumerate(predict):
         rng(f"predict[{g}]", p, 0, 1)
+    rest_count_freq = []
+    for m in range((1 << rest_count_bits(h)) - 1):
+        rest_count_freq.append(r.u16())
+        rng(f"rest_count_freq[{m}]", rest_count_freq[-1], 1, 65535)
     table = r.take(CONTEXT_CLASSES * h.D)
     for i, k in enumerate(table):
         rng(f"scale_table[{i // CONTEXT_CLASSES}][{i % CONTEXT_CLASSES}]", k, 0, 63)
     scale_table = [list(table[v * CONTEXT_CLASSES:(v + 1) * CONTEXT_CLASSES]) for v in range(h.D)]
     return GLayer(coord_bits, f32_from_bits(vbits), pred_level, rotation_freq, size_threshold,
-                  refine, shift, scale_offset, predict, scale_table)
+                  refine, shift, scale_offset, predict, scale_table, rest_count_freq)

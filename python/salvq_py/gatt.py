@@ -10,7 +10,7 @@ import numpy as np
 from .ans import AnsDecoder, AnsFault, EscapeOverflowFault, ans_error
 from .entropy import payload_method
 from .errors import SalvqError
-from .explicit import ROTATION, SCALE, GHead, GLayer
+from .explicit import ROTATION, SCALE, GHead, GLayer, rest_count_bits
 from .tiles import Tile, split_tiles
 
 LIMIT = 1 << 24             # |u| ≤ 2^24 (ValueInvalid above)
@@ -89,10 +89,24 @@ def _tile(dec: AnsDecoder, tile: Tile, h: GHead, lay: GLayer, voxels: np.ndarray
             s_ref = 0 if g == 0 else lay.shift[g - 1][prev_c]
             o = 0 if g == 0 else lay.scale_offset[g - 1][c]
             predict = has_ref and lay.predict[g] == 1
+            coded = d
+            if g == 4:                                  # sh_rest: its count first
+                bits = rest_count_bits(h)
+                node = 1
+                for _ in range(bits):
+                    node = 2 * node + dec.decode_binary(lay.rest_count_freq[node - 1])
+                coded = node - (1 << bits)
+                if coded > d:
+                    raise SalvqError("ValueInvalid",
+                                     f"GATT.rest_count[{i}] = {coded}: above the sh_rest group's {d} "
+                                     f"values (tile {tile.index}, Gaussian {n} of the layer) [§3.5]")
             for v in range(offs[g], offs[g] + d):
-                x = context_class(prev_r[v], s_ref, s) if has_ref else 0
-                k = min(max(lay.scale_table[v][x] + o, 0), 63)
-                r[v] = dec.decode_symbol(k)
+                if v - offs[g] < coded:
+                    x = context_class(prev_r[v], s_ref, s) if has_ref else 0
+                    k = min(max(lay.scale_table[v][x] + o, 0), 63)
+                    r[v] = dec.decode_symbol(k)
+                else:
+                    r[v] = 0
                 p = rescale(prev_u[v], s_ref, s) if predict else 0
                 u[v] = p + r[v]
                 if abs(u[v]) > LIMIT:

@@ -356,7 +356,9 @@ def explicit_cases() -> list[tuple[str, bytes, int, str]]:
     """Edited explicit-profile streams (§3) that no vector covers, as (label, stream, rate,
     expected): a class, "ok", or "ok:<integer-domain hash>:<float hash>". Each expectation is
     the reference decoder's (that wrote the 0.11 vectors), which salvq_py matched; they
-    still hold on the 0.12 vectors (0.12 changed only the octree's events, §8.2), and
+    still hold on the 0.12 vectors (0.12 changed only the octree's events, §8.2) and on 0.13's
+    (0.13 changed only layers with an sh_rest group, §3.4, §3.5; the cases re-encode g-sh0,
+    which has none, and edit only the first byte of g-sh3-rates' payloads), and
     `tools/probe_reference.py` reruns them on both."""
     import struct
     sys.path.insert(0, os.path.join(HERE, "..", "tools"))
@@ -520,6 +522,27 @@ def _payload(data: bytes, tag: str) -> bytes:
         pos += 12 + n
 
 
+def test_rest_count_reencoded():                       # §3.5 (0.13)
+    """g-sh3-rates' rate-0 layer, its values decoded by salvq_py and re-encoded by
+    tools/reencode.py (which writes each Gaussian's sh_rest count as the values up to its last
+    nonzero symbol, then only those values), is the stream's GATT payload byte for byte: the
+    count's tree and the uncoded zeros read as the reference encoder wrote them."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
+    from reencode import encode_gatt
+    from salvq_py.explicit import parse_glay
+    from salvq_py.tiles import parse_tils
+    s3 = _read("g-sh3-rates.salvq")
+    base = decode_bytes(s3, 0)
+    h, ints = base.head, base.integers
+    lay = parse_glay(_payload(s3, "GLAY"), h)
+    assert h.G == 5 and len(lay.rest_count_freq) == 63
+    tils = parse_tils(_payload(s3, "TILS"), h.N, lay.coord_bits)
+    gatt = encode_gatt(h, lay, tils, ints["gaussian.voxel"], ints["symbols.coordinates"],
+                       ints["symbols.rotation_index"], ints["symbols.size_class"],
+                       ints["symbols.refinement"])
+    assert gatt == _payload(s3, "GATT")
+
+
 def test_valid_vectors():
     for vec in _manifest():
         if vec["kind"] == "valid":
@@ -536,7 +559,7 @@ def main() -> int:
     failed = 0
     for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector,
               test_ans_uniform_values, test_mlps_precision_checks, test_explicit_profile_checks,
-              test_region_decodes):
+              test_rest_count_reencoded, test_region_decodes):
         try:
             t()
             print(f"pass  {t.__name__}")

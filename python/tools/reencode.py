@@ -119,7 +119,7 @@ def uniform_interval(v: int, b: int) -> tuple[int, int]:
 def gatt_intervals(h, lay, tile, voxels, coords, rot_index, size_class, refinement):
     """The intervals of one tile's GATT body for the given decoded values, by §3.5 as salvq_py
     reads it (the encoder's side of `salvq_py.gatt._tile`)."""
-    from salvq_py.explicit import ROTATION, SCALE
+    from salvq_py.explicit import ROTATION, SCALE, rest_count_bits
     from salvq_py.gatt import context_class, rescale
     from salvq_py.gatt import size_class as size_class_of
     dims, offs = h.group_dims(), h.group_offsets()
@@ -150,10 +150,20 @@ def gatt_intervals(h, lay, tile, voxels, coords, rot_index, size_class, refineme
             s_ref = 0 if g == 0 else lay.shift[g - 1][prev_c]
             o = 0 if g == 0 else lay.scale_offset[g - 1][c]
             for v in range(offs[g], offs[g] + d):
-                x = context_class(prev_r[v], s_ref, s) if has_ref else 0
-                k = min(max(lay.scale_table[v][x] + o, 0), 63)
                 p = rescale(prev_u[v], s_ref, s) if has_ref and lay.predict[g] == 1 else 0
                 r[v] = u[v] - p
+            coded = d
+            if g == 4:                          # sh_rest (0.13): its count, down the tree
+                coded = max([j + 1 for j in range(d) if r[offs[g] + j] != 0], default=0)
+                bits = rest_count_bits(h)
+                node = 1
+                for b in range(bits - 1, -1, -1):
+                    bit = (coded >> b) & 1
+                    out.append(binary_interval(bit, lay.rest_count_freq[node - 1]))
+                    node = 2 * node + bit
+            for v in range(offs[g], offs[g] + coded):
+                x = context_class(prev_r[v], s_ref, s) if has_ref else 0
+                k = min(max(lay.scale_table[v][x] + o, 0), 63)
                 out += symbol_intervals(r[v], k)
         prev_u, prev_r, prev_c = u, r, c
     return out

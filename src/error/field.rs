@@ -92,6 +92,8 @@ pub enum Field {
     PredictFlag,
     /// `refine`.
     Refine,
+    /// `rest_count_freq`.
+    RestCountFreq,
 }
 
 impl Field {
@@ -105,6 +107,7 @@ impl Field {
             Field::RotationFreq => "rotation_freq",
             Field::PredictFlag => "predict",
             Field::Refine => "refine",
+            Field::RestCountFreq => "rest_count_freq",
             Field::FileFlags => "file_flags",
             Field::HeadFlags => "head_flags",
             Field::AnchorCount => "anchor_count",

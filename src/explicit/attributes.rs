@@ -6,7 +6,7 @@
 use crate::entropy::SCALE_COUNT;
 use crate::error::{Error, Result};
 use crate::explicit::groups::{Group, GroupKind};
-use crate::explicit::layer::{Layer, CONTEXT_CLASSES, SIZE_CLASSES};
+use crate::explicit::layer::{rest_count_bits, Layer, CONTEXT_CLASSES, SIZE_CLASSES};
 
 /// §3.5: the largest magnitude of a lattice coordinate (so that `float32(u)` is exact).
 pub const MAX_COORDINATE: i64 = 1 << 24;
@@ -28,6 +28,11 @@ pub enum BitEvent {
     RotationHigh,
     /// Its low bit.
     RotationLow,
+    /// Bit `bit` (counted from the least significant) of the `sh_rest` count (§3.5).
+    RestCount {
+        /// The bit, 0 … L − 1; the count's most significant bit is read first.
+        bit: u32,
+    },
 }
 
 /// What the traversal asks of the coder: the encoder answers with the values it knows and
@@ -38,6 +43,14 @@ pub trait Events {
     /// The symbol (the residual `u − pred`) of coded value `value` of tile-local Gaussian
     /// `gaussian` under scale index `k`.
     fn symbol(&mut self, k: u8, gaussian: usize, value: usize, pred: i64) -> Result<i64>;
+    /// Called before the `RestCount` bits of tile-local Gaussian `gaussian`: value `j` of
+    /// its `sh_rest` group (coded value `first + j`) is predicted as `pred(j)`. The encoder
+    /// takes its count from them (the values after the last nonzero symbol are not coded);
+    /// the decoder has nothing to do.
+    #[inline(always)]
+    fn rest_predictions(&mut self, gaussian: usize, first: usize, pred: impl Fn(usize) -> i64) {
+        let _ = (gaussian, first, pred);
+    }
 }
 
 /// The decoded symbols of one tile.
@@ -245,6 +258,12 @@ pub fn walk_into(
     let n = voxels.len();
     debug_assert_eq!(out.coords.len(), n * values);
     let scale_indices = ScaleIndices::new(layer, groups, values);
+    let rest_bits = rest_count_bits(
+        groups
+            .iter()
+            .find(|g| g.kind == GroupKind::Rest)
+            .map_or(0, |g| g.dim),
+    );
     let mut prev_r = vec![0i64; values];
     let mut prev_u = vec![0i64; values];
     let mut prev_shift = vec![0i8; groups.len()];
@@ -283,20 +302,42 @@ pub fn walk_into(
             let (from, to) = (prev_shift[gi], layer.group_shift(gi, class));
             let predicted = reference && layer.predict[gi];
             let range = v..v + g.dim;
-            let group_values = prev_r[range.clone()]
+            // The reference's coordinate in this Gaussian's step units (the same units where
+            // the shifts agree: the rescaling is the identity there, as the clamp to ±2^24 is
+            // for a coordinate).
+            let at_shift = |u: i64| if from == to { u } else { rescale(u, from, to) };
+            let mut coded = g.dim;
+            if g.kind == GroupKind::Rest {
+                // §3.5: the count of the group's values that are coded, L bits down a tree
+                // of GLAY's probabilities; the values after them have the symbol 0.
+                let prev = &prev_u[range.clone()];
+                events.rest_predictions(i, v, |j| if predicted { at_shift(prev[j]) } else { 0 });
+                let mut node = 1usize;
+                for bit in (0..rest_bits).rev() {
+                    let freq = layer.rest_count_freq.get(node - 1).copied().unwrap_or(1);
+                    let b = events.bit(u32::from(freq), i, BitEvent::RestCount { bit })?;
+                    node = 2 * node + usize::from(b);
+                }
+                coded = node - (1 << rest_bits);
+                if coded > g.dim {
+                    return Err(Error::ValueInvalid {
+                        tensor: "GATT.rest_count",
+                        index: vec![i as u64],
+                        value: coded as i64,
+                        allowed: "at most the sh_rest group's values (§3.5)",
+                    });
+                }
+            }
+            let (coded_range, skipped) = (v..v + coded, v + coded..v + g.dim);
+            let group_values = prev_r[coded_range.clone()]
                 .iter_mut()
-                .zip(&mut prev_u[range.clone()])
-                .zip(&scale_indices.of(class)[range.clone()])
-                .zip(&mut row[range]);
+                .zip(&mut prev_u[coded_range.clone()])
+                .zip(&scale_indices.of(class)[coded_range.clone()])
+                .zip(&mut row[coded_range]);
             for (j, (((r_prev, u_prev), k_row), coord)) in group_values.enumerate() {
-                // The reference's symbol and coordinate, in this Gaussian's step units (the
-                // same units where the shifts agree: the rescaling is the identity there, as
-                // the clamp to ±2^24 is for a coordinate and for the context class).
-                let (r_ref, u_ref) = if from == to {
-                    (*r_prev, *u_prev)
-                } else {
-                    (rescale(*r_prev, from, to), rescale(*u_prev, from, to))
-                };
+                // The reference's symbol and coordinate, in this Gaussian's step units (as
+                // for the context class: the clamp to ±2^24 is the identity there).
+                let (r_ref, u_ref) = (at_shift(*r_prev), at_shift(*u_prev));
                 let k = k_row[context_class(reference, r_ref)];
                 let pred = if predicted { u_ref } else { 0 };
                 let r = events.symbol(k, i, v + j, pred)?;
@@ -312,6 +353,19 @@ pub fn walk_into(
                 *r_prev = r;
                 *u_prev = u;
                 *coord = u as i32;
+            }
+            // The values after the count: the symbol 0, so the coordinate is the prediction
+            // (within ±2^24: `rescale` clamps it).
+            prev_r[skipped.clone()].fill(0);
+            let row_skipped = &mut row[skipped.clone()];
+            if !predicted {
+                prev_u[skipped].fill(0);
+                row_skipped.fill(0);
+            } else {
+                for (u_prev, coord) in prev_u[skipped].iter_mut().zip(row_skipped) {
+                    *u_prev = at_shift(*u_prev);
+                    *coord = *u_prev as i32;
+                }
             }
             v += g.dim;
             prev_shift[gi] = to;
@@ -354,6 +408,103 @@ impl ScaleIndices {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A reader that answers from a script: each Gaussian's `sh_rest` count, a symbol of 1 for
+    /// every symbol asked, and it records which values were asked.
+    struct Scripted {
+        counts: Vec<usize>,
+        bits: u32,
+        asked: Vec<(usize, usize)>,
+    }
+
+    impl Events for Scripted {
+        fn bit(&mut self, _: u32, i: usize, what: BitEvent) -> Result<bool> {
+            Ok(match what {
+                BitEvent::RestCount { bit } => {
+                    assert!(bit < self.bits, "bit {bit} of an L = {} count", self.bits);
+                    self.counts[i] >> bit & 1 == 1
+                }
+                _ => false,
+            })
+        }
+        fn symbol(&mut self, _: u8, i: usize, v: usize, _: i64) -> Result<i64> {
+            self.asked.push((i, v));
+            Ok(1)
+        }
+    }
+
+    fn sh1_layer() -> (Layer, Vec<Group>) {
+        let groups: Vec<Group> = GroupKind::present(1)
+            .into_iter()
+            .map(|kind| Group {
+                kind,
+                dim: kind.dim(1),
+                step: 1.0,
+                gains: vec![1.0],
+                mean: vec![0.0; kind.dim(1)],
+                basis: None,
+            })
+            .collect();
+        let values: usize = groups.iter().map(|g| g.dim).sum();
+        let layer = Layer {
+            coord_bits: 4,
+            voxel_size: 1.0,
+            pred_level: 0,
+            rotation_freq: [1 << 15; 3],
+            size_threshold: [i32::MAX; 3],
+            refine: [0; 4],
+            shift: vec![[0; 4]; 4],
+            scale_offset: vec![[0; 4]; 4],
+            predict: vec![false; 5],
+            rest_count_freq: vec![1 << 15; 15],
+            scale_table: vec![[0; CONTEXT_CLASSES]; values],
+        };
+        (layer, groups)
+    }
+
+    /// §3.5: a Gaussian reads only its first n `sh_rest` symbols (SH degree 1: d = 9, L = 4);
+    /// the values after them are 0 without an event, and a count above d is an error.
+    #[test]
+    fn only_the_counted_sh_rest_values_read_symbols() {
+        let (layer, groups) = sh1_layer();
+        let voxels = [[0, 0, 0], [1, 0, 0], [2, 0, 0]];
+        let mut events = Scripted {
+            counts: vec![0, 4, 9],
+            bits: 4,
+            asked: Vec::new(),
+        };
+        let symbols = walk(&layer, &groups, &voxels, &mut events).unwrap();
+        // Values 10 … 18 are sh_rest (after scale 3, opacity 1, rotation 3, sh_dc 3).
+        for (i, n) in [(0usize, 0usize), (1, 4), (2, 9)] {
+            let rest: Vec<usize> = events
+                .asked
+                .iter()
+                .filter(|&&(g, v)| g == i && v >= 10)
+                .map(|&(_, v)| v)
+                .collect();
+            assert_eq!(rest, (10..10 + n).collect::<Vec<_>>(), "Gaussian {i}");
+            let row = &symbols.coords[i * 19..(i + 1) * 19];
+            assert!(row[10..10 + n].iter().all(|&u| u == 1), "Gaussian {i}");
+            assert!(row[10 + n..].iter().all(|&u| u == 0), "Gaussian {i}");
+        }
+        let mut events = Scripted {
+            counts: vec![10],
+            bits: 4,
+            asked: Vec::new(),
+        };
+        let err = walk(&layer, &groups, &voxels[..1], &mut events).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::ValueInvalid {
+                    tensor: "GATT.rest_count",
+                    value: 10,
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
+    }
 
     /// The table gives §3.5's class, 1 + min(bit length of |r|, 6), around every power of two
     /// and at the extremes.

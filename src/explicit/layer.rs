@@ -50,15 +50,41 @@ pub struct Layer {
     pub scale_offset: Vec<[i8; SIZE_CLASSES]>,
     /// Per group: whether a value is predicted from the reference's (§3.5).
     pub predict: Vec<bool>,
+    /// P(bit = 1) in units of 2^−16 of each node of the `sh_rest` count's tree (§3.5):
+    /// node `m` (1 … 2^L − 1, its bits so far after a leading 1) at index `m − 1`. Empty
+    /// without an `sh_rest` group.
+    pub rest_count_freq: Vec<u16>,
     /// Scale index per coded value and context class: `[value][class]`, values in group
     /// order.
     pub scale_table: Vec<[u8; CONTEXT_CLASSES]>,
 }
 
+/// §3.4: the values of the `sh_rest` group (the fifth group, when there is one) of a
+/// layer with `groups` groups and `values` coded values per Gaussian; 0 without it.
+pub fn rest_values(groups: usize, values: usize) -> usize {
+    if groups == 5 {
+        values.saturating_sub(10)
+    } else {
+        0
+    }
+}
+
+/// §3.5: L, the bits of a Gaussian's `sh_rest` count: `bitlen(d)` for the group's `d`
+/// values (0 without the group).
+pub fn rest_count_bits(rest_values: usize) -> u32 {
+    usize::BITS - rest_values.leading_zeros()
+}
+
+/// §3.4: the nodes of the `sh_rest` count's tree, `2^L − 1`.
+pub fn rest_count_nodes(rest_values: usize) -> usize {
+    (1usize << rest_count_bits(rest_values)) - 1
+}
+
 /// `GLAY`'s payload length for `groups` groups and `values` coded values per Gaussian.
 pub fn glay_len(groups: usize, values: usize) -> u64 {
     let fixed = 1 + 1 + 4 + 1 + 6 + 4 * (SIZE_CLASSES - 1) + SIZE_CLASSES;
-    (fixed + 2 * SIZE_CLASSES * (groups - 1) + groups + CONTEXT_CLASSES * values) as u64
+    let tree = 2 * rest_count_nodes(rest_values(groups, values));
+    (fixed + 2 * SIZE_CLASSES * (groups - 1) + groups + tree + CONTEXT_CLASSES * values) as u64
 }
 
 impl Layer {
@@ -81,6 +107,9 @@ impl Layer {
         }
         for &p in &self.predict {
             w.u8(u8::from(p));
+        }
+        for &f in &self.rest_count_freq {
+            w.u16(f);
         }
         for row in &self.scale_table {
             w.buf.extend_from_slice(row);
@@ -200,6 +229,15 @@ impl Layer {
                 v => return Err(out_of_range(Field::PredictFlag, v.into(), 0, 1)),
             }
         }
+        let nodes = rest_count_nodes(rest_values(groups, values));
+        let mut rest_count_freq = Vec::with_capacity(nodes);
+        for _ in 0..nodes {
+            let f = r.u16()?;
+            if f == 0 {
+                return Err(out_of_range(Field::RestCountFreq, 0, 1, 65535));
+            }
+            rest_count_freq.push(f);
+        }
         let mut scale_table = Vec::with_capacity(values);
         for _ in 0..values {
             let mut row = [0u8; CONTEXT_CLASSES];
@@ -227,6 +265,7 @@ impl Layer {
             shift,
             scale_offset,
             predict,
+            rest_count_freq,
             scale_table,
         })
     }

@@ -206,7 +206,8 @@ fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
 
 /// Byte offsets inside the base stream's `GLAY` payload (§3.4): after `coding_method`,
 /// `coord_bits` (1), `voxel_size` (2), `pred_level` (6), `rotation_freq` (7), thresholds
-/// (13), refine (25), shifts (29), then the scale offsets, predict and the scale table.
+/// (13), refine (25), shifts (29), then the scale offsets, predict, the `sh_rest` count's
+/// tree (15 nodes: SH degree 1) and the scale table.
 mod glay_at {
     pub const COORD_BITS: usize = 1;
     pub const PRED_LEVEL: usize = 6;
@@ -214,6 +215,8 @@ mod glay_at {
     pub const THRESHOLD: usize = 13;
     pub const REFINE: usize = 25;
     pub const SHIFT: usize = 29;
+    /// After the shifts and scale offsets (4 · 4 bytes each for G = 5) and `predict` (5).
+    pub const REST_COUNT_FREQ: usize = SHIFT + 16 + 16 + 5;
 }
 
 /// Every explicit must-fail vector, in decoding order (§3.2 – §3.7).
@@ -409,6 +412,29 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             &["§3.4"],
             "GLAY predict[1] = 2",
             glay(&|p| p[glay_at::SHIFT + 8 * 4 + 1] = 2),
+        ),
+        must_fail(
+            "x-g-rest-count-freq",
+            "FieldOutOfRange",
+            &["§3.4"],
+            "GLAY rest_count_freq[2] = 0",
+            glay(&|p| {
+                let at = glay_at::REST_COUNT_FREQ + 2 * 2;
+                p[at..at + 2].copy_from_slice(&[0, 0]);
+            }),
+        ),
+        must_fail(
+            "x-g-rest-count",
+            "ValueInvalid",
+            &["§3.5"],
+            "GLAY rest_count_freq all 65535: tile 0's first Gaussian reads the sh_rest count \
+             15, above its group's 9 values",
+            glay(&|p| {
+                for m in 0..15 {
+                    let at = glay_at::REST_COUNT_FREQ + 2 * m;
+                    p[at..at + 2].copy_from_slice(&u16::MAX.to_le_bytes());
+                }
+            }),
         ),
         must_fail(
             "x-g-scale-table",

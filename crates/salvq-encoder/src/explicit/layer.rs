@@ -6,7 +6,9 @@
 use nalgebra::DMatrix;
 
 use super::prepare::PreparedGaussians;
-use super::prior::{bit_cost, fit_prior, freq, group_histograms, PRED_LEVEL_CANDIDATES};
+use super::prior::{
+    bit_cost, entropy_bits, fit_prior, freq, group_histograms, PRED_LEVEL_CANDIDATES,
+};
 pub use super::prior::{group_bits, BitCost, Variant};
 use crate::error::Result;
 use salvq::container::chunk::{write_chunk, ChunkTag};
@@ -14,7 +16,9 @@ use salvq::container::payload::METHOD_CODED;
 use salvq::entropy::{GaussianTables, SymbolWriter};
 use salvq::explicit::attributes::{walk, BitEvent, Events, TileSymbols, MAX_COORDINATE};
 use salvq::explicit::groups::{Group, GroupKind};
-use salvq::explicit::layer::{Layer, MAX_COORD_BITS, SIZE_CLASSES};
+use salvq::explicit::layer::{
+    rest_count_bits, rest_count_nodes, rest_values, Layer, MAX_COORD_BITS, SIZE_CLASSES,
+};
 use salvq::explicit::reconstruct::reconstruct_tile_into;
 use salvq::explicit::Gaussians;
 use salvq::model::morton3;
@@ -228,6 +232,31 @@ struct Writer<'a, 't> {
     rotation: &'a [u8],
     refinement: &'a [[u32; 3]],
     values: usize,
+    /// The `sh_rest` count of the Gaussian at hand (§3.5): its values up to the last nonzero
+    /// symbol.
+    rest_count: usize,
+    /// Every Gaussian's `sh_rest` count, in walk order.
+    rest_counts: Vec<usize>,
+}
+
+impl<'a, 't> Writer<'a, 't> {
+    fn new(
+        tables: &'t GaussianTables,
+        coords: &'a [i32],
+        rotation: &'a [u8],
+        refinement: &'a [[u32; 3]],
+        values: usize,
+    ) -> Self {
+        Writer {
+            out: SymbolWriter::new(ChunkTag::GATT, tables),
+            coords,
+            rotation,
+            refinement,
+            values,
+            rest_count: 0,
+            rest_counts: Vec::new(),
+        }
+    }
 }
 
 impl Events for Writer<'_, '_> {
@@ -236,6 +265,7 @@ impl Events for Writer<'_, '_> {
             BitEvent::RotationHigh => self.rotation[i] >> 1 == 1,
             BitEvent::RotationLow => self.rotation[i] & 1 == 1,
             BitEvent::Refine { axis, bit } => self.refinement[i][axis] >> bit & 1 == 1,
+            BitEvent::RestCount { bit } => self.rest_count >> bit & 1 == 1,
         };
         self.out.bit(bit, freq_one);
         Ok(bit)
@@ -245,6 +275,38 @@ impl Events for Writer<'_, '_> {
         self.out.symbol(r, k)?;
         Ok(r)
     }
+    fn rest_predictions(&mut self, i: usize, first: usize, pred: impl Fn(usize) -> i64) {
+        let row = &self.coords[i * self.values + first..(i + 1) * self.values];
+        self.rest_count = row
+            .iter()
+            .enumerate()
+            .rposition(|(j, &u)| i64::from(u) != pred(j))
+            .map_or(0, |j| j + 1);
+        self.rest_counts.push(self.rest_count);
+    }
+}
+
+/// §3.4's `rest_count_freq` for `counts` (every Gaussian's `sh_rest` count) of a group of
+/// `dim` values: each tree node's share of ones among the counts that pass it, and the cost
+/// of coding them so, in bits.
+fn rest_count_freq(counts: &[usize], dim: usize) -> (Vec<u16>, f64) {
+    let bits = rest_count_bits(dim);
+    let nodes = rest_count_nodes(dim);
+    let (mut ones, mut total) = (vec![0u64; nodes], vec![0u64; nodes]);
+    for &n in counts {
+        let mut node = 1usize;
+        for bit in (0..bits).rev() {
+            let b = n >> bit & 1;
+            total[node - 1] += 1;
+            ones[node - 1] += b as u64;
+            node = 2 * node + b;
+        }
+    }
+    let freq: Vec<u16> = ones.iter().zip(&total).map(|(&o, &t)| freq(o, t)).collect();
+    let cost = (0..nodes)
+        .map(|m| bit_cost(ones[m], total[m], freq[m]))
+        .sum();
+    (freq, cost)
 }
 
 /// Codes layer `rate` of `p` with the quantizers `groups` (rate steps), `classes` and the
@@ -340,8 +402,11 @@ pub fn encode_layer(
             plan.shift[gi - 1]
         }
     };
+    // The histograms of group `gi`'s coded symbols and, for `sh_rest`, its counts' order-0
+    // bits (§3.5: only the values up to the last nonzero symbol are coded).
     let histograms = |gi: usize, at: usize, level: u8, pr: bool| {
-        group_histograms(
+        let mut counts = Vec::new();
+        let h = group_histograms(
             &coords,
             values,
             at,
@@ -352,7 +417,9 @@ pub fn encode_layer(
             &tiles,
             level,
             pr,
-        )
+            (groups[gi].kind == GroupKind::Rest).then_some(&mut counts),
+        );
+        (h, entropy_bits(&counts))
     };
     let mut best: Option<(f64, u8, Vec<bool>)> = None;
     for offset in PRED_LEVEL_CANDIDATES {
@@ -364,14 +431,9 @@ pub fn encode_layer(
         let mut at = 0;
         for (gi, g) in groups.iter().enumerate() {
             let bits = |pr: bool| {
-                fit_prior(
-                    &histograms(gi, at, level, pr),
-                    &cost,
-                    variant.factorized_prior,
-                    class_shifts(gi),
-                    false,
-                )
-                .2
+                let (h, count_bits) = histograms(gi, at, level, pr);
+                let fit = fit_prior(&h, &cost, variant.factorized_prior, class_shifts(gi), false);
+                fit.2 + count_bits
             };
             let off = bits(false);
             let on = if variant.factorized_prior {
@@ -393,7 +455,7 @@ pub fn encode_layer(
     let mut group_bits = Vec::new();
     let mut at = 0;
     for (gi, g) in groups.iter().enumerate() {
-        let h = histograms(gi, at, pred_level, predict[gi]);
+        let (h, _) = histograms(gi, at, pred_level, predict[gi]);
         let (rows, offsets, bits) = fit_prior(
             &h,
             &cost,
@@ -431,7 +493,7 @@ pub fn encode_layer(
         .iter()
         .map(|&c| 3.0 * f64::from(plan.refine[usize::from(c)]))
         .sum();
-    let layer = Layer {
+    let mut layer = Layer {
         coord_bits: grid.coord_bits,
         voxel_size: grid.voxel_size,
         pred_level,
@@ -441,6 +503,7 @@ pub fn encode_layer(
         shift: plan.shift.clone(),
         scale_offset,
         predict: predict.clone(),
+        rest_count_freq: vec![1 << 15; rest_count_nodes(rest_values(groups.len(), values))],
         scale_table,
     };
 
@@ -452,6 +515,26 @@ pub fn encode_layer(
         sh_degree: p.sh_degree,
         ..Gaussians::default()
     };
+    // §3.5's sh_rest counts follow from the coordinates and the predictions alone: a first
+    // walk collects them, and GLAY's tree probabilities are fitted to them.
+    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rest) {
+        let mut counts = Vec::with_capacity(n);
+        for t in 0..tiles.len() {
+            let range = tiles.range(t);
+            let mut w = Writer::new(
+                tables,
+                &coords[range.start * values..range.end * values],
+                &rotation[range.clone()],
+                &refinement[range.clone()],
+                values,
+            );
+            walk(&layer, groups, &grid.voxels[range], &mut w)?;
+            counts.extend(w.rest_counts);
+        }
+        let (freq, bits) = rest_count_freq(&counts, groups[gi].dim);
+        layer.rest_count_freq = freq;
+        group_bits[gi] += bits;
+    }
     for t in 0..tiles.len() {
         let range = tiles.range(t);
         let (level, cell) = tiles.cells[t];
@@ -460,13 +543,13 @@ pub fn encode_layer(
             .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
             .collect();
         apos.push(salvq::geometry::encode(&local, level, tables)?);
-        let mut w = Writer {
-            out: SymbolWriter::new(ChunkTag::GATT, tables),
-            coords: &coords[range.start * values..range.end * values],
-            rotation: &rotation[range.clone()],
-            refinement: &refinement[range.clone()],
+        let mut w = Writer::new(
+            tables,
+            &coords[range.start * values..range.end * values],
+            &rotation[range.clone()],
+            &refinement[range.clone()],
             values,
-        };
+        );
         let symbols: TileSymbols = walk(&layer, groups, &grid.voxels[range.clone()], &mut w)?;
         debug_assert_eq!(symbols.size_class, size_class[range.clone()]);
         gatt.push(w.out.finish());

@@ -54,8 +54,10 @@ pub(super) fn group_histograms(
     tiles: &TileTable,
     pred_level: u8,
     predict: bool,
+    mut counts: Option<&mut Vec<u64>>,
 ) -> Histograms {
     let mut h: Histograms = vec![vec![FxHashMap::default(); CONTEXT_CLASSES]; dim];
+    let mut r_row = vec![0i64; dim];
     for t in 0..tiles.len() {
         let range = tiles.range(t);
         let vox = &voxels[range.clone()];
@@ -64,18 +66,30 @@ pub(super) fn group_histograms(
             let reference = has_reference(vox, li, pred_level);
             let s = shifts[i];
             let s_prev = if i > 0 { shifts[i - 1] } else { 0 };
-            for j in 0..dim {
+            for (j, r) in r_row.iter_mut().enumerate() {
                 let u = i64::from(coords[i * values + at + j]);
                 let pred = if reference && predict {
                     rescale(i64::from(coords[(i - 1) * values + at + j]), s_prev, s)
                 } else {
                     0
                 };
-                let r = u - pred;
+                *r = u - pred;
+            }
+            // §3.5: a counted group (sh_rest) codes its values up to the last nonzero symbol.
+            let coded = match counts.as_deref_mut() {
+                Some(counts) => {
+                    let n = r_row.iter().rposition(|&r| r != 0).map_or(0, |j| j + 1);
+                    counts.resize(counts.len().max(dim + 1), 0);
+                    counts[n] += 1;
+                    n
+                }
+                None => dim,
+            };
+            for (j, &r) in r_row.iter().enumerate().take(coded) {
                 let c = context_class(reference, rescale(prev_r[j], s_prev, s));
                 *h[j][c].entry((r.unsigned_abs(), classes[i])).or_default() += 1;
-                prev_r[j] = r;
             }
+            prev_r.copy_from_slice(&r_row);
         }
     }
     h
@@ -218,7 +232,11 @@ pub struct Variant {
 
 /// Ideal bits per Gaussian of one group's coordinates (`coords`, `dim` per Gaussian, all at
 /// one step) on `voxels` cut by `tiles`, with the prediction and `pred_level` that cost
-/// least: what [`super::layer::encode_layer`] pays for the group, its tables aside.
+/// least: what [`super::layer::encode_layer`] pays for the group, its tables aside. A
+/// `counted` group (`sh_rest`, §3.5) codes only each Gaussian's values up to its last nonzero
+/// symbol, and pays for the counts (their order-0 entropy, which the count's tree reaches
+/// with fitted probabilities).
+#[allow(clippy::too_many_arguments)]
 pub fn group_bits(
     coords: &[i32],
     dim: usize,
@@ -227,6 +245,7 @@ pub fn group_bits(
     tiles: &TileTable,
     cost: &BitCost,
     variant: Variant,
+    counted: bool,
 ) -> f64 {
     let shifts = vec![0i8; voxels.len()];
     let classes = vec![0u8; voxels.len()];
@@ -239,13 +258,35 @@ pub fn group_bits(
             if predict && variant.factorized_prior {
                 continue;
             }
+            let mut counts = Vec::new();
             let h = group_histograms(
-                coords, dim, 0, dim, &classes, &shifts, voxels, tiles, level, predict,
+                coords,
+                dim,
+                0,
+                dim,
+                &classes,
+                &shifts,
+                voxels,
+                tiles,
+                level,
+                predict,
+                counted.then_some(&mut counts),
             );
-            best = best.min(fit_tables(&h, cost, variant.factorized_prior, &[0; SIZE_CLASSES]).1);
+            let tables = fit_tables(&h, cost, variant.factorized_prior, &[0; SIZE_CLASSES]).1;
+            best = best.min(tables + entropy_bits(&counts));
         }
     }
     best / voxels.len().max(1) as f64
+}
+
+/// The order-0 entropy of a histogram, in bits (all its items together).
+pub(super) fn entropy_bits(histogram: &[u64]) -> f64 {
+    let total: u64 = histogram.iter().sum();
+    histogram
+        .iter()
+        .filter(|&&c| c > 0)
+        .map(|&c| c as f64 * (total as f64 / c as f64).log2())
+        .sum()
 }
 
 /// Q16 probability of a 1 from counts, clamped to 1 … 65535.

@@ -199,6 +199,7 @@ pub fn measure_curves(
                         &tiles,
                         &cost,
                         variant,
+                        one.kind == GroupKind::Rest,
                     ) * share
                 }
             };

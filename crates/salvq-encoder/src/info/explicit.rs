@@ -87,16 +87,36 @@ struct Cost<'a> {
     counts: Vec<[u64; 3]>,
     refine: f64,
     rotation_group: usize,
+    /// The `sh_rest` count of the Gaussian at hand (§3.5), and the group's index.
+    rest_count: usize,
+    rest_group: usize,
 }
 
 impl Events for Cost<'_> {
-    fn bit(&mut self, _freq_one: u32, _: usize, what: BitEvent) -> salvq::Result<bool> {
+    fn bit(&mut self, freq_one: u32, _: usize, what: BitEvent) -> salvq::Result<bool> {
         // A refinement bit costs one bit; the rotation index's bits are costed from the
         // decoded indices afterwards (the traversal does not need them to be right here).
-        if let BitEvent::Refine { .. } = what {
-            self.refine += 1.0;
+        match what {
+            BitEvent::Refine { .. } => self.refine += 1.0,
+            // The sh_rest count's bits steer the traversal: answered from the decoded
+            // coordinates (as the encoder wrote them) and costed at their probabilities.
+            BitEvent::RestCount { bit } => {
+                let one = self.rest_count >> bit & 1 == 1;
+                let p = f64::from(freq_one) / 65536.0;
+                self.bits[self.rest_group] -= (if one { p } else { 1.0 - p }).log2();
+                return Ok(one);
+            }
+            BitEvent::RotationHigh | BitEvent::RotationLow => {}
         }
         Ok(false)
+    }
+    fn rest_predictions(&mut self, i: usize, first: usize, pred: impl Fn(usize) -> i64) {
+        let row = &self.coords[i * self.values + first..(i + 1) * self.values];
+        self.rest_count = row
+            .iter()
+            .enumerate()
+            .rposition(|(j, &u)| i64::from(u) != pred(j))
+            .map_or(0, |j| j + 1);
     }
     fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> salvq::Result<i64> {
         let r = i64::from(self.coords[i * self.values + v]) - pred;
@@ -157,6 +177,12 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
             counts: vec![[0; 3]; d.groups.len()],
             refine: 0.0,
             rotation_group,
+            rest_count: 0,
+            rest_group: d
+                .groups
+                .iter()
+                .position(|g| g.kind == salvq::explicit::GroupKind::Rest)
+                .unwrap_or(0),
         };
         for t in 0..d.tiles.len() {
             let range = d.tiles.range(t);
@@ -346,6 +372,8 @@ mod tests {
             counts: vec![[0; 3]; 2],
             refine: 0.0,
             rotation_group: 0,
+            rest_count: 0,
+            rest_group: 0,
         };
         cost.symbol(k, 0, 0, 0).unwrap();
         cost.symbol(k, 0, 1, 0).unwrap();
