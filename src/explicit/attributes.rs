@@ -300,76 +300,140 @@ pub fn walk_into(
                 out.rotation_index[i] = 2 * u8::from(high) + u8::from(low);
             }
             let (from, to) = (prev_shift[gi], layer.group_shift(gi, class));
-            let predicted = reference && layer.predict[gi];
+            let group = Values {
+                gaussian: i,
+                first: v,
+                reference,
+                predicted: reference && layer.predict[gi],
+                from,
+                to,
+            };
             let range = v..v + g.dim;
-            // The reference's coordinate in this Gaussian's step units (the same units where
-            // the shifts agree: the rescaling is the identity there, as the clamp to ±2^24 is
-            // for a coordinate).
-            let at_shift = |u: i64| if from == to { u } else { rescale(u, from, to) };
-            let mut coded = g.dim;
+            let (prev_r, prev_u) = (&mut prev_r[range.clone()], &mut prev_u[range.clone()]);
+            let (k_rows, row) = (&scale_indices.of(class)[range.clone()], &mut row[range]);
             if g.kind == GroupKind::Rest {
-                // §3.5: the count of the group's values that are coded, L bits down a tree
-                // of GLAY's probabilities; the values after them have the symbol 0.
-                let prev = &prev_u[range.clone()];
-                events.rest_predictions(i, v, |j| if predicted { at_shift(prev[j]) } else { 0 });
-                let mut node = 1usize;
-                for bit in (0..rest_bits).rev() {
-                    let freq = layer.rest_count_freq.get(node - 1).copied().unwrap_or(1);
-                    let b = events.bit(u32::from(freq), i, BitEvent::RestCount { bit })?;
-                    node = 2 * node + usize::from(b);
-                }
-                coded = node - (1 << rest_bits);
-                if coded > g.dim {
-                    return Err(Error::ValueInvalid {
-                        tensor: "GATT.rest_count",
-                        index: vec![i as u64],
-                        value: coded as i64,
-                        allowed: "at most the sh_rest group's values (§3.5)",
-                    });
-                }
-            }
-            let (coded_range, skipped) = (v..v + coded, v + coded..v + g.dim);
-            let group_values = prev_r[coded_range.clone()]
-                .iter_mut()
-                .zip(&mut prev_u[coded_range.clone()])
-                .zip(&scale_indices.of(class)[coded_range.clone()])
-                .zip(&mut row[coded_range]);
-            for (j, (((r_prev, u_prev), k_row), coord)) in group_values.enumerate() {
-                // The reference's symbol and coordinate, in this Gaussian's step units (as
-                // for the context class: the clamp to ±2^24 is the identity there).
-                let (r_ref, u_ref) = (at_shift(*r_prev), at_shift(*u_prev));
-                let k = k_row[context_class(reference, r_ref)];
-                let pred = if predicted { u_ref } else { 0 };
-                let r = events.symbol(k, i, v + j, pred)?;
-                let u = pred + r;
-                if u.abs() > MAX_COORDINATE {
-                    return Err(Error::ValueInvalid {
-                        tensor: "GATT.coordinate",
-                        index: vec![i as u64, (v + j) as u64],
-                        value: u,
-                        allowed: "|u| ≤ 2^24 (§3.5)",
-                    });
-                }
-                *r_prev = r;
-                *u_prev = u;
-                *coord = u as i32;
-            }
-            // The values after the count: the symbol 0, so the coordinate is the prediction
-            // (within ±2^24: `rescale` clamps it).
-            prev_r[skipped.clone()].fill(0);
-            let row_skipped = &mut row[skipped.clone()];
-            if !predicted {
-                prev_u[skipped].fill(0);
-                row_skipped.fill(0);
+                rest_values(
+                    layer, events, &group, rest_bits, prev_r, prev_u, k_rows, row,
+                )?;
             } else {
-                for (u_prev, coord) in prev_u[skipped].iter_mut().zip(row_skipped) {
-                    *u_prev = at_shift(*u_prev);
-                    *coord = *u_prev as i32;
-                }
+                group.decode(events, prev_r, prev_u, k_rows, row)?;
             }
             v += g.dim;
             prev_shift[gi] = to;
         }
+    }
+    Ok(())
+}
+
+/// One group of one Gaussian's values as §3.5 reads them.
+struct Values {
+    /// The tile-local Gaussian.
+    gaussian: usize,
+    /// The coded value the group starts at.
+    first: usize,
+    /// Whether the Gaussian has a reference, and whether the group is predicted from it.
+    reference: bool,
+    predicted: bool,
+    /// The reference's step shift of the group, and this Gaussian's.
+    from: i8,
+    to: i8,
+}
+
+impl Values {
+    /// Reads one symbol per value: `prev_r`, `prev_u` hold the reference's symbols and
+    /// coordinates and become this Gaussian's; `row` gets its coordinates.
+    #[inline(always)]
+    fn decode(
+        &self,
+        events: &mut impl Events,
+        prev_r: &mut [i64],
+        prev_u: &mut [i64],
+        k_rows: &[[u8; CONTEXT_CLASSES]],
+        row: &mut [i32],
+    ) -> Result<()> {
+        let (i, from, to) = (self.gaussian, self.from, self.to);
+        let values = prev_r.iter_mut().zip(prev_u).zip(k_rows).zip(row);
+        for (j, (((r_prev, u_prev), k_row), coord)) in values.enumerate() {
+            // The reference's symbol and coordinate, in this Gaussian's step units (the
+            // same units where the shifts agree: the rescaling is the identity there, as
+            // the clamp to ±2^24 is for a coordinate and for the context class).
+            let (r_ref, u_ref) = if from == to {
+                (*r_prev, *u_prev)
+            } else {
+                (rescale(*r_prev, from, to), rescale(*u_prev, from, to))
+            };
+            let k = k_row[context_class(self.reference, r_ref)];
+            let pred = if self.predicted { u_ref } else { 0 };
+            let r = events.symbol(k, i, self.first + j, pred)?;
+            let u = pred + r;
+            if u.abs() > MAX_COORDINATE {
+                return Err(Error::ValueInvalid {
+                    tensor: "GATT.coordinate",
+                    index: vec![i as u64, (self.first + j) as u64],
+                    value: u,
+                    allowed: "|u| ≤ 2^24 (§3.5)",
+                });
+            }
+            *r_prev = r;
+            *u_prev = u;
+            *coord = u as i32;
+        }
+        Ok(())
+    }
+
+    /// The reference's coordinate `u` as this Gaussian's prediction (0 when not predicted).
+    #[inline(always)]
+    fn prediction(&self, u: i64) -> i64 {
+        match (self.predicted, self.from == self.to) {
+            (false, _) => 0,
+            (true, true) => u,
+            (true, false) => rescale(u, self.from, self.to),
+        }
+    }
+}
+
+/// §3.5: the `sh_rest` group of one Gaussian: its count (`bits` binary events down the tree
+/// of `rest_count_freq`, most significant first; above the group's values, `ValueInvalid`),
+/// the symbols of the values it counts, then the values after them, whose symbol is 0 and
+/// whose coordinate is the prediction (within ±2^24: `rescale` clamps it). Out of line, so
+/// that the walk of the other groups stays as it was.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn rest_values(
+    layer: &Layer,
+    events: &mut impl Events,
+    group: &Values,
+    bits: u32,
+    prev_r: &mut [i64],
+    prev_u: &mut [i64],
+    k_rows: &[[u8; CONTEXT_CLASSES]],
+    row: &mut [i32],
+) -> Result<()> {
+    let i = group.gaussian;
+    events.rest_predictions(i, group.first, |j| group.prediction(prev_u[j]));
+    let mut node = 1usize;
+    for bit in (0..bits).rev() {
+        let freq = layer.rest_count_freq.get(node - 1).copied().unwrap_or(1);
+        let b = events.bit(u32::from(freq), i, BitEvent::RestCount { bit })?;
+        node = 2 * node + usize::from(b);
+    }
+    let n = node - (1 << bits);
+    if n > row.len() {
+        return Err(Error::ValueInvalid {
+            tensor: "GATT.rest_count",
+            index: vec![i as u64],
+            value: n as i64,
+            allowed: "at most the sh_rest group's values (§3.5)",
+        });
+    }
+    let (r_coded, r_rest) = prev_r.split_at_mut(n);
+    let (u_coded, u_rest) = prev_u.split_at_mut(n);
+    let (row_coded, row_rest) = row.split_at_mut(n);
+    group.decode(events, r_coded, u_coded, &k_rows[..n], row_coded)?;
+    r_rest.fill(0);
+    for (u_prev, coord) in u_rest.iter_mut().zip(row_rest) {
+        *u_prev = group.prediction(*u_prev);
+        *coord = *u_prev as i32;
     }
     Ok(())
 }
