@@ -325,6 +325,15 @@ pub fn walk_into(
     Ok(())
 }
 
+/// The `sh_rest` count an encoder writes for coordinates `row` predicted as `pred(j)`
+/// (§3.5): the values up to the last whose symbol `row[j] − pred(j)` is not 0.
+pub fn rest_count_of(row: &[i32], pred: impl Fn(usize) -> i64) -> usize {
+    row.iter()
+        .enumerate()
+        .rposition(|(j, &u)| i64::from(u) != pred(j))
+        .map_or(0, |j| j + 1)
+}
+
 /// One group of one Gaussian's values as §3.5 reads them.
 struct Values {
     /// The tile-local Gaussian.

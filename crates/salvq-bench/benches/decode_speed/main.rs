@@ -25,7 +25,9 @@
 //!
 //! Checks what it measures (any difference fails): every timed decode (1 and 2 threads, the
 //! wasm package, its workers' parts put back in stream order, the CLI's PLY) equals the reference decode of the same stream (one thread);
-//! the explicit stream holds N · (sum of its groups' dimensions) lattice coordinates; the
+//! the explicit stream holds N · (sum of its groups' dimensions) lattice coordinates, of
+//! which it codes a symbol for at most that many (§3.5: not the `sh_rest` values after each
+//! Gaussian's count; the floor times the coded ones); the
 //! anchors stream's symbols are N · (F + S) plus 3 per set offset mask bit, and equal the
 //! encoder's count when it was encoded in this run; splat-transform's PLYs hold N Gaussians.
 //! Times are medians over rounds in one process; the rounds interleave the measurements so
@@ -226,8 +228,8 @@ struct Row {
     scene: String,
     /// Gaussians (explicit) or anchors (anchors profile).
     size: usize,
-    /// Entropy-coded symbols the bare coder's floor counts: the explicit stream's lattice
-    /// coordinates, the anchors stream's attribute symbols.
+    /// Entropy-coded symbols the bare coder's floor counts: the explicit stream's coded
+    /// symbols (§3.5), the anchors stream's attribute symbols.
     symbols: usize,
     bytes: u64,
     tiles: usize,
@@ -365,13 +367,15 @@ fn explicit_scene(
         tiles: reference.tiles.len(),
         ..Row::default()
     };
-    let coords: Vec<i64> = reference
-        .symbols
-        .coords
-        .iter()
-        .map(|&c| i64::from(c))
-        .collect();
-    (row.floor, row.floor_outside) = floor(&coords, a.rounds);
+    // The floor: the symbols GATT codes (§3.5: not the sh_rest values after each Gaussian's
+    // count), in stream order.
+    let coded = salvq_encoder::info::explicit::coded_symbols(&reference)?;
+    assert!(
+        coded.len() <= reference.symbols.coords.len(),
+        "{scene}: coded symbols ≤ values"
+    );
+    row.symbols = coded.len();
+    (row.floor, row.floor_outside) = floor(&coded, a.rounds);
 
     // Peer files, written once from the same PLY.
     let st = a.splat_transform.as_deref();

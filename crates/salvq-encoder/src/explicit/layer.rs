@@ -14,7 +14,9 @@ use crate::error::Result;
 use salvq::container::chunk::{write_chunk, ChunkTag};
 use salvq::container::payload::METHOD_CODED;
 use salvq::entropy::{GaussianTables, SymbolWriter};
-use salvq::explicit::attributes::{walk, BitEvent, Events, TileSymbols, MAX_COORDINATE};
+use salvq::explicit::attributes::{
+    rest_count_of, walk, BitEvent, Events, TileSymbols, MAX_COORDINATE,
+};
 use salvq::explicit::groups::{Group, GroupKind};
 use salvq::explicit::layer::{
     rest_count_bits, rest_count_nodes, rest_values, Layer, MAX_COORD_BITS, SIZE_CLASSES,
@@ -277,11 +279,7 @@ impl Events for Writer<'_, '_> {
     }
     fn rest_predictions(&mut self, i: usize, first: usize, pred: impl Fn(usize) -> i64) {
         let row = &self.coords[i * self.values + first..(i + 1) * self.values];
-        self.rest_count = row
-            .iter()
-            .enumerate()
-            .rposition(|(j, &u)| i64::from(u) != pred(j))
-            .map_or(0, |j| j + 1);
+        self.rest_count = rest_count_of(row, pred);
         self.rest_counts.push(self.rest_count);
     }
 }
@@ -515,19 +513,23 @@ pub fn encode_layer(
         sh_degree: p.sh_degree,
         ..Gaussians::default()
     };
+    // The events of the Gaussians `range` (a tile).
+    let writer = |range: std::ops::Range<usize>| {
+        Writer::new(
+            tables,
+            &coords[range.start * values..range.end * values],
+            &rotation[range.clone()],
+            &refinement[range],
+            values,
+        )
+    };
     // §3.5's sh_rest counts follow from the coordinates and the predictions alone: a first
     // walk collects them, and GLAY's tree probabilities are fitted to them.
     if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rest) {
         let mut counts = Vec::with_capacity(n);
         for t in 0..tiles.len() {
             let range = tiles.range(t);
-            let mut w = Writer::new(
-                tables,
-                &coords[range.start * values..range.end * values],
-                &rotation[range.clone()],
-                &refinement[range.clone()],
-                values,
-            );
+            let mut w = writer(range.clone());
             walk(&layer, groups, &grid.voxels[range], &mut w)?;
             counts.extend(w.rest_counts);
         }
@@ -543,13 +545,7 @@ pub fn encode_layer(
             .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
             .collect();
         apos.push(salvq::geometry::encode(&local, level, tables)?);
-        let mut w = Writer::new(
-            tables,
-            &coords[range.start * values..range.end * values],
-            &rotation[range.clone()],
-            &refinement[range.clone()],
-            values,
-        );
+        let mut w = writer(range.clone());
         let symbols: TileSymbols = walk(&layer, groups, &grid.voxels[range.clone()], &mut w)?;
         debug_assert_eq!(symbols.size_class, size_class[range.clone()]);
         gatt.push(w.out.finish());

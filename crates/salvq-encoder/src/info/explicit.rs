@@ -9,8 +9,9 @@ use crate::error::Result;
 use salvq::container::chunk::ChunkReader;
 use salvq::container::signature::{Signature, SIGNATURE_LEN};
 use salvq::entropy::{GaussianTables, SCALE_COUNT};
-use salvq::explicit::attributes::{walk, BitEvent, Events};
+use salvq::explicit::attributes::{rest_count_of, walk, BitEvent, Events};
 use salvq::explicit::decode_gaussians;
+use salvq::explicit::{DecodedGaussians, GroupKind};
 use salvq::limits::Limits;
 
 /// One layer as `info` shows it.
@@ -90,6 +91,51 @@ struct Cost<'a> {
     /// The `sh_rest` count of the Gaussian at hand (§3.5), and the group's index.
     rest_count: usize,
     rest_group: usize,
+    /// Every symbol, in order, when they are collected ([`coded_symbols`]).
+    symbols: Option<Vec<i64>>,
+}
+
+impl<'a> Cost<'a> {
+    fn new(d: &DecodedGaussians, group_of: &'a [usize], tables: &'a GaussianTables) -> Self {
+        let position = |kind| d.groups.iter().position(|g| g.kind == kind).unwrap_or(0);
+        Cost {
+            coords: &[],
+            values: group_of.len(),
+            group_of,
+            tables,
+            bits: vec![0.0; d.groups.len()],
+            counts: vec![[0; 3]; d.groups.len()],
+            refine: 0.0,
+            rotation_group: position(GroupKind::Rotation),
+            rest_count: 0,
+            rest_group: position(GroupKind::Rest),
+            symbols: None,
+        }
+    }
+}
+
+/// The group of each coded value of `d`'s layer.
+fn group_of(d: &DecodedGaussians) -> Vec<usize> {
+    d.groups
+        .iter()
+        .enumerate()
+        .flat_map(|(gi, g)| std::iter::repeat_n(gi, g.dim))
+        .collect()
+}
+
+/// The symbols `d`'s `GATT` codes, tile by tile in stream order (§3.5): what a decoder reads
+/// from the ANS coder besides binary events (a benchmark's bare-coder floor).
+pub fn coded_symbols(d: &DecodedGaussians) -> salvq::Result<Vec<i64>> {
+    let group_of = group_of(d);
+    let values = group_of.len();
+    let mut cost = Cost::new(d, &group_of, GaussianTables::standard());
+    cost.symbols = Some(Vec::new());
+    for t in 0..d.tiles.len() {
+        let range = d.tiles.range(t);
+        cost.coords = &d.symbols.coords[range.start * values..range.end * values];
+        walk(&d.layer, &d.groups, &d.voxels[range], &mut cost)?;
+    }
+    Ok(cost.symbols.unwrap_or_default())
 }
 
 impl Events for Cost<'_> {
@@ -112,14 +158,13 @@ impl Events for Cost<'_> {
     }
     fn rest_predictions(&mut self, i: usize, first: usize, pred: impl Fn(usize) -> i64) {
         let row = &self.coords[i * self.values + first..(i + 1) * self.values];
-        self.rest_count = row
-            .iter()
-            .enumerate()
-            .rposition(|(j, &u)| i64::from(u) != pred(j))
-            .map_or(0, |j| j + 1);
+        self.rest_count = rest_count_of(row, pred);
     }
     fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> salvq::Result<i64> {
         let r = i64::from(self.coords[i * self.values + v]) - pred;
+        if let Some(symbols) = &mut self.symbols {
+            symbols.push(r);
+        }
         let g = self.group_of[v];
         self.bits[g] += self.tables.ideal_bits(k, r);
         let widest = usize::from(k) == SCALE_COUNT - 1;
@@ -157,33 +202,8 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
             decode_gaussians(data, limits, Some(rate))?
         };
         let values: usize = d.groups.iter().map(|g| g.dim).sum();
-        let group_of: Vec<usize> = d
-            .groups
-            .iter()
-            .enumerate()
-            .flat_map(|(gi, g)| std::iter::repeat_n(gi, g.dim))
-            .collect();
-        let rotation_group = d
-            .groups
-            .iter()
-            .position(|g| g.kind == salvq::explicit::GroupKind::Rotation)
-            .unwrap_or(0);
-        let mut cost = Cost {
-            coords: &[],
-            values,
-            group_of: &group_of,
-            tables,
-            bits: vec![0.0; d.groups.len()],
-            counts: vec![[0; 3]; d.groups.len()],
-            refine: 0.0,
-            rotation_group,
-            rest_count: 0,
-            rest_group: d
-                .groups
-                .iter()
-                .position(|g| g.kind == salvq::explicit::GroupKind::Rest)
-                .unwrap_or(0),
-        };
+        let group_of = group_of(&d);
+        let mut cost = Cost::new(&d, &group_of, tables);
         for t in 0..d.tiles.len() {
             let range = d.tiles.range(t);
             cost.coords = &d.symbols.coords[range.start * values..range.end * values];
@@ -374,6 +394,7 @@ mod tests {
             rotation_group: 0,
             rest_count: 0,
             rest_group: 0,
+            symbols: None,
         };
         cost.symbol(k, 0, 0, 0).unwrap();
         cost.symbol(k, 0, 1, 0).unwrap();
