@@ -10,7 +10,12 @@
 //! horizontal sums. A zero unit adds nothing to any sum, and the sums are taken modulo 2^32
 //! (§5.3), so leaving pairs out and changing the order of the additions changes no bit.
 //!
-//! The weights are re-laid once per stream ([`Avx2Mlp::new`]). Layer 0: rows padded with
+//! The weights are re-laid once per stream ([`Avx2Mlp::new`]), as i8 where every weight of
+//! the MLP fits (a stream's `i8` weights, §1.6.2 Table 1-7, always do) and as i16 otherwise:
+//! the kernel streams all its weights through the cache for every anchor, and half the bytes
+//! took 4 … 10 % off a generated 100 k-anchor decode (docs/speed, sixteenth session). An i8
+//! weight is widened to i16 as it is loaded (`vpmovsxbw`), so the products and sums are the
+//! same. Layer 0: rows padded with
 //! zeros to a multiple of 16 columns, row counts padded to a multiple of 8, and the eight rows
 //! of a group interleaved block by block so the kernel reads them as one sequential stream.
 //! Layer 1: by unit pairs, outputs padded to a multiple of 8. Zero padding adds nothing to
@@ -19,10 +24,10 @@
 
 use std::arch::x86_64::{
     __m128i, __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_castsi256_si128,
-    _mm256_extracti128_si256, _mm256_hadd_epi32, _mm256_loadu_si256, _mm256_madd_epi16,
-    _mm256_permute2x128_si256, _mm256_set1_epi32, _mm256_setzero_si256, _mm256_sra_epi32,
-    _mm256_storeu_si256, _mm_cvtsi32_si128, _mm_max_epi16, _mm_packs_epi32, _mm_setzero_si128,
-    _mm_storeu_si128,
+    _mm256_cvtepi8_epi16, _mm256_extracti128_si256, _mm256_hadd_epi32, _mm256_loadu_si256,
+    _mm256_madd_epi16, _mm256_permute2x128_si256, _mm256_set1_epi32, _mm256_setzero_si256,
+    _mm256_sra_epi32, _mm256_storeu_si256, _mm_cvtsi32_si128, _mm_loadu_si128, _mm_max_epi16,
+    _mm_packs_epi32, _mm_setzero_si128, _mm_storeu_si128,
 };
 
 use crate::hyperprior::mlp::IntMlp;
@@ -36,11 +41,44 @@ fn round_up(n: usize, m: usize) -> usize {
     n.div_ceil(m) * m
 }
 
+/// How the kernel stores a weight: i16, or i8 where every weight of the MLP fits.
+trait Weight: Copy + Default {
+    /// Whether [`load16`] widens 16 bytes (i8) rather than loading 32 (i16).
+    const NARROW: bool;
+    /// `w`, which the caller has checked fits.
+    fn from_i16(w: i16) -> Self;
+}
+
+impl Weight for i16 {
+    const NARROW: bool = false;
+    fn from_i16(w: i16) -> i16 {
+        w
+    }
+}
+
+impl Weight for i8 {
+    const NARROW: bool = true;
+    fn from_i16(w: i16) -> i8 {
+        w as i8
+    }
+}
+
+/// The 16 weights at `p` as 16 i16 lanes (i8 weights sign-extended: the same values).
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn load16<W: Weight>(p: *const W) -> __m256i {
+    if W::NARROW {
+        _mm256_cvtepi8_epi16(_mm_loadu_si128(p.cast()))
+    } else {
+        _mm256_loadu_si256(p.cast())
+    }
+}
+
 /// One layer's weights in the kernel's layout: for row group `r` and input block `b`, the
 /// 8 rows' 16 weights are contiguous at `((r * blocks + b) * ROWS + i) * LANES`.
 #[derive(Debug, Clone)]
-struct Layer {
-    weights: Vec<i16>,
+struct Layer<W> {
+    weights: Vec<W>,
     /// Biases padded with zeros to a multiple of 8.
     bias: Vec<i32>,
     /// Input blocks of 16 per row.
@@ -49,15 +87,15 @@ struct Layer {
     groups: usize,
 }
 
-impl Layer {
-    fn new(w: &[i16], bias: &[i32], rows: usize, cols: usize, rows_pad: usize) -> Layer {
+impl<W: Weight> Layer<W> {
+    fn new(w: &[i16], bias: &[i32], rows: usize, cols: usize, rows_pad: usize) -> Layer<W> {
         let blocks = round_up(cols, LANES) / LANES;
         let groups = rows_pad / ROWS;
-        let mut weights = vec![0i16; groups * blocks * ROWS * LANES];
+        let mut weights = vec![W::default(); groups * blocks * ROWS * LANES];
         for r in 0..rows {
             for c in 0..cols {
                 let (g, i, b, l) = (r / ROWS, r % ROWS, c / LANES, c % LANES);
-                weights[((g * blocks + b) * ROWS + i) * LANES + l] = w[r * cols + c];
+                weights[((g * blocks + b) * ROWS + i) * LANES + l] = W::from_i16(w[r * cols + c]);
             }
         }
         let mut padded = vec![0i32; rows_pad];
@@ -76,21 +114,21 @@ impl Layer {
 /// contiguous at `(q * outputs + 8 g) * 2`: one `vpmaddwd` with the broadcast pair of
 /// activations adds both units' products to the group's 8 sums.
 #[derive(Debug, Clone)]
-struct Pairs {
-    weights: Vec<i16>,
+struct Pairs<W> {
+    weights: Vec<W>,
     /// Biases padded with zeros to `outputs`.
     bias: Vec<i32>,
     /// Outputs padded to a multiple of 8.
     outputs: usize,
 }
 
-impl Pairs {
-    fn new(w: &[i16], bias: &[i32], rows: usize, cols: usize, cols_pad: usize) -> Pairs {
+impl<W: Weight> Pairs<W> {
+    fn new(w: &[i16], bias: &[i32], rows: usize, cols: usize, cols_pad: usize) -> Pairs<W> {
         let outputs = round_up(rows, ROWS);
-        let mut weights = vec![0i16; cols_pad * outputs];
+        let mut weights = vec![W::default(); cols_pad * outputs];
         for r in 0..rows {
             for c in 0..cols {
-                weights[((c / 2) * outputs + r) * 2 + c % 2] = w[r * cols + c];
+                weights[((c / 2) * outputs + r) * 2 + c % 2] = W::from_i16(w[r * cols + c]);
             }
         }
         let mut padded = vec![0i32; outputs];
@@ -106,12 +144,20 @@ impl Pairs {
 /// Output groups of 8 that one pass over the nonzero unit pairs accumulates in registers.
 const PASS_GROUPS: usize = 11;
 
+/// Both layers' weights, stored one way.
+#[derive(Debug, Clone)]
+enum Weights {
+    Wide(Layer<i16>, Pairs<i16>),
+    Narrow(Layer<i8>, Pairs<i8>),
+}
+
 /// The context MLP in the AVX2 kernel's layout. Only [`Avx2Mlp::new`] makes one, and only
 /// on a CPU with AVX2.
 #[derive(Debug, Clone)]
 pub struct Avx2Mlp {
-    layer0: Layer,
-    layer1: Pairs,
+    weights: Weights,
+    /// Layer 0's input blocks of 16.
+    blocks: usize,
     shift0: u8,
     cin: usize,
     /// Hidden units padded to a multiple of 16 (padding units are always 0).
@@ -141,9 +187,21 @@ impl Avx2Mlp {
         if hidden_pad > usize::from(u16::MAX) {
             return None;
         }
+        let fits = |w: &[i16]| w.iter().all(|&v| i8::try_from(v).is_ok());
+        let weights = if fits(&mlp.w0) && fits(&mlp.w1) {
+            Weights::Narrow(
+                Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
+                Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
+            )
+        } else {
+            Weights::Wide(
+                Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
+                Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
+            )
+        };
         Some(Avx2Mlp {
-            layer0: Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
-            layer1: Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
+            weights,
+            blocks: round_up(cin, LANES) / LANES,
             shift0: mlp.shift0,
             cin,
             hidden_pad,
@@ -153,7 +211,13 @@ impl Avx2Mlp {
 
     /// Length of the zero-padded input the kernel reads.
     pub fn input_len(&self) -> usize {
-        self.layer0.blocks * LANES
+        self.blocks * LANES
+    }
+
+    /// Whether the weights are stored as i8 (every weight fits).
+    #[cfg(test)]
+    pub(super) fn narrow(&self) -> bool {
+        matches!(self.weights, Weights::Narrow(..))
     }
 
     /// Length of the hidden scratch the kernel writes: the activations, then the list of
@@ -175,13 +239,24 @@ impl Avx2Mlp {
         );
         // SAFETY: `new` returned this kernel only after detecting AVX2 on this CPU; the
         // assertion above gives `eval_avx2` the slice lengths it reads and writes.
-        unsafe { self.eval_avx2(x, h, y) }
+        unsafe {
+            match &self.weights {
+                Weights::Wide(l0, l1) => self.eval_avx2(l0, l1, x, h, y),
+                Weights::Narrow(l0, l1) => self.eval_avx2(l0, l1, x, h, y),
+            }
+        }
     }
 
     #[target_feature(enable = "avx2")]
-    unsafe fn eval_avx2(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+    unsafe fn eval_avx2<W: Weight>(
+        &self,
+        l0: &Layer<W>,
+        l1: &Pairs<W>,
+        x: &[i16],
+        h: &mut [i16],
+        y: &mut [i32],
+    ) {
         // Layer 0: s_h = b0[h] + W0[h] . x, then a_h = min(max(rshr(s_h, shift0), 0), 32767).
-        let l0 = &self.layer0;
         for g in 0..l0.groups {
             let s = rows8(l0, g, x.as_ptr());
             let acc =
@@ -205,21 +280,21 @@ impl Avx2Mlp {
         let (act, list) = (&*act, &list[..n]);
         // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the pairs, PASS_GROUPS output groups
         // of 8 at a time.
-        let groups = self.layer1.outputs / ROWS;
+        let groups = l1.outputs / ROWS;
         let mut first = 0;
         while first < groups {
             match groups - first {
-                1 => self.layer1_pass::<1>(act, list, first, y),
-                2 => self.layer1_pass::<2>(act, list, first, y),
-                3 => self.layer1_pass::<3>(act, list, first, y),
-                4 => self.layer1_pass::<4>(act, list, first, y),
-                5 => self.layer1_pass::<5>(act, list, first, y),
-                6 => self.layer1_pass::<6>(act, list, first, y),
-                7 => self.layer1_pass::<7>(act, list, first, y),
-                8 => self.layer1_pass::<8>(act, list, first, y),
-                9 => self.layer1_pass::<9>(act, list, first, y),
-                10 => self.layer1_pass::<10>(act, list, first, y),
-                _ => self.layer1_pass::<PASS_GROUPS>(act, list, first, y),
+                1 => self.layer1_pass::<W, 1>(l1, act, list, first, y),
+                2 => self.layer1_pass::<W, 2>(l1, act, list, first, y),
+                3 => self.layer1_pass::<W, 3>(l1, act, list, first, y),
+                4 => self.layer1_pass::<W, 4>(l1, act, list, first, y),
+                5 => self.layer1_pass::<W, 5>(l1, act, list, first, y),
+                6 => self.layer1_pass::<W, 6>(l1, act, list, first, y),
+                7 => self.layer1_pass::<W, 7>(l1, act, list, first, y),
+                8 => self.layer1_pass::<W, 8>(l1, act, list, first, y),
+                9 => self.layer1_pass::<W, 9>(l1, act, list, first, y),
+                10 => self.layer1_pass::<W, 10>(l1, act, list, first, y),
+                _ => self.layer1_pass::<W, PASS_GROUPS>(l1, act, list, first, y),
             }
             first += PASS_GROUPS;
         }
@@ -228,14 +303,14 @@ impl Avx2Mlp {
     /// Layer 1's outputs `8 * first .. 8 * (first + B)` from the unit pairs in `list`.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn layer1_pass<const B: usize>(
+    unsafe fn layer1_pass<W: Weight, const B: usize>(
         &self,
+        l1: &Pairs<W>,
         act: &[i16],
         list: &[i16],
         first: usize,
         y: &mut [i32],
     ) {
-        let l1 = &self.layer1;
         let mut acc = [_mm256_setzero_si256(); B];
         let base = l1.weights.as_ptr().add(first * ROWS * 2);
         for &q in list {
@@ -247,7 +322,7 @@ impl Avx2Mlp {
             let hv = _mm256_set1_epi32(both as i32);
             let col = base.add(q * l1.outputs * 2);
             for (i, a) in acc.iter_mut().enumerate() {
-                let w = _mm256_loadu_si256(col.add(i * 2 * ROWS).cast());
+                let w = load16(col.add(i * 2 * ROWS));
                 *a = _mm256_add_epi32(*a, _mm256_madd_epi16(w, hv));
             }
         }
@@ -269,14 +344,14 @@ impl Avx2Mlp {
 /// `layer.blocks * 16` readable i16), as one vector of 8 sums.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn rows8(layer: &Layer, g: usize, x: *const i16) -> __m256i {
+unsafe fn rows8<W: Weight>(layer: &Layer<W>, g: usize, x: *const i16) -> __m256i {
     let mut acc = [_mm256_setzero_si256(); ROWS];
     let base = layer.weights.as_ptr().add(g * layer.blocks * ROWS * LANES);
     for b in 0..layer.blocks {
         let xv = _mm256_loadu_si256(x.add(b * LANES).cast());
         let wb = base.add(b * ROWS * LANES);
         for (i, a) in acc.iter_mut().enumerate() {
-            let wv = _mm256_loadu_si256(wb.add(i * LANES).cast());
+            let wv = load16(wb.add(i * LANES));
             *a = _mm256_add_epi32(*a, _mm256_madd_epi16(wv, xv));
         }
     }
@@ -316,7 +391,14 @@ mod tests {
             return;
         }
         super::super::kernel_tests::matches_the_portable_mlp(|m| {
-            Avx2Mlp::new(m).expect("AVX2 present")
+            let k = Avx2Mlp::new(m).expect("AVX2 present");
+            let fits = m.w0.iter().chain(&m.w1).all(|&w| i8::try_from(w).is_ok());
+            assert_eq!(
+                k.narrow(),
+                fits,
+                "i8 storage exactly where every weight fits"
+            );
+            k
         });
     }
 

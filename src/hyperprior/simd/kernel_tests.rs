@@ -43,6 +43,26 @@ impl XorShift {
             _ => (r as i16) >> 4,
         }
     }
+    /// A weight that fits i8 (a stream's `i8` weights, §1.6.2 Table 1-7), its ends included.
+    fn i8(&mut self) -> i16 {
+        let r = self.next();
+        match (r >> 40) % 8 {
+            0 => -128,
+            1 => 127,
+            _ => i16::from(r as i8),
+        }
+    }
+}
+
+/// How [`random_mlp`] draws weights.
+#[derive(Clone, Copy, Debug)]
+enum Weights {
+    /// Mostly small i16.
+    Small,
+    /// i16, sometimes its ends.
+    Extreme,
+    /// Within i8 (kernels may store these in a byte).
+    Narrow,
 }
 
 fn random_mlp(
@@ -51,17 +71,22 @@ fn random_mlp(
     hidden: usize,
     cout: usize,
     shift0: u8,
-    extreme: bool,
+    weights: Weights,
 ) -> IntMlp {
+    let weight = |rng: &mut XorShift| match weights {
+        Weights::Small => rng.i16(false),
+        Weights::Extreme => rng.i16(true),
+        Weights::Narrow => rng.i8(),
+    };
     IntMlp {
         cin,
         hidden,
         cout,
-        w0: (0..hidden * cin).map(|_| rng.i16(extreme)).collect(),
+        w0: (0..hidden * cin).map(|_| weight(rng)).collect(),
         b0: (0..hidden).map(|_| (rng.next() as i32) >> 8).collect(),
         w0_frac_bits: 12,
         shift0,
-        w1: (0..cout * hidden).map(|_| rng.i16(extreme)).collect(),
+        w1: (0..cout * hidden).map(|_| weight(rng)).collect(),
         b1: (0..cout).map(|_| rng.next() as i32).collect(),
         w1_frac_bits: vec![12; cout],
     }
@@ -97,7 +122,8 @@ fn scalar_mlp(m: &IntMlp, x: &[i16]) -> (Vec<i16>, Vec<i32>, Vec<bool>) {
 
 /// The kernel against the scalar definition and the portable path, on random MLPs of
 /// shapes that need every kind of padding (inputs not a multiple of 16 or 8, hidden units not a
-/// multiple of 16 or 8, outputs not a multiple of 8 or 4), every shift, and extreme weights. The
+/// multiple of 16 or 8, outputs not a multiple of 8 or 4), every shift, extreme weights and
+/// weights that fit i8 (which a kernel may store in a byte). The
 /// inputs must reach every branch a wrong kernel could get wrong: hidden units clamped to
 /// 0, saturated at 32767 and in between, and outputs whose sums wrap modulo 2^32; the test
 /// counts them and fails if any kind never occurred. Layer 1 skips pairs of zero units, so
@@ -117,9 +143,10 @@ pub(super) fn matches_the_portable_mlp<K: MlpKernel>(make: impl Fn(&IntMlp) -> K
     let mut seen = [0usize; 8];
     for (cin, hidden, cout) in shapes {
         for shift0 in [0u8, 1, 5, 12, 20, 31] {
-            for extreme in [false, true] {
-                let m = random_mlp(&mut rng, cin, hidden, cout, shift0, extreme);
+            for weights in [Weights::Small, Weights::Extreme, Weights::Narrow] {
+                let m = random_mlp(&mut rng, cin, hidden, cout, shift0, weights);
                 let k = make(&m);
+                let extreme = !matches!(weights, Weights::Small);
                 let mut x = vec![0i16; k.input_len()];
                 let mut hk = vec![0i16; k.hidden_len()];
                 let (mut h, mut y, mut yk) =
