@@ -13,10 +13,10 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
         std::thread::available_parallelism().map_or(0, usize::from),
         if a.smoke { ", smoke" } else { "" }
     );
-    t += "| profile | scene | size | tiles | symbols | bytes | 1 thread s | 2 threads s | size/s 1T | size/s 2T | 2T/1T | bare coder s (untimed symbols) | receive 50 Mbit/s s | decode 2T / receive |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    t += "| profile | scene | size | tiles | symbols | bytes | 1 thread s | 2 threads s | 2 threads again s | size/s 1T | size/s 2T | size/s 2T again | 2T/1T | bare coder s (untimed symbols) | receive 50 Mbit/s s | decode 2T / receive |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         t += &format!(
-            "| {} | {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.3e} | {:.3e} | {:.2} | {} | {:.4} | {:.3} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.3e} | {:.3e} | {:.3e} | {:.2} | {} | {:.4} | {:.3} |\n",
             r.profile,
             r.scene,
             r.size,
@@ -25,8 +25,10 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
             r.bytes,
             r.one,
             r.two,
+            r.two_again,
             r.size as f64 / r.one,
             r.size as f64 / r.two,
+            r.size as f64 / r.two_again,
             r.two_over_one,
             r.floor
                 .map_or("-".into(), |f| format!("{f:.4} ({})", r.floor_outside)),
@@ -36,19 +38,24 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
     }
     let explicit: Vec<&Row> = rows.iter().filter(|r| r.profile == "explicit").collect();
     if !explicit.is_empty() {
-        t += "\nexplicit profile: goal >= 2 M Gaussians/s on 2 threads\n";
+        t += "\nexplicit profile: goal >= 2 M Gaussians/s on 2 threads (after the 1-thread decode; again: the same decoder at once, its threads awake)\n";
+        let verdict = |rate: f64| {
+            if rate >= GOAL_GAUSSIANS_PER_S {
+                "met"
+            } else {
+                "NOT met"
+            }
+        };
         for r in &explicit {
-            let rate = r.size as f64 / r.two;
+            let (rate, again) = (r.size as f64 / r.two, r.size as f64 / r.two_again);
             t += &format!(
-                "  {}: {:.2} M Gaussians/s on 2 threads ({:.2} M on 1): {}\n",
+                "  {}: {:.2} M Gaussians/s on 2 threads ({:.2} M on 1): {}; again {:.2} M: {}\n",
                 r.scene,
                 rate * 1e-6,
                 r.size as f64 / r.one * 1e-6,
-                if rate >= GOAL_GAUSSIANS_PER_S {
-                    "met"
-                } else {
-                    "NOT met"
-                }
+                verdict(rate),
+                again * 1e-6,
+                verdict(again)
             );
         }
     }
@@ -122,13 +129,13 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
 
 pub(crate) fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,wasm_1_worker_s,wasm_2_workers_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
+        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,decode_2t_again_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,wasm_1_worker_s,wasm_2_workers_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6}"));
     for r in rows {
         let p = |i: usize| o(r.peers.map(|p| p[i]));
         s += &format!(
-            "{},{},{},{},{},{},{:.6},{:.6},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{:.6},{:.6},{:.6},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{},{},{}\n",
             r.profile,
             r.scene,
             r.size,
@@ -137,6 +144,7 @@ pub(crate) fn csv(rows: &[Row]) -> String {
             r.bytes,
             r.one,
             r.two,
+            r.two_again,
             r.two_over_one,
             o(r.floor),
             r.floor_outside,
