@@ -11,8 +11,8 @@ pub const WEIGHT_BITS: u32 = 10;
 pub const INPUT_FRAC_BITS: u32 = 8;
 
 /// The hash multipliers of spec §2.4 for the second and third coordinate.
-const PRIME_Y: u32 = 2_654_435_761;
-const PRIME_Z: u32 = 805_459_861;
+pub(crate) const PRIME_Y: u32 = 2_654_435_761;
+pub(crate) const PRIME_Z: u32 = 805_459_861;
 
 /// One level of a grid tensor (spec §2.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,7 +47,7 @@ pub fn levels(res: &[u16], dim: u32, log2: u8) -> Vec<Level> {
 /// The normalized position is p = (2v + 1) / 2^(B+1); p * r splits into the cell
 /// floor(p r) and a fraction, truncated to WEIGHT_BITS bits.
 #[inline]
-fn axis(v: u32, r: u32, coord_bits: u32) -> (u32, u32) {
+pub(crate) fn axis(v: u32, r: u32, coord_bits: u32) -> (u32, u32) {
     let x = (2 * u64::from(v) + 1) * u64::from(r);
     let b = coord_bits + 1;
     let cell = (x >> b) as u32;
@@ -93,7 +93,7 @@ pub struct GridLayout {
 }
 
 /// The three planes of spec §2.4: which coordinates each one takes.
-const PLANES: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+pub(crate) const PLANES: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
 
 impl GridLayout {
     pub fn new(d: &Dims, coord_bits: u8) -> Self {

@@ -3,7 +3,7 @@
 
 use super::grid::GridLayout;
 use super::mlp::IntMlp;
-use super::simd::FastMlp;
+use super::simd::{FastGrid, FastMlp};
 use super::step::{factor_index, BaseStep, STEP_FACTOR};
 use super::threshold_search::ThresholdSearch;
 use crate::entropy::scale::THRESHOLD_Q16;
@@ -46,6 +46,8 @@ pub struct Prior {
     /// The same MLP in the layout of this target's kernel, where it has one (AVX2 on x86-64,
     /// `simd128` on WebAssembly; bit-identical).
     fast: Option<FastMlp>,
+    /// The interpolation kernel where the target has one for this layout.
+    fast_grid: Option<FastGrid>,
     pub steps: [BaseStep; 3],
     /// Output offsets of (mean, scale) per group, and of the three adjustments.
     mean_at: [usize; 3],
@@ -109,6 +111,7 @@ impl Prior {
         } else {
             None
         };
+        let fast_grid = FastGrid::new(&layout);
         let steps = quant.map(|q| BaseStep::new(q.step, gain(q)));
         let (mut deltas, mut thresholds) = (Vec::new(), Vec::new());
         for (g, base) in steps.iter().enumerate() {
@@ -125,6 +128,7 @@ impl Prior {
             layout,
             unit,
             fast,
+            fast_grid,
             frac,
             lift,
             mlp,
@@ -163,6 +167,16 @@ impl Prior {
         self.layout.prefetch(grid, v);
     }
 
+    /// §5.1: the grid features of the anchor at voxel `v` into `x` (length
+    /// `layout.features()`), with this target's kernel where it has one (the same integers
+    /// as [`GridLayout::interpolate`]).
+    pub fn features(&self, grid: &HashGrid, v: [u32; 3], x: &mut [i16]) {
+        match &self.fast_grid {
+            Some(k) => k.interpolate(&self.layout, grid, v, x),
+            None => self.layout.interpolate(grid, v, x),
+        }
+    }
+
     /// [`Prior::eval`] with the outputs written to `y` (length `cout`) instead of `ctx.y`.
     pub fn eval_into(&self, grid: &HashGrid, v: [u32; 3], ctx: &mut AnchorContext, y: &mut [i32]) {
         self.eval_parts(grid, v, &mut ctx.x, &mut ctx.h, y);
@@ -177,7 +191,7 @@ impl Prior {
         y: &mut [i32],
     ) {
         let n = self.layout.features();
-        self.layout.interpolate(grid, v, &mut x[..n]);
+        self.features(grid, v, &mut x[..n]);
         if let Some(k) = &self.fast {
             k.eval(x, h, y);
             return;

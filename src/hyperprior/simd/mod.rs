@@ -16,6 +16,8 @@
 //!   when the CPU has AVX2;
 //! - `wasm::WasmMlp`: the same plan with WebAssembly SIMD (`simd128`), 8 lanes, 4 rows at a
 //!   time, in builds for `wasm32` with that feature (the wasm package's, `.cargo/config.toml`);
+//! - [`grid_avx2::Avx2Grid`]: §5.1's interpolation for grids of 4 channels, a level's
+//!   corners in the lanes of one vector and their entries in one gather;
 //! - [`prefetch`]: a hint to load a hash-grid entry ahead of its use (§5.1's corners are
 //!   scattered over megabytes of tables, and waiting for them was most of the
 //!   interpolation's time). A hint changes no result.
@@ -24,6 +26,8 @@
 
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod avx2;
+#[cfg(all(feature = "simd", target_arch = "x86_64"))]
+pub mod grid_avx2;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod sse2;
 
@@ -70,6 +74,34 @@ impl NoKernel {
         match *self {}
     }
     pub fn eval(&self, _: &[i16], _: &mut [i16], _: &mut [i32]) {
+        match *self {}
+    }
+}
+
+/// The hash-grid interpolation kernel of this target (`grid_avx2::Avx2Grid` on x86-64), or
+/// one that is never made ([`NoGrid`]).
+#[cfg(all(feature = "simd", target_arch = "x86_64"))]
+pub use grid_avx2::Avx2Grid as FastGrid;
+#[cfg(not(all(feature = "simd", target_arch = "x86_64")))]
+pub use NoGrid as FastGrid;
+
+/// No grid kernel: [`NoGrid::new`] never makes one, so the scalar loop always runs.
+#[derive(Debug, Clone)]
+pub enum NoGrid {}
+
+#[allow(dead_code)]
+impl NoGrid {
+    /// None.
+    pub fn new(_: &super::grid::GridLayout) -> Option<NoGrid> {
+        None
+    }
+    pub fn interpolate(
+        &self,
+        _: &super::grid::GridLayout,
+        _: &crate::model::HashGrid,
+        _: [u32; 3],
+        _: &mut [i16],
+    ) {
         match *self {}
     }
 }

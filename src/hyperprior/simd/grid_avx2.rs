@@ -1,0 +1,346 @@
+//! §5.1's hash-grid interpolation with AVX2, for grids of C = 4 channels (HAC's).
+//!
+//! A 3D level's 8 corners are the 8 lanes of one vector: their entries (§2.4's hash or dense
+//! index) in a few vector operations, their 4 channels in one gather (an entry's 4 i8 values
+//! are one i32), their weights in two multiplications. A 2D level's 4 corners are the 4 lanes
+//! of a 128-bit vector, the same way.
+//!
+//! The sums: grid values are −1 or +1 (§2.4; `read_grid` and the model's validation give
+//! nothing else), and a level's corner weights add up to exactly 2^30 (3D) or 2^20 (2D), so
+//! `Σ w · g = 2^30 − 2 · Σ_{g < 0} w`: the sum of the weights whose value is negative, taken
+//! with a sign mask per channel, gives the same integer as the products, bit for bit.
+//!
+//! Why: the scalar loop spent most of its time on the 144 corners' index and weight
+//! arithmetic, one corner at a time (about 14 % of a generated 100 k-anchor decode on one
+//! thread; docs/speed, sixteenth session).
+
+use std::arch::x86_64::{
+    __m128i, __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_blend_epi32,
+    _mm256_castsi256_si128, _mm256_extracti128_si256, _mm256_hadd_epi32, _mm256_i32gather_epi32,
+    _mm256_min_epu32, _mm256_mullo_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_slli_epi32,
+    _mm256_srai_epi32, _mm256_xor_si256, _mm_add_epi32, _mm_and_si128, _mm_blend_epi32,
+    _mm_hadd_epi32, _mm_i32gather_epi32, _mm_min_epu32, _mm_mullo_epi32, _mm_packs_epi32,
+    _mm_set1_epi32, _mm_setr_epi32, _mm_slli_epi32, _mm_srai_epi32, _mm_storel_epi64,
+    _mm_sub_epi32, _mm_xor_si128,
+};
+
+use crate::hyperprior::grid::{axis, GridLayout, Level, PLANES, PRIME_Y, PRIME_Z, WEIGHT_BITS};
+use crate::model::HashGrid;
+
+/// Channels per entry the kernel handles (one i32 per entry).
+const CHANNELS: usize = 4;
+
+/// The kernel. Only [`Avx2Grid::new`] makes one: on a CPU with AVX2, for a layout of 4
+/// channels whose entries i32 indices reach.
+#[derive(Debug, Clone)]
+pub struct Avx2Grid {
+    _private: (),
+}
+
+/// Entries of a level (§2.4): (res + 1)^dim when dense, 2^T when hashed.
+fn entries(l: &Level, dim: u32) -> u64 {
+    if l.dense {
+        (u64::from(l.res) + 1).saturating_pow(dim)
+    } else {
+        u64::from(l.mask) + 1
+    }
+}
+
+impl Avx2Grid {
+    /// The kernel for `layout`, or `None` (the scalar loop then runs).
+    pub fn new(layout: &GridLayout) -> Option<Avx2Grid> {
+        if !std::arch::is_x86_feature_detected!("avx2") || layout.channels != CHANNELS {
+            return None;
+        }
+        // Every entry index of every tensor fits a non-negative i32 (the gathers' indices).
+        let fits = |levels: &[Level], dim: u32| {
+            levels
+                .iter()
+                .all(|l| l.offset + entries(l, dim) <= i32::MAX as u64)
+        };
+        (fits(&layout.l3, 3) && fits(&layout.l2, 2)).then_some(Avx2Grid { _private: () })
+    }
+
+    /// [`GridLayout::interpolate`] for a grid of ±1 values: the same features.
+    pub fn interpolate(&self, layout: &GridLayout, g: &HashGrid, v: [u32; 3], out: &mut [i16]) {
+        let tensors = [&g.grid_3d, &g.grid_xy, &g.grid_xz, &g.grid_yz];
+        let features = CHANNELS * (layout.l3.len() + PLANES.len() * layout.l2.len());
+        if out.len() < features
+            || tensors
+                .iter()
+                .any(|t| t.len() < CHANNELS || t.len() / CHANNELS > i32::MAX as usize)
+        {
+            // Not a grid for this layout: the scalar loop reports it as it does.
+            return layout.interpolate(g, v, out);
+        }
+        // SAFETY: `new` made this kernel only after detecting AVX2; `out` holds every
+        // feature; each tensor holds at least one entry and its entry count fits i32, so the
+        // clamped gathers stay inside it.
+        unsafe { interpolate_avx2(layout, tensors, v, out) }
+    }
+}
+
+/// The last entry of a tensor of at least one entry (as an unsigned lane bound).
+fn last_entry(t: &[i8]) -> i32 {
+    (t.len() / CHANNELS - 1) as i32
+}
+
+/// The entries of the 8 corners of 3D level `l` whose cell is `(cx, cy, cz)`, corner `c`
+/// at (c & 1, c >> 1 & 1, c >> 2) from it, each at most `top`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn entries3(l: &Level, cx: u32, cy: u32, cz: u32, top: __m256i) -> __m256i {
+    let i = _mm256_add_epi32(
+        _mm256_set1_epi32(cx as i32),
+        _mm256_setr_epi32(0, 1, 0, 1, 0, 1, 0, 1),
+    );
+    let j = _mm256_add_epi32(
+        _mm256_set1_epi32(cy as i32),
+        _mm256_setr_epi32(0, 0, 1, 1, 0, 0, 1, 1),
+    );
+    let k = _mm256_add_epi32(
+        _mm256_set1_epi32(cz as i32),
+        _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1),
+    );
+    // §2.4, modulo 2^32 like the scalar index (exact where dense: the level's entries fit
+    // i32, checked in `new`).
+    let local = if l.dense {
+        let n = l.res.wrapping_add(1);
+        _mm256_add_epi32(
+            i,
+            _mm256_add_epi32(
+                _mm256_mullo_epi32(j, _mm256_set1_epi32(n as i32)),
+                _mm256_mullo_epi32(k, _mm256_set1_epi32(n.wrapping_mul(n) as i32)),
+            ),
+        )
+    } else {
+        _mm256_and_si256(
+            _mm256_xor_si256(
+                i,
+                _mm256_xor_si256(
+                    _mm256_mullo_epi32(j, _mm256_set1_epi32(PRIME_Y as i32)),
+                    _mm256_mullo_epi32(k, _mm256_set1_epi32(PRIME_Z as i32)),
+                ),
+            ),
+            _mm256_set1_epi32(l.mask as i32),
+        )
+    };
+    // Clamped into the tensor (a no-op for a grid of this layout: memory safety alone).
+    _mm256_min_epu32(
+        _mm256_add_epi32(local, _mm256_set1_epi32(l.offset as i32)),
+        top,
+    )
+}
+
+/// The entries of the 4 corners of 2D level `l` whose cell is `(ci, cj)`, corner `c` at
+/// (c & 1, c >> 1) from it, each at most `top`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn entries2(l: &Level, ci: u32, cj: u32, top: __m128i) -> __m128i {
+    let i = _mm_add_epi32(_mm_set1_epi32(ci as i32), _mm_setr_epi32(0, 1, 0, 1));
+    let j = _mm_add_epi32(_mm_set1_epi32(cj as i32), _mm_setr_epi32(0, 0, 1, 1));
+    let local = if l.dense {
+        let n = l.res.wrapping_add(1);
+        _mm_add_epi32(i, _mm_mullo_epi32(j, _mm_set1_epi32(n as i32)))
+    } else {
+        _mm_and_si128(
+            _mm_xor_si128(i, _mm_mullo_epi32(j, _mm_set1_epi32(PRIME_Y as i32))),
+            _mm_set1_epi32(l.mask as i32),
+        )
+    };
+    _mm_min_epu32(_mm_add_epi32(local, _mm_set1_epi32(l.offset as i32)), top)
+}
+
+#[target_feature(enable = "avx2")]
+unsafe fn interpolate_avx2(
+    layout: &GridLayout,
+    tensors: [&Vec<i8>; 4],
+    v: [u32; 3],
+    out: &mut [i16],
+) {
+    let one = 1i32 << WEIGHT_BITS;
+    let bits = layout.coord_bits;
+    let mut at = 0;
+    let base = tensors[0].as_ptr().cast::<i32>();
+    let top = _mm256_set1_epi32(last_entry(tensors[0]));
+    for l in &layout.l3 {
+        let (cx, wx) = axis(v[0], l.res, bits);
+        let (cy, wy) = axis(v[1], l.res, bits);
+        let (cz, wz) = axis(v[2], l.res, bits);
+        let entry = entries3(l, cx, cy, cz, top);
+        let values = _mm256_i32gather_epi32::<4>(base, entry);
+        let w = _mm256_mullo_epi32(
+            _mm256_mullo_epi32(
+                _mm256_blend_epi32::<0b1010_1010>(
+                    _mm256_set1_epi32(one - wx as i32),
+                    _mm256_set1_epi32(wx as i32),
+                ),
+                _mm256_blend_epi32::<0b1100_1100>(
+                    _mm256_set1_epi32(one - wy as i32),
+                    _mm256_set1_epi32(wy as i32),
+                ),
+            ),
+            _mm256_blend_epi32::<0b1111_0000>(
+                _mm256_set1_epi32(one - wz as i32),
+                _mm256_set1_epi32(wz as i32),
+            ),
+        );
+        let negative = negative_sums8(w, values);
+        // §5.1 step 3: A = 2^30 − 2 S, rounded to units of 2^-8 (shift 3 · 10 − 8 = 22).
+        let a = _mm_sub_epi32(_mm_set1_epi32(1 << 30), _mm_slli_epi32::<1>(negative));
+        let q = _mm_srai_epi32::<22>(_mm_add_epi32(a, _mm_set1_epi32(1 << 21)));
+        store4(out, at, q);
+        at += CHANNELS;
+    }
+    for (&(pa, pb), tensor) in PLANES.iter().zip(&tensors[1..]) {
+        let base = tensor.as_ptr().cast::<i32>();
+        let top = _mm_set1_epi32(last_entry(tensor));
+        for l in &layout.l2 {
+            let (ci, wi) = axis(v[pa], l.res, bits);
+            let (cj, wj) = axis(v[pb], l.res, bits);
+            let entry = entries2(l, ci, cj, top);
+            let values = _mm_i32gather_epi32::<4>(base, entry);
+            let w = _mm_mullo_epi32(
+                _mm_blend_epi32::<0b1010>(
+                    _mm_set1_epi32(one - wi as i32),
+                    _mm_set1_epi32(wi as i32),
+                ),
+                _mm_blend_epi32::<0b1100>(
+                    _mm_set1_epi32(one - wj as i32),
+                    _mm_set1_epi32(wj as i32),
+                ),
+            );
+            let negative = negative_sums4(w, values);
+            // A = 2^20 − 2 S, rounded to units of 2^-8 (shift 2 · 10 − 8 = 12).
+            let a = _mm_sub_epi32(_mm_set1_epi32(1 << 20), _mm_slli_epi32::<1>(negative));
+            let q = _mm_srai_epi32::<12>(_mm_add_epi32(a, _mm_set1_epi32(1 << 11)));
+            store4(out, at, q);
+            at += CHANNELS;
+        }
+    }
+}
+
+/// For each channel c (byte c of each lane's entry), the sum of the 8 lanes' weights whose
+/// value is negative: `[S0, S1, S2, S3]`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn negative_sums8(w: __m256i, values: __m256i) -> __m128i {
+    // A channel's byte moved to the top, then its sign spread over the lane.
+    let m0 = _mm256_srai_epi32::<31>(_mm256_slli_epi32::<24>(values));
+    let m1 = _mm256_srai_epi32::<31>(_mm256_slli_epi32::<16>(values));
+    let m2 = _mm256_srai_epi32::<31>(_mm256_slli_epi32::<8>(values));
+    let m3 = _mm256_srai_epi32::<31>(values);
+    let s01 = _mm256_hadd_epi32(_mm256_and_si256(w, m0), _mm256_and_si256(w, m1));
+    let s23 = _mm256_hadd_epi32(_mm256_and_si256(w, m2), _mm256_and_si256(w, m3));
+    // Each 128-bit half now holds the channels' sums over its 4 lanes.
+    let s = _mm256_hadd_epi32(s01, s23);
+    _mm_add_epi32(_mm256_castsi256_si128(s), _mm256_extracti128_si256::<1>(s))
+}
+
+/// [`negative_sums8`] over 4 lanes.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn negative_sums4(w: __m128i, values: __m128i) -> __m128i {
+    let m0 = _mm_srai_epi32::<31>(_mm_slli_epi32::<24>(values));
+    let m1 = _mm_srai_epi32::<31>(_mm_slli_epi32::<16>(values));
+    let m2 = _mm_srai_epi32::<31>(_mm_slli_epi32::<8>(values));
+    let m3 = _mm_srai_epi32::<31>(values);
+    let s01 = _mm_hadd_epi32(_mm_and_si128(w, m0), _mm_and_si128(w, m1));
+    let s23 = _mm_hadd_epi32(_mm_and_si128(w, m2), _mm_and_si128(w, m3));
+    _mm_hadd_epi32(s01, s23)
+}
+
+/// The 4 lanes of `q` (each within ±256) as i16 at `out[at..at + 4]`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn store4(out: &mut [i16], at: usize, q: __m128i) {
+    let dst = &mut out[at..at + CHANNELS];
+    _mm_storel_epi64(dst.as_mut_ptr().cast::<__m128i>(), _mm_packs_epi32(q, q));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{Dims, LatticeKind};
+
+    /// The kernel against the scalar loop on random ±1 grids, voxels over the whole range
+    /// (both ends included), hashed and dense levels, 2D and 3D.
+    #[test]
+    fn matches_the_scalar_interpolation() {
+        if !super::super::avx2_or_skip(
+            "hyperprior::simd::grid_avx2::tests::matches_the_scalar_interpolation",
+        ) {
+            return;
+        }
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let (mut dense, mut hashed) = (0, 0);
+        for (coord_bits, log2_3d, log2_2d) in
+            [(9u8, 13u8, 15u8), (1, 4, 4), (16, 10, 12), (21, 19, 19)]
+        {
+            let d = Dims {
+                anchors: 1,
+                feat_dim: 50,
+                offsets: 10,
+                scaling_dim: 6,
+                rates: 1,
+                grid_channels: 4,
+                res_3d: vec![18, 24, 33, 44, 59, 80, 108, 148, 201, 275, 376, 514],
+                res_2d: vec![130, 258, 514, 1026],
+                log2_size_3d: log2_3d,
+                log2_size_2d: log2_2d,
+                context_hidden: 32,
+                scaffold_hidden: 50,
+                view_dims: 3,
+                feat_lattice: LatticeKind::Identity,
+                scaling_lattice: LatticeKind::Identity,
+                feat_regions: 1,
+                scaling_regions: 1,
+            };
+            let layout = GridLayout::new(&d, coord_bits);
+            let k = Avx2Grid::new(&layout).expect("4 channels, AVX2");
+            for l in layout.l3.iter().chain(&layout.l2) {
+                if l.dense {
+                    dense += 1;
+                } else {
+                    hashed += 1;
+                }
+            }
+            let mut tensor = |n: u64| -> Vec<i8> {
+                (0..n * 4)
+                    .map(|_| if next() & 1 == 1 { 1 } else { -1 })
+                    .collect()
+            };
+            let grid = HashGrid {
+                grid_3d: tensor(d.entries_3d()),
+                grid_xy: tensor(d.entries_2d()),
+                grid_xz: tensor(d.entries_2d()),
+                grid_yz: tensor(d.entries_2d()),
+            };
+            let top = (1u64 << coord_bits) - 1;
+            let (mut want, mut got) =
+                (vec![0i16; layout.features()], vec![0i16; layout.features()]);
+            for n in 0..400 {
+                let r = next();
+                let pick = |s: u32| match n % 4 {
+                    0 => 0,
+                    1 => top as u32,
+                    _ => ((r >> s) % (top + 1)) as u32,
+                };
+                let v = [pick(0), pick(21), pick(42)];
+                layout.interpolate(&grid, v, &mut want);
+                k.interpolate(&layout, &grid, v, &mut got);
+                assert_eq!(got, want, "voxel {v:?}, coord_bits {coord_bits}");
+            }
+        }
+        assert!(
+            dense > 0 && hashed > 0,
+            "levels: {dense} dense, {hashed} hashed"
+        );
+    }
+}
