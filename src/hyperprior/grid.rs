@@ -1,8 +1,6 @@
 //! Hash-grid interpolation in integer arithmetic (spec §5.1) and the set of grid entries that
 //! some anchor touches (§5.2).
 
-use crate::par::*;
-
 use crate::model::{level_entries, Dims, HashGrid};
 
 /// Bits of each per-axis interpolation weight (spec §5.1): weights are in units of 2^-10.
@@ -231,40 +229,13 @@ impl GridLayout {
         }
     }
 
-    /// §5.2: which entries of each grid tensor (3D, xy, xz, yz) some anchor touches. The
-    /// anchors are split among the threads and the sets merged: the result is the same for
-    /// every thread count.
-    pub fn touched(&self, voxels: &[[u32; 3]], entries_3d: u64, entries_2d: u64) -> [Vec<bool>; 4] {
-        let empty = || {
-            [
-                vec![false; entries_3d as usize],
-                vec![false; entries_2d as usize],
-                vec![false; entries_2d as usize],
-                vec![false; entries_2d as usize],
-            ]
-        };
-        let mark = |voxels: &[[u32; 3]]| {
-            let mut t = empty();
-            for &v in voxels {
-                self.corners3(v, |_, e, _| t[0][e as usize] = true);
-                self.corners2(v, |pi, _, e, _| t[pi + 1][e as usize] = true);
-            }
-            t
-        };
-        // One part per thread (each part costs a set of flags), but small inputs stay whole.
-        let part = voxels.len().div_ceil(current_num_threads()).max(16_384);
-        voxels
-            .par_chunks(part.max(1))
-            .map(mark)
-            .reduce_with(|mut a, b| {
-                for (x, y) in a.iter_mut().zip(b) {
-                    for (p, q) in x.iter_mut().zip(y) {
-                        *p |= q;
-                    }
-                }
-                a
-            })
-            .unwrap_or_else(empty)
+    /// §5.2: marks in `flags` (the 3D, xy, xz and yz tensors' entries) every entry a corner
+    /// of some voxel in `voxels` has.
+    pub fn mark_touched(&self, voxels: &[[u32; 3]], flags: &mut [Vec<bool>; 4]) {
+        for &v in voxels {
+            self.corners3(v, |_, e, _| flags[0][e as usize] = true);
+            self.corners2(v, |pi, _, e, _| flags[pi + 1][e as usize] = true);
+        }
     }
 }
 

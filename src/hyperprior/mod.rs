@@ -12,6 +12,7 @@ pub mod step;
 #[cfg(test)]
 mod test_scene;
 mod threshold_search;
+mod touched;
 
 pub use grid::GridLayout;
 pub use mlp::IntMlp;

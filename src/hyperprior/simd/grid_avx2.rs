@@ -18,10 +18,10 @@ use std::arch::x86_64::{
     __m128i, __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_blend_epi32,
     _mm256_castsi256_si128, _mm256_extracti128_si256, _mm256_hadd_epi32, _mm256_i32gather_epi32,
     _mm256_min_epu32, _mm256_mullo_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_slli_epi32,
-    _mm256_srai_epi32, _mm256_xor_si256, _mm_add_epi32, _mm_and_si128, _mm_blend_epi32,
-    _mm_hadd_epi32, _mm_i32gather_epi32, _mm_min_epu32, _mm_mullo_epi32, _mm_packs_epi32,
-    _mm_set1_epi32, _mm_setr_epi32, _mm_slli_epi32, _mm_srai_epi32, _mm_storel_epi64,
-    _mm_sub_epi32, _mm_xor_si128,
+    _mm256_srai_epi32, _mm256_storeu_si256, _mm256_xor_si256, _mm_add_epi32, _mm_and_si128,
+    _mm_blend_epi32, _mm_hadd_epi32, _mm_i32gather_epi32, _mm_min_epu32, _mm_mullo_epi32,
+    _mm_packs_epi32, _mm_set1_epi32, _mm_setr_epi32, _mm_slli_epi32, _mm_srai_epi32,
+    _mm_storel_epi64, _mm_storeu_si128, _mm_sub_epi32, _mm_xor_si128,
 };
 
 use crate::hyperprior::grid::{axis, GridLayout, Level, PLANES, PRIME_Y, PRIME_Z, WEIGHT_BITS};
@@ -59,6 +59,24 @@ impl Avx2Grid {
                 .all(|l| l.offset + entries(l, dim) <= i32::MAX as u64)
         };
         (fits(&layout.l3, 3) && fits(&layout.l2, 2)).then_some(Avx2Grid { _private: () })
+    }
+
+    /// §5.2: marks in `flags` (the 3D, xy, xz and yz tensors' entries) every entry a corner
+    /// of some voxel in `voxels` has, as [`GridLayout::mark_touched`] does.
+    pub fn mark_touched(
+        &self,
+        layout: &GridLayout,
+        voxels: &[[u32; 3]],
+        flags: &mut [Vec<bool>; 4],
+    ) {
+        if flags
+            .iter()
+            .any(|f| f.is_empty() || f.len() > i32::MAX as usize)
+        {
+            return layout.mark_touched(voxels, flags);
+        }
+        // SAFETY: `new` made this kernel only after detecting AVX2.
+        unsafe { mark_avx2(layout, voxels, flags) }
     }
 
     /// [`GridLayout::interpolate`] for a grid of ±1 values: the same features.
@@ -220,6 +238,36 @@ unsafe fn interpolate_avx2(
     }
 }
 
+#[target_feature(enable = "avx2")]
+unsafe fn mark_avx2(layout: &GridLayout, voxels: &[[u32; 3]], flags: &mut [Vec<bool>; 4]) {
+    let bits = layout.coord_bits;
+    let mut lanes = [0u32; 8];
+    // The lanes are clamped to the last flag, so the indexing below never fails.
+    let top3 = _mm256_set1_epi32(flags[0].len() as i32 - 1);
+    let top2 = [1, 2, 3].map(|p| _mm_set1_epi32(flags[p].len() as i32 - 1));
+    for &v in voxels {
+        for l in &layout.l3 {
+            let (cx, _) = axis(v[0], l.res, bits);
+            let (cy, _) = axis(v[1], l.res, bits);
+            let (cz, _) = axis(v[2], l.res, bits);
+            _mm256_storeu_si256(lanes.as_mut_ptr().cast(), entries3(l, cx, cy, cz, top3));
+            for &e in &lanes {
+                flags[0][e as usize] = true;
+            }
+        }
+        for (p, &(pa, pb)) in PLANES.iter().enumerate() {
+            for l in &layout.l2 {
+                let (ci, _) = axis(v[pa], l.res, bits);
+                let (cj, _) = axis(v[pb], l.res, bits);
+                _mm_storeu_si128(lanes.as_mut_ptr().cast(), entries2(l, ci, cj, top2[p]));
+                for &e in &lanes[..4] {
+                    flags[p + 1][e as usize] = true;
+                }
+            }
+        }
+    }
+}
+
 /// For each channel c (byte c of each lane's entry), the sum of the 8 lanes' weights whose
 /// value is negative: `[S0, S1, S2, S3]`.
 #[inline]
@@ -263,6 +311,29 @@ mod tests {
     use super::*;
     use crate::model::{Dims, LatticeKind};
 
+    /// HAC's grid levels (C = 4) with the given table sizes.
+    fn hac_dims(log2_size_3d: u8, log2_size_2d: u8) -> Dims {
+        Dims {
+            anchors: 1,
+            feat_dim: 50,
+            offsets: 10,
+            scaling_dim: 6,
+            rates: 1,
+            grid_channels: 4,
+            res_3d: vec![18, 24, 33, 44, 59, 80, 108, 148, 201, 275, 376, 514],
+            res_2d: vec![130, 258, 514, 1026],
+            log2_size_3d,
+            log2_size_2d,
+            context_hidden: 32,
+            scaffold_hidden: 50,
+            view_dims: 3,
+            feat_lattice: LatticeKind::Identity,
+            scaling_lattice: LatticeKind::Identity,
+            feat_regions: 1,
+            scaling_regions: 1,
+        }
+    }
+
     /// The kernel against the scalar loop on random ±1 grids, voxels over the whole range
     /// (both ends included), hashed and dense levels, 2D and 3D.
     #[test]
@@ -283,25 +354,7 @@ mod tests {
         for (coord_bits, log2_3d, log2_2d) in
             [(9u8, 13u8, 15u8), (1, 4, 4), (16, 10, 12), (21, 19, 19)]
         {
-            let d = Dims {
-                anchors: 1,
-                feat_dim: 50,
-                offsets: 10,
-                scaling_dim: 6,
-                rates: 1,
-                grid_channels: 4,
-                res_3d: vec![18, 24, 33, 44, 59, 80, 108, 148, 201, 275, 376, 514],
-                res_2d: vec![130, 258, 514, 1026],
-                log2_size_3d: log2_3d,
-                log2_size_2d: log2_2d,
-                context_hidden: 32,
-                scaffold_hidden: 50,
-                view_dims: 3,
-                feat_lattice: LatticeKind::Identity,
-                scaling_lattice: LatticeKind::Identity,
-                feat_regions: 1,
-                scaling_regions: 1,
-            };
+            let d = hac_dims(log2_3d, log2_2d);
             let layout = GridLayout::new(&d, coord_bits);
             let k = Avx2Grid::new(&layout).expect("4 channels, AVX2");
             for l in layout.l3.iter().chain(&layout.l2) {
@@ -342,5 +395,53 @@ mod tests {
             dense > 0 && hashed > 0,
             "levels: {dense} dense, {hashed} hashed"
         );
+    }
+
+    /// The kernel's touched entries (§5.2) against the scalar marking, on the same layouts.
+    #[test]
+    fn marks_the_scalar_touched_entries() {
+        if !super::super::avx2_or_skip(
+            "hyperprior::simd::grid_avx2::tests::marks_the_scalar_touched_entries",
+        ) {
+            return;
+        }
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for (coord_bits, log2_3d, log2_2d) in [(9u8, 13u8, 15u8), (1, 4, 4), (16, 10, 12)] {
+            let d = hac_dims(log2_3d, log2_2d);
+            let layout = GridLayout::new(&d, coord_bits);
+            let k = Avx2Grid::new(&layout).expect("4 channels, AVX2");
+            let top = (1u64 << coord_bits) - 1;
+            let voxels: Vec<[u32; 3]> = (0..300)
+                .map(|n| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    let r = state;
+                    let pick = |s: u32| match n % 4 {
+                        0 => 0,
+                        1 => top as u32,
+                        _ => ((r >> s) % (top + 1)) as u32,
+                    };
+                    [pick(0), pick(21), pick(42)]
+                })
+                .collect();
+            let empty = || {
+                [
+                    d.entries_3d(),
+                    d.entries_2d(),
+                    d.entries_2d(),
+                    d.entries_2d(),
+                ]
+                .map(|n| vec![false; n as usize])
+            };
+            let (mut want, mut got) = (empty(), empty());
+            layout.mark_touched(&voxels, &mut want);
+            k.mark_touched(&layout, &voxels, &mut got);
+            assert!(
+                want.iter().all(|f| f.contains(&true)),
+                "some entries marked"
+            );
+            assert_eq!(got, want, "coord_bits {coord_bits}");
+        }
     }
 }

@@ -104,6 +104,14 @@ impl NoGrid {
     ) {
         match *self {}
     }
+    pub fn mark_touched(
+        &self,
+        _: &super::grid::GridLayout,
+        _: &[[u32; 3]],
+        _: &mut [Vec<bool>; 4],
+    ) {
+        match *self {}
+    }
 }
 
 /// Asks the CPU to bring the cache line of `data[index]` into its caches, where the index is
