@@ -51,8 +51,9 @@
 //! the rule broken and its spec section, and [`Limits`] are checked against the preflight
 //! before anything is allocated.
 
-// No unsafe code, except the one measured hot path that is isolated and justified in
-// `hyperprior::simd` (the context MLP's i16 dot products with SSE2 and AVX2).
+// No unsafe code, except the measured hot paths that are isolated and justified in
+// `hyperprior::simd` (the context MLP's i16 dot products with SSE2 and AVX2, and the
+// hash-grid corners with AVX2).
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 

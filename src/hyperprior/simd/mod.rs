@@ -1,5 +1,6 @@
 //! The one place with `unsafe` code: the context MLP (spec §5.3) with x86-64 SIMD (and the
-//! same kernel with WebAssembly SIMD, which needs none).
+//! same kernel with WebAssembly SIMD, which needs none), and the hash-grid corners (§5.1,
+//! §5.2) with AVX2.
 //!
 //! Why: the context MLP is 365 multiply-adds per coded symbol and dominates decoding time
 //! (`cargo bench --bench decode_throughput`); the compiler does not turn the safe loops into
