@@ -28,6 +28,52 @@ impl Rng {
     }
 }
 
+/// Test dimensions with these grid levels (`log2`: the 3D and 2D table sizes) and HAC's
+/// attribute widths.
+pub fn dims(
+    anchors: u32,
+    grid_channels: u8,
+    res_3d: Vec<u16>,
+    res_2d: Vec<u16>,
+    (log2_size_3d, log2_size_2d): (u8, u8),
+) -> Dims {
+    Dims {
+        anchors,
+        feat_dim: 50,
+        offsets: 10,
+        scaling_dim: 6,
+        rates: 1,
+        grid_channels,
+        res_3d,
+        res_2d,
+        log2_size_3d,
+        log2_size_2d,
+        context_hidden: 32,
+        scaffold_hidden: 50,
+        view_dims: 3,
+        feat_lattice: LatticeKind::Identity,
+        scaling_lattice: LatticeKind::Identity,
+        feat_regions: 1,
+        scaling_regions: 1,
+    }
+}
+
+/// A hash grid of `d`'s shape with pseudo-random ±1 values.
+pub fn random_grid(rng: &mut Rng, d: &Dims) -> HashGrid {
+    let c = usize::from(d.grid_channels);
+    let mut plane = |n: u64| -> Vec<i8> {
+        (0..n as usize * c)
+            .map(|_| if rng.next() & 1 == 1 { 1 } else { -1 })
+            .collect()
+    };
+    HashGrid {
+        grid_3d: plane(d.entries_3d()),
+        grid_xy: plane(d.entries_2d()),
+        grid_xz: plane(d.entries_2d()),
+        grid_yz: plane(d.entries_2d()),
+    }
+}
+
 pub struct TestScene {
     pub dims: Dims,
     pub coord_bits: u8,
@@ -39,38 +85,15 @@ pub struct TestScene {
 impl TestScene {
     /// `anchors` random voxels in a 2^coord_bits cube, HAC's grid levels.
     pub fn new(anchors: u32, seed: u64) -> TestScene {
-        let dims = Dims {
+        let dims = dims(
             anchors,
-            feat_dim: 50,
-            offsets: 10,
-            scaling_dim: 6,
-            rates: 1,
-            grid_channels: 2,
-            res_3d: vec![12, 25, 50, 100, 200, 400],
-            res_2d: vec![12, 25, 50, 100, 200, 400, 800],
-            log2_size_3d: 13,
-            log2_size_2d: 15,
-            context_hidden: 32,
-            scaffold_hidden: 50,
-            view_dims: 3,
-            feat_lattice: LatticeKind::Identity,
-            scaling_lattice: LatticeKind::Identity,
-            feat_regions: 1,
-            scaling_regions: 1,
-        };
+            2,
+            vec![12, 25, 50, 100, 200, 400],
+            vec![12, 25, 50, 100, 200, 400, 800],
+            (13, 15),
+        );
         let mut rng = Rng::new(seed);
-        let c = usize::from(dims.grid_channels);
-        let mut plane = |n: u64| -> Vec<i8> {
-            (0..n as usize * c)
-                .map(|_| if rng.next() & 1 == 1 { 1 } else { -1 })
-                .collect()
-        };
-        let grid = HashGrid {
-            grid_3d: plane(dims.entries_3d()),
-            grid_xy: plane(dims.entries_2d()),
-            grid_xz: plane(dims.entries_2d()),
-            grid_yz: plane(dims.entries_2d()),
-        };
+        let grid = random_grid(&mut rng, &dims);
         let coord_bits = 12;
         let voxels = (0..anchors)
             .map(|_| [0; 3].map(|_: u32| rng.range(0, (1 << coord_bits) - 1) as u32))

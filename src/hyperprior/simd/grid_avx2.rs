@@ -309,29 +309,26 @@ unsafe fn store4(out: &mut [i16], at: usize, q: __m128i) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{Dims, LatticeKind};
+    use crate::hyperprior::test_scene::{dims, random_grid, Rng};
+    use crate::model::Dims;
 
     /// HAC's grid levels (C = 4) with the given table sizes.
-    fn hac_dims(log2_size_3d: u8, log2_size_2d: u8) -> Dims {
-        Dims {
-            anchors: 1,
-            feat_dim: 50,
-            offsets: 10,
-            scaling_dim: 6,
-            rates: 1,
-            grid_channels: 4,
-            res_3d: vec![18, 24, 33, 44, 59, 80, 108, 148, 201, 275, 376, 514],
-            res_2d: vec![130, 258, 514, 1026],
-            log2_size_3d,
-            log2_size_2d,
-            context_hidden: 32,
-            scaffold_hidden: 50,
-            view_dims: 3,
-            feat_lattice: LatticeKind::Identity,
-            scaling_lattice: LatticeKind::Identity,
-            feat_regions: 1,
-            scaling_regions: 1,
-        }
+    fn hac_dims(log2_3d: u8, log2_2d: u8) -> Dims {
+        let res_3d = vec![18, 24, 33, 44, 59, 80, 108, 148, 201, 275, 376, 514];
+        dims(1, 4, res_3d, vec![130, 258, 514, 1026], (log2_3d, log2_2d))
+    }
+
+    /// Voxels in a 2^coord_bits cube: every fourth at the origin, every fourth at the far
+    /// corner, the rest random.
+    fn voxels(rng: &mut Rng, coord_bits: u8, n: usize) -> Vec<[u32; 3]> {
+        let top = (1u64 << coord_bits) - 1;
+        (0..n)
+            .map(|i| match i % 4 {
+                0 => [0; 3],
+                1 => [top as u32; 3],
+                _ => [0; 3].map(|_| (rng.next() % (top + 1)) as u32),
+            })
+            .collect()
     }
 
     /// The kernel against the scalar loop on random ±1 grids, voxels over the whole range
@@ -343,13 +340,7 @@ mod tests {
         ) {
             return;
         }
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut rng = Rng::new(0x2545_f491_4f6c_dd1d);
         let (mut dense, mut hashed) = (0, 0);
         for (coord_bits, log2_3d, log2_2d) in
             [(9u8, 13u8, 15u8), (1, 4, 4), (16, 10, 12), (21, 19, 19)]
@@ -364,28 +355,10 @@ mod tests {
                     hashed += 1;
                 }
             }
-            let mut tensor = |n: u64| -> Vec<i8> {
-                (0..n * 4)
-                    .map(|_| if next() & 1 == 1 { 1 } else { -1 })
-                    .collect()
-            };
-            let grid = HashGrid {
-                grid_3d: tensor(d.entries_3d()),
-                grid_xy: tensor(d.entries_2d()),
-                grid_xz: tensor(d.entries_2d()),
-                grid_yz: tensor(d.entries_2d()),
-            };
-            let top = (1u64 << coord_bits) - 1;
+            let grid = random_grid(&mut rng, &d);
             let (mut want, mut got) =
                 (vec![0i16; layout.features()], vec![0i16; layout.features()]);
-            for n in 0..400 {
-                let r = next();
-                let pick = |s: u32| match n % 4 {
-                    0 => 0,
-                    1 => top as u32,
-                    _ => ((r >> s) % (top + 1)) as u32,
-                };
-                let v = [pick(0), pick(21), pick(42)];
+            for v in voxels(&mut rng, coord_bits, 400) {
                 layout.interpolate(&grid, v, &mut want);
                 k.interpolate(&layout, &grid, v, &mut got);
                 assert_eq!(got, want, "voxel {v:?}, coord_bits {coord_bits}");
@@ -405,26 +378,12 @@ mod tests {
         ) {
             return;
         }
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = Rng::new(0x9e37_79b9_7f4a_7c15);
         for (coord_bits, log2_3d, log2_2d) in [(9u8, 13u8, 15u8), (1, 4, 4), (16, 10, 12)] {
             let d = hac_dims(log2_3d, log2_2d);
             let layout = GridLayout::new(&d, coord_bits);
             let k = Avx2Grid::new(&layout).expect("4 channels, AVX2");
-            let top = (1u64 << coord_bits) - 1;
-            let voxels: Vec<[u32; 3]> = (0..300)
-                .map(|n| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    let r = state;
-                    let pick = |s: u32| match n % 4 {
-                        0 => 0,
-                        1 => top as u32,
-                        _ => ((r >> s) % (top + 1)) as u32,
-                    };
-                    [pick(0), pick(21), pick(42)]
-                })
-                .collect();
+            let voxels = voxels(&mut rng, coord_bits, 300);
             let empty = || {
                 [
                     d.entries_3d(),
