@@ -1,5 +1,5 @@
-//! Hash-grid interpolation in integer arithmetic (spec §5.1) and the set of grid entries that
-//! some anchor touches (§5.2).
+//! Hash-grid interpolation in integer arithmetic (spec §5.1) and the marking of the grid
+//! entries an anchor touches (§5.2; the set of all anchors' is built in `touched`).
 
 use crate::model::{level_entries, Dims, HashGrid};
 

@@ -168,8 +168,9 @@ impl Prior {
     }
 
     /// §5.1: the grid features of the anchor at voxel `v` into `x` (length
-    /// `layout.features()`), with this target's kernel where it has one (the same integers
-    /// as [`GridLayout::interpolate`]).
+    /// `layout.features()`), with this target's kernel where it has one: the same integers
+    /// as [`GridLayout::interpolate`] for a grid of ±1 values (§2.4), which every decoded
+    /// and every validated grid is.
     pub fn features(&self, grid: &HashGrid, v: [u32; 3], x: &mut [i16]) {
         match &self.fast_grid {
             Some(k) => k.interpolate(&self.layout, grid, v, x),
