@@ -41,26 +41,18 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-use salvq::container::chunk::{ChunkReader, ChunkTag};
-use salvq::container::preflight::Preflight;
-use salvq::container::signature::SIGNATURE_LEN;
-use salvq::decoder::{decode_any, decode_with_symbols, DecodeOptions, Decoded};
+use salvq::decoder::{decode_any, DecodeOptions, Decoded};
 use salvq::entropy::GaussianTables;
 use salvq::explicit::Gaussians;
-use salvq::model::SceneModel;
-use salvq::tiles::TileTable;
 use salvq::Decoder;
-use salvq::Limits;
 use salvq_bench::coder::{bare_coder_decode_ns, median};
-use salvq_encoder::{encode_full, EncodeOptions};
-use salvq_gen::{generate, GenParams};
-use salvq_render::camera::{Bounds, Ring};
-use salvq_render::neural;
 
 /// The link a viewer receives the stream over (issue 22): 50 Mbit/s.
+mod anchors;
 mod output;
 mod wasm;
 
+use anchors::anchors_scene;
 use output::{chart, csv, report};
 use wasm::{build_wasm, wasm_times};
 
@@ -195,16 +187,6 @@ fn dump(g: &Gaussians) -> Vec<u8> {
     g.f_dc.iter().flatten().for_each(&mut put);
     g.f_rest.iter().for_each(&mut put);
     v
-}
-
-/// What an anchors-profile stream is in salvq-wasm: the neural Gaussians of ring camera 0
-/// (Annex C.1, C.2), as `crates/salvq-wasm`'s `decode` computes them.
-fn camera0_gaussians(m: &SceneModel) -> Gaussians {
-    let bounds = Bounds::of_points(&neural::anchor_positions(m));
-    let camera = Ring::default()
-        .camera(&bounds, 0, 64, 48)
-        .expect("ring camera 0");
-    neural::neural_gaussians(m, camera.position).expect("neural Gaussians")
 }
 
 /// The bare coder's floor for `symbols`: its median nanoseconds per symbol (`constriction`,
@@ -488,142 +470,6 @@ fn explicit_scene(
     }
     println!(
         "{scene}: {n} Gaussians, {} B; 1 thread {:.4} s, 2 threads {:.4} s",
-        row.bytes, row.one, row.two
-    );
-    Ok(row)
-}
-
-/// The tile count of an anchors-profile stream (§10.2, its `TILS` chunk).
-fn anchors_tiles(stream: &[u8]) -> Res<usize> {
-    let limits = Limits::default();
-    let mut r = ChunkReader::new(&stream[SIGNATURE_LEN..], SIGNATURE_LEN as u64, &limits);
-    let mut head = None;
-    while let Some(c) = r.next_chunk()? {
-        match c.tag {
-            ChunkTag::HEAD => head = Some(Preflight::parse(c.payload, &limits)?),
-            ChunkTag::TILS => {
-                let h = head.as_ref().ok_or("TILS before HEAD")?;
-                return Ok(TileTable::parse(c.payload, h.dims.anchors, h.coord_bits)?.len());
-            }
-            _ => {}
-        }
-    }
-    Err("no TILS chunk".into())
-}
-
-fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) -> Res<Row> {
-    let path = cache.join(format!("anchors_{n}.salvq"));
-    let mut encoder_symbols = None;
-    let mut expected = None;
-    if a.fresh || a.smoke || !path.exists() {
-        let model = generate(&GenParams {
-            feat_basis: false,
-            ..GenParams::new(n, 1)
-        });
-        let t = Instant::now();
-        let e = encode_full(&model, &EncodeOptions::default())?;
-        println!("{n} anchors: encoded in {:.1} s", t.elapsed().as_secs_f64());
-        std::fs::write(&path, &e.stream)?;
-        encoder_symbols = Some(e.report().groups.iter().map(|g| g.symbols).sum::<u64>());
-        expected = Some(e.expected().clone());
-    }
-    let stream = std::fs::read(&path)?;
-    let one_opts = DecodeOptions::default().with_threads(Some(1));
-    let (reference, sy) = decode_with_symbols(&stream, &one_opts)?;
-    if let Some(expected) = &expected {
-        assert!(
-            reference == *expected,
-            "{n} anchors: the decode is the encoder's prediction"
-        );
-    }
-    let mut symbols: Vec<i64> = sy.feat.clone();
-    symbols.extend_from_slice(&sy.scaling);
-    for (slot, &m) in reference.anchors.mask.iter().enumerate() {
-        if m != 0 {
-            symbols.extend_from_slice(&sy.offsets[slot * 3..][..3]);
-        }
-    }
-    let set = reference.anchors.mask.iter().filter(|&&m| m != 0).count();
-    let (f, s) = (
-        sy.feat.len() / reference.n(),
-        sy.scaling.len() / reference.n(),
-    );
-    assert_eq!(
-        symbols.len(),
-        reference.n() * (f + s) + 3 * set,
-        "{n} anchors: symbol count"
-    );
-    if let Some(c) = encoder_symbols {
-        assert_eq!(
-            symbols.len() as u64,
-            c,
-            "{n} anchors: symbols = the encoder's"
-        );
-    }
-    let mut row = Row {
-        profile: "anchors",
-        scene: format!("generated {n}"),
-        size: n as usize,
-        symbols: symbols.len(),
-        bytes: stream.len() as u64,
-        tiles: anchors_tiles(&stream)?,
-        ..Row::default()
-    };
-    (row.floor, row.floor_outside) = floor(&symbols, a.rounds);
-    let d1 = Decoder::builder().threads(1).build();
-    let d2 = Decoder::builder().threads(2).build();
-    let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let (mut t1, mut t2, mut t2b, mut ratio, mut tw) = (vec![], vec![], vec![], vec![], vec![]);
-    let mut neural = None;
-    drop((d1.decode(&stream), d2.decode(&stream)));
-    for _ in 0..a.rounds {
-        // Each output is checked, then dropped, outside the timing.
-        let (s1, got) = timed(|| d1.decode(&stream));
-        assert!(
-            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
-            "{n} anchors: the 1-thread decode equals the reference"
-        );
-        drop(got);
-        let (s2, got) = timed(|| d2.decode(&stream));
-        assert!(
-            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
-            "{n} anchors: the 2-thread decode equals the reference"
-        );
-        drop(got);
-        let (again, got) = timed(|| d2.decode(&stream));
-        assert!(
-            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
-            "{n} anchors: the 2-thread decode, again, equals the reference"
-        );
-        drop(got);
-        t1.push(s1);
-        t2.push(s2);
-        t2b.push(again);
-        ratio.push(s2 / s1);
-        if pkg.is_some() {
-            tw.push(secs(|| {
-                pool1.install(|| {
-                    let Ok(Decoded::Anchors(m)) = d1.decode(&stream) else {
-                        panic!("decodes")
-                    };
-                    neural = Some(camera0_gaussians(&m));
-                });
-            }));
-        }
-    }
-    row.one = median(&mut t1);
-    row.two = median(&mut t2);
-    row.two_again = median(&mut t2b);
-    row.two_over_one = median(&mut ratio);
-    if let (Some(pkg), Some(g)) = (pkg, &neural) {
-        row.wasm_native = median(&mut tw);
-        let expected = dump(g);
-        row.wasm = Some(wasm_times(pkg, &path, a.rounds, &expected, &row.scene, 0)?);
-        let on = |workers| wasm_times(pkg, &path, a.rounds, &expected, &row.scene, workers);
-        row.wasm_workers = Some([on(1)?.0, on(2)?.0]);
-    }
-    println!(
-        "{n} anchors: {} B; 1 thread {:.4} s, 2 threads {:.4} s",
         row.bytes, row.one, row.two
     );
     Ok(row)
