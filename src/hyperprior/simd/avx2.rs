@@ -144,6 +144,15 @@ impl<W: Weight> Pairs<W> {
 /// Output groups of 8 that one pass over the nonzero unit pairs accumulates in registers.
 const PASS_GROUPS: usize = 11;
 
+/// Both layers of `mlp` in the kernel's layout, each weight stored as a `W`.
+fn laid_out<W: Weight>(mlp: &IntMlp, hidden_pad: usize) -> (Layer<W>, Pairs<W>) {
+    let (cin, hidden, cout) = (mlp.cin, mlp.hidden, mlp.cout);
+    (
+        Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
+        Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
+    )
+}
+
 /// Both layers' weights, stored one way.
 #[derive(Debug, Clone)]
 enum Weights {
@@ -189,15 +198,11 @@ impl Avx2Mlp {
         }
         let fits = |w: &[i16]| w.iter().all(|&v| i8::try_from(v).is_ok());
         let weights = if fits(&mlp.w0) && fits(&mlp.w1) {
-            Weights::Narrow(
-                Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
-                Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
-            )
+            let (l0, l1) = laid_out(mlp, hidden_pad);
+            Weights::Narrow(l0, l1)
         } else {
-            Weights::Wide(
-                Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
-                Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
-            )
+            let (l0, l1) = laid_out(mlp, hidden_pad);
+            Weights::Wide(l0, l1)
         };
         Some(Avx2Mlp {
             weights,
