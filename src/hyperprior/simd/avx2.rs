@@ -169,7 +169,7 @@ pub struct Avx2Mlp {
     blocks: usize,
     shift0: u8,
     cin: usize,
-    /// Hidden units padded to a multiple of 16 (padding units are always 0).
+    /// Hidden units padded to a multiple of 8 (padding units are always 0).
     hidden_pad: usize,
     cout: usize,
 }
@@ -190,9 +190,10 @@ impl Avx2Mlp {
         {
             return None;
         }
-        // Hidden activations feed layer 1 in pairs and layer 0 writes them 8 at a time; 16
-        // keeps the scratch in whole vectors.
-        let hidden_pad = round_up(hidden, LANES);
+        // Layer 0 writes the hidden activations 8 at a time (and layer 1 reads them in
+        // pairs): padding to 8, not to a whole 16-lane vector, spares HAC's 100 units a
+        // group of 8 rows of zeros.
+        let hidden_pad = round_up(hidden, ROWS);
         if hidden_pad > usize::from(u16::MAX) {
             return None;
         }
