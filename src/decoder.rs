@@ -8,7 +8,7 @@ use crate::par::*;
 use crate::attributes::{
     layer_bodies, read_attributes, read_masks, Attributes, AttributesMut, Symbols,
 };
-use crate::container::chunk::{ChunkReader, ChunkTag};
+use crate::container::chunk::{peek_critical, ChunkReader, ChunkTag};
 use crate::container::payload;
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
@@ -145,6 +145,9 @@ struct Partial<'a> {
     tiles: Option<TileTable>,
     selected: Vec<bool>,
     mask: Option<Vec<u8>>,
+    /// `AMSK`'s outcome where it was decoded alongside `GRID` (see the `GRID` step), reported
+    /// when its own position in the stream is reached.
+    early_mask: Option<Result<Vec<u8>>>,
     attributes: [&'a [u8]; 3],
     /// The rate being decoded.
     rate: u8,
@@ -299,11 +302,32 @@ fn decode_stream(
             }
             ChunkTag::GRID => {
                 let touched = p.touched.as_ref().ok_or(missing(ChunkTag::APOS))?;
-                p.grid = Some(payload::read_grid(bytes, d, touched)?);
+                let tiles = p.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+                // The grid is one coded body, decoded on one thread; the masks need only the
+                // tiles (§6.6.1), so the next critical chunk, if it is a framed `AMSK`, is
+                // decoded alongside. Its outcome waits for its own position (§1.5): this
+                // chunk's error, and the chunks between, come first.
+                let decode_grid = || payload::read_grid(bytes, d, touched);
+                match peek_critical(reader.remaining(), ChunkTag::AMSK, limits) {
+                    Some(amsk) => {
+                        let (grid, mask) = join(decode_grid, || {
+                            read_masks(amsk, d, tables, tiles, &p.selected)
+                        });
+                        p.grid = Some(grid?);
+                        p.early_mask = Some(mask);
+                    }
+                    None => p.grid = Some(decode_grid()?),
+                }
             }
             ChunkTag::AMSK => {
-                let tiles = p.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-                p.mask = Some(read_masks(bytes, d, tables, tiles, &p.selected)?);
+                let mask = match p.early_mask.take() {
+                    Some(mask) => mask?,
+                    None => {
+                        let tiles = p.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+                        read_masks(bytes, d, tables, tiles, &p.selected)?
+                    }
+                };
+                p.mask = Some(mask);
             }
             ChunkTag::AFEA | ChunkTag::ASCL | ChunkTag::AOFF if layer != Some(selected) => {}
             ChunkTag::AFEA => p.attributes[0] = bytes,

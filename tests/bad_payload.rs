@@ -275,6 +275,64 @@ fn corrupt_entropy_coded_words() {
     ));
 }
 
+/// `AMSK` is decoded alongside `GRID` where it follows it (the decoder looks ahead), but its
+/// outcome still comes at its own position (§1.5): a broken `GRID` is reported before a
+/// broken `AMSK`, an ancillary chunk between them changes nothing, and a damaged `AMSK`
+/// frame is reported as the reader finds it.
+#[test]
+fn grid_and_mask_errors_come_in_stream_order() {
+    let s = small_stream();
+    let good = decode(&s).expect("valid");
+    let bad_mask = |p: &mut Vec<u8>| p[1..3].fill(0);
+    let mask_error = Error::ValueInvalid {
+        tensor: "AMSK.p_one",
+        index: vec![0],
+        value: 0,
+        allowed: "1..=65535",
+    };
+    assert_eq!(err(&edit_payload(&s, ChunkTag::AMSK, bad_mask)), mask_error);
+    // GRID one byte short as well: GRID's error, not AMSK's.
+    let grid_short = edit_payload(&s, ChunkTag::GRID, |p| {
+        p.pop();
+    });
+    let grid_error = err(&grid_short);
+    assert!(
+        !matches!(grid_error, Error::ValueInvalid { .. }),
+        "{grid_error}"
+    );
+    let both = edit_payload(&grid_short, ChunkTag::AMSK, bad_mask);
+    assert_eq!(err(&both), grid_error);
+    // An ancillary chunk between GRID and AMSK: the same decode, the same AMSK error.
+    let with_ancillary = |stream: &[u8]| {
+        let mut cs = chunks(stream);
+        let at = cs.iter().position(|(t, _)| *t == ChunkTag::AMSK).unwrap();
+        cs.insert(at, (ChunkTag::ENCD, b"between GRID and AMSK".to_vec()));
+        assemble(stream, &cs)
+    };
+    assert_eq!(decode(&with_ancillary(&s)).expect("valid"), good);
+    let masked = edit_payload(&s, ChunkTag::AMSK, bad_mask);
+    assert_eq!(err(&with_ancillary(&masked)), mask_error);
+    // AMSK's CRC wrong: not looked ahead at, and reported as a CRC mismatch at its position.
+    let mut crc_bad = s.clone();
+    let cs = chunks(&s);
+    let mut at = 12;
+    for (tag, payload) in &cs {
+        if *tag == ChunkTag::AMSK {
+            let crc = at + 8 + payload.len();
+            crc_bad[crc] ^= 1;
+            break;
+        }
+        at += 12 + payload.len();
+    }
+    assert!(matches!(
+        err(&crc_bad),
+        Error::ChunkCrcMismatch {
+            tag: ChunkTag::AMSK,
+            ..
+        }
+    ));
+}
+
 #[test]
 fn mlp_shift_out_of_range() {
     // MLPS: method byte, context_precision, then w0_frac_bits (§1.6.2).

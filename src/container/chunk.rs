@@ -136,6 +136,21 @@ impl<'a> ChunkReader<'a> {
     }
 }
 
+/// The payload of the next critical chunk in `rest` if it is tagged `tag` and it, and the
+/// ancillary chunks before it, are framed and CRC-checked (§1.3); `None` otherwise (the
+/// decoder's own reader reaches it in turn and reports what is wrong). For decoding a chunk
+/// alongside the one before it, its outcome reported at its own position.
+pub fn peek_critical<'a>(rest: &'a [u8], tag: ChunkTag, limits: &Limits) -> Option<&'a [u8]> {
+    let mut reader = ChunkReader::new(rest, 0, limits);
+    // Every chunk read takes at least its 12 bytes of framing, so this ends.
+    while let Ok(Some(chunk)) = reader.next_chunk() {
+        if chunk.tag.is_critical() {
+            return (chunk.tag == tag).then_some(chunk.payload);
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

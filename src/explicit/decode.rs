@@ -3,7 +3,7 @@
 
 use crate::par::*;
 
-use crate::container::chunk::{ChunkReader, ChunkTag};
+use crate::container::chunk::{peek_critical, ChunkReader, ChunkTag};
 use crate::container::payload::{apos_bodies, body, read_apos_of, read_apos_tile, METHOD_CODED};
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
@@ -69,20 +69,6 @@ pub fn expected_critical(i: usize, layers: usize) -> ChunkTag {
         i if i - 2 < 4 * layers => LAYER[(i - 2) % 4],
         _ => ChunkTag::SEND,
     }
-}
-
-/// The payload of the next critical chunk in `rest` if it is `GATT` and every chunk before it
-/// is framed and CRC-checked (`None` otherwise, or where `rest` ends first: the chunks are
-/// then decoded one at a time, and report their own errors at their own positions).
-fn next_gatt<'a>(rest: &'a [u8], limits: &Limits) -> Option<&'a [u8]> {
-    let mut reader = ChunkReader::new(rest, 0, limits);
-    // Every chunk read takes at least its 12 bytes of framing, so this ends.
-    while let Ok(Some(chunk)) = reader.next_chunk() {
-        if chunk.tag.is_critical() {
-            return (chunk.tag == ChunkTag::GATT).then_some(chunk.payload);
-        }
-    }
-    None
 }
 
 /// Decodes an explicit-profile stream at `rate` (default: the lowest coded rate), §3.7.
@@ -264,7 +250,7 @@ impl ExplicitDecoder {
                 let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
                 self.tiles = Some(TileTable::parse(bytes, h.count, l.coord_bits)?);
             }
-            ChunkTag::APOS => match next_gatt(rest, &self.limits) {
+            ChunkTag::APOS => match peek_critical(rest, ChunkTag::GATT, &self.limits) {
                 Some(gatt) => self.fused(bytes, gatt, tables)?,
                 None => {
                     let only = self.geometry_only()?;
