@@ -21,7 +21,7 @@ const BUCKETS: usize = (OCTAVES as usize) << SUB_BITS;
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ThresholdSearch {
     thresholds: [u64; THRESHOLDS + 1],
-    /// floor(log2 T[0]): values below 2^low are below every threshold.
+    /// floor(log2 `T[0]`): values below 2^low are below every threshold.
     low: u32,
     /// Per bucket: the count of thresholds <= the bucket's smallest value, at most 62.
     counts: Option<Box<[u8; BUCKETS]>>,

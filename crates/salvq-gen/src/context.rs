@@ -116,10 +116,10 @@ pub struct ContextPlan {
     pub layout: Layout,
     d_in: usize,
     h: usize,
-    /// Layer 0 transposed, [D_in][H], and bias (the stored f32 values, widened).
+    /// Layer 0 transposed, `[D_in][H]`, and bias (the stored f32 values, widened).
     w0t: Vec<f64>,
     b0: Vec<f64>,
-    /// Layer 1 transposed, [H][rows], and bias; the last row is the mask field.
+    /// Layer 1 transposed, `[H][rows]`, and bias; the last row is the mask field.
     w1t: Vec<f64>,
     b1: Vec<f64>,
     /// Feature residual mixing matrix L, F x F row-major, rows of unit norm.

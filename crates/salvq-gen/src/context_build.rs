@@ -99,7 +99,7 @@ fn ratio(target: f64, value: f64) -> f64 {
     }
 }
 
-/// Layer 1 under construction, f64, row-major [rows][H].
+/// Layer 1 under construction, f64, row-major `[rows][H]`.
 struct Layer1 {
     w: Vec<f64>,
     b: Vec<f64>,
