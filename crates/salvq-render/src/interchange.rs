@@ -359,9 +359,18 @@ pub fn read_model(path: &Path) -> Result<SceneModel> {
 pub fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::Result<()> {
     // Values are turned into bytes a block at a time and written with one call per block:
     // one dynamic `write_all` per value took about a third of decoding a 1 M-anchor scene to
-    // a file.
+    // a file. On a little-endian target an f32 tensor's memory is already its safetensors
+    // bytes, written as they are (no copy: 368 MB for a 1 M-anchor model).
     const BLOCK: usize = 1 << 14;
     let f = |w: &mut dyn Write, v: &[f32]| -> std::io::Result<()> {
+        if cfg!(target_endian = "little") {
+            // In pieces of 1 MiB: written whole, a 1 M-anchor model's 200 MB feature tensor
+            // made the first file a process wrote take 0.5 … 0.95 s here, against 0.10 s.
+            for piece in bytemuck::cast_slice::<f32, u8>(v).chunks(1 << 20) {
+                w.write_all(piece)?;
+            }
+            return Ok(());
+        }
         let mut bytes = vec![0u8; 4 * BLOCK.min(v.len())];
         for block in v.chunks(BLOCK) {
             for (out, x) in bytes.chunks_exact_mut(4).zip(block) {
