@@ -4,7 +4,7 @@
 
 use salvq::container::chunk::ChunkTag;
 use salvq::entropy::reference;
-use salvq::entropy::{GaussianTables, SymbolReader, SymbolWriter, SCALE_COUNT};
+use salvq::entropy::{GaussianTables, SymbolReader, SymbolWriter, SCALE_COUNT, SCALE_INDEX_COUNT};
 use salvq::error::{AnsFault, Error};
 use salvq_gen::rng::Stream;
 
@@ -189,12 +189,12 @@ fn out_of_range_scale_index_reads_nothing() {
     let mut r = SymbolReader::new(TAG, &body, tables()).unwrap();
     assert_eq!(r.symbol(30).unwrap(), symbols[0]);
     assert_eq!(
-        r.symbol(SCALE_COUNT as u8),
+        r.symbol(SCALE_INDEX_COUNT as u8),
         Err(Error::ScaleIndexOutOfRange {
             tag: TAG,
             symbol: 1,
-            scale_index: 64,
-            max: 63
+            scale_index: 128,
+            max: 127
         })
     );
     for &u in &symbols[1..] {

@@ -10,7 +10,7 @@ use salvq::container::chunk::ChunkTag;
 use salvq::entropy::reference;
 use salvq::entropy::{
     checked_scale_index, scale_index, GaussianTables, SymbolReader, SymbolWriter, PRECISION,
-    SCALE_COUNT,
+    SCALE_COUNT, SCALE_INDEX_COUNT,
 };
 use salvq::error::Error;
 use salvq_bench::coder::{sigma_to_q16, synthetic_samples};
@@ -41,8 +41,10 @@ fn random_events(rng: &mut Stream, tables: &GaussianTables, n: usize) -> Vec<Eve
                 },
             },
             2 => {
-                let k = rng.below(SCALE_COUNT as u64) as u8;
-                let r = i64::from(tables.radius(k));
+                let k = rng.below(SCALE_INDEX_COUNT as u64) as u8;
+                // A wide scale's high part h escapes (§6.3.6): u = h·2^b + low bits.
+                let (t, b) = wide_by_the_text(k);
+                let r = i64::from(tables.radius(t));
                 // Escapes of every prefix length, up to w = 2^31 − 1.
                 let bits = rng.below(32) as u32;
                 let w = if bits == 31 {
@@ -50,15 +52,16 @@ fn random_events(rng: &mut Stream, tables: &GaussianTables, n: usize) -> Vec<Eve
                 } else {
                     (1i64 << bits) + rng.below(1 << bits) as i64
                 };
-                let u = r + w;
+                let q = if rng.below(2) == 1 { -(r + w) } else { r + w };
+                let low = rng.below(1 << b) as i64;
                 Event::Symbol {
-                    u: if rng.below(2) == 1 { -u } else { u },
+                    u: (q << b) + low,
                     k,
                 }
             }
             _ => {
-                let k = rng.below(SCALE_COUNT as u64) as u8;
-                let sigma = f64::from(salvq::entropy::SIGMA_Q16[usize::from(k)]) / 65536.0;
+                let k = rng.below(SCALE_INDEX_COUNT as u64) as u8;
+                let sigma = 2f64.powf((f64::from(k) - 24.0) / 8.0);
                 Event::Symbol {
                     u: (sigma * rng.normal()).round() as i64,
                     k,
@@ -66,6 +69,17 @@ fn random_events(rng: &mut Stream, tables: &GaussianTables, n: usize) -> Vec<Eve
             }
         })
         .collect()
+}
+
+/// §6.3.6 from the text: a wide scale k's table scale t = k − 8b and shift
+/// b = ⌊(k − 56) / 8⌋; a table's own index is (k, 0).
+fn wide_by_the_text(k: u8) -> (u8, u32) {
+    if k < 64 {
+        (k, 0)
+    } else {
+        let b = (k - 56) / 8;
+        (k - 8 * b, u32::from(b))
+    }
 }
 
 fn encode(tables: &GaussianTables, events: &[Event]) -> Vec<u8> {
@@ -105,11 +119,20 @@ fn decode_reference(tables: &GaussianTables, events: &[Event], body: &[u8]) -> V
         .iter()
         .map(|e| match *e {
             Event::Symbol { k, .. } => {
-                let t = tables.scale(k);
+                let (t, b) = wide_by_the_text(k);
+                let t = tables.scale(t);
+                let q = d
+                    .decode_symbol(t.frequencies(), t.radius())
+                    .expect("valid body")
+                    .expect("no overflow");
+                let low = if b > 0 {
+                    let uniform = vec![1u32 << (tables.precision() - b); 1 << b];
+                    d.decode(&uniform).expect("valid body") as i64
+                } else {
+                    0
+                };
                 Event::Symbol {
-                    u: d.decode_symbol(t.frequencies(), t.radius())
-                        .expect("valid body")
-                        .expect("no overflow"),
+                    u: (q << b) + low,
                     k,
                 }
             }
@@ -139,8 +162,10 @@ fn encode_reference(tables: &GaussianTables, events: &[Event]) -> Vec<u8> {
     for ev in events {
         match *ev {
             Event::Bit { bit: b, freq_one } => bit(&mut e, b, freq_one),
-            Event::Symbol { u, k } => {
-                let t = tables.scale(k);
+            Event::Symbol { u: full, k } => {
+                let (t, b) = wide_by_the_text(k);
+                let u = full.div_euclid(1 << b);
+                let t = tables.scale(t);
                 let r = i64::from(t.radius());
                 let c = t.cumulative();
                 let i = if u.abs() <= r {
@@ -159,6 +184,10 @@ fn encode_reference(tables: &GaussianTables, events: &[Event]) -> Vec<u8> {
                         bit(&mut e, (w >> j) & 1 == 1, total / 2);
                     }
                     bit(&mut e, u < 0, total / 2);
+                }
+                if b > 0 {
+                    let low = (full - (u << b)) as u32;
+                    e.push(low << (p - b), 1 << (p - b));
                 }
             }
         }
@@ -325,6 +354,42 @@ fn ideal_bits_of_escapes() {
     assert_eq!(tables.ideal_bits(24, i64::MIN), f64::INFINITY);
 }
 
+/// §6.3.6: a wide scale costs its high part ⌊u / 2^b⌋ and b bits; the floor makes −1 a
+/// high part −1 with all low bits set.
+#[test]
+fn ideal_bits_of_wide_scales() {
+    let tables = GaussianTables::standard();
+    for (k, t, b) in [
+        (64u8, 56u8, 1u32),
+        (71, 63, 1),
+        (72, 56, 2),
+        (100, 60, 5),
+        (127, 63, 8),
+    ] {
+        for u in [0i64, 1, -1, 255, -256, 1 << 20, -(1 << 20) - 7] {
+            let q = u.div_euclid(1 << b);
+            assert_eq!(
+                tables.ideal_bits(k, u),
+                tables.ideal_bits(t, q) + f64::from(b),
+                "k {k}, u {u}"
+            );
+        }
+    }
+    // u = −1 at k = 64: q = −1, low bit 1; at k = 127: q = −1, low bits 255.
+    let mut w = SymbolWriter::new(TAG, tables);
+    w.symbol(-1, 64).unwrap();
+    w.symbol(-1, 127).unwrap();
+    assert_eq!(w.interval_count(), 4);
+    let body = w.finish();
+    let mut d = reference::Decoder::new(&body, PRECISION).unwrap();
+    for (t, b, low) in [(56u8, 1u32, 1usize), (63, 8, 255)] {
+        let s = tables.scale(t);
+        assert_eq!(d.decode_symbol(s.frequencies(), s.radius()), Ok(Ok(-1)));
+        assert_eq!(d.decode(&vec![1 << (PRECISION - b); 1 << b]), Ok(low));
+    }
+    d.finish().unwrap();
+}
+
 #[test]
 fn writer_rejects_unencodable_symbols_without_writing() {
     let tables = GaussianTables::standard();
@@ -345,14 +410,20 @@ fn writer_rejects_unencodable_symbols_without_writing() {
         }
     }
     assert_eq!(
-        w.symbol(0, 64),
+        w.symbol(0, 128),
         Err(Error::ScaleIndexOutOfRange {
             tag: TAG,
             symbol: 1,
-            scale_index: 64,
-            max: 63
+            scale_index: 128,
+            max: 127
         })
     );
+    // A wide scale's high part h = ⌊u / 2^8⌋ at k = 127 has the same bound (§6.3.6).
+    let r63 = i64::from(tables.radius(63));
+    assert!(matches!(
+        w.symbol((r63 + (1 << 31)) << 8, 127),
+        Err(Error::EscapeOverflow { symbol: 1, .. })
+    ));
     // The largest magnitudes still round-trip.
     w.symbol(r + (1 << 31) - 1, 5).unwrap();
     w.symbol(-(r + (1 << 31) - 1), 5).unwrap();
@@ -368,7 +439,9 @@ fn writer_rejects_unencodable_symbols_without_writing() {
 fn scale_index_check_helper() {
     assert_eq!(checked_scale_index(TAG, 3, 0), Ok(0));
     assert_eq!(checked_scale_index(TAG, 3, 63), Ok(63));
-    for bad in [-1, 64, i64::MIN, i64::MAX] {
+    assert_eq!(checked_scale_index(TAG, 3, 64), Ok(64));
+    assert_eq!(checked_scale_index(TAG, 3, 127), Ok(127));
+    for bad in [-1, 128, i64::MIN, i64::MAX] {
         let e = checked_scale_index(TAG, 3, bad).unwrap_err();
         assert_eq!(
             e,
@@ -376,7 +449,7 @@ fn scale_index_check_helper() {
                 tag: TAG,
                 symbol: 3,
                 scale_index: bad,
-                max: 63
+                max: 127
             }
         );
         assert_eq!(e.spec_section(), "§6.3");

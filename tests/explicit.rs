@@ -534,15 +534,16 @@ fn three_points_round_trip_through_the_plans() {
     }
 }
 
-/// `salvq info` counts, per group, the values coded with the widest table and those sent with
-/// an escape (§6.3.1, §6.4): a group quantized far finer than the widest table's σ overruns
-/// it, a group quantized coarser than its spread never does.
+/// `salvq info` counts, per group, the values coded at a wide scale, at the widest, and those
+/// sent with an escape (§6.3.6, §6.4): a group quantized far finer than the widest table's σ
+/// is coded at wide scales and no longer escapes; a group quantized coarser than its spread
+/// needs none.
 #[test]
-fn info_names_the_groups_that_overrun_the_scale_grid() {
+fn info_names_the_groups_that_need_wide_scales() {
     use salvq_encoder::info::explicit::inspect_explicit;
     let mut plan = plan(0.05, 5);
     // Scales at a step of 0.005 in log units: a spread of some hundred steps, past the
-    // widest table's σ (29.3 steps) but within reach of its escapes' cost.
+    // widest table's σ (29.3 steps), where 0.13 escaped a value in ten or more.
     plan.steps = vec![0.005, 100.0, 0.03, 0.03, 0.04];
     let e = encode_synthetic(
         &GaussianParams::new(200, 1, 5),
@@ -559,12 +560,17 @@ fn info_names_the_groups_that_overrun_the_scale_grid() {
             .unwrap_or_else(|| panic!("{name} in {saturation:?}"))
     };
     let (scale, opacity) = (group("scale"), group("opacity"));
-    assert!(scale.widest_table > 0.9, "{scale:?}");
-    assert!(scale.escaped > 0.1, "{scale:?}");
-    assert_eq!((opacity.widest_table, opacity.escaped), (0.0, 0.0));
+    assert!(scale.wide_scale > 0.9, "{scale:?}");
+    assert!(scale.escaped < 0.02, "{scale:?}");
+    assert_eq!(scale.widest_scale, 0.0, "{scale:?}");
+    assert_eq!(
+        (opacity.wide_scale, opacity.widest_scale, opacity.escaped),
+        (0.0, 0.0, 0.0)
+    );
     let line = format!(
-        "scale {:.1} % / {:.1} %",
-        100.0 * scale.widest_table,
+        "scale {:.1} % / {:.1} % / {:.1} %",
+        100.0 * scale.wide_scale,
+        100.0 * scale.widest_scale,
         100.0 * scale.escaped
     );
     assert!(info.to_text().contains(&line), "{}", info.to_text());

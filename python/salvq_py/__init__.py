@@ -1,4 +1,4 @@
-"""salvq_py: an independent decoder for the SALVQ 0.13 bitstream format (spec/), both
+"""salvq_py: an independent decoder for the SALVQ 0.14 bitstream format (spec/), both
 profiles, in pure Python + NumPy, written from the specification alone.
 
     decode(path, rate=None)            -> dict[str, np.ndarray]   the scene model (Table 2-1),
@@ -21,7 +21,7 @@ from .region import RegionError, parse_region
 __all__ = ["decode", "decode_canonical", "SalvqError", "Limits", "ERROR_CLASSES",
            "decode_file", "decode_bytes", "Decoded", "ExplicitDecoded", "hashes",
            "write_safetensors", "RegionError", "parse_region"]
-__version__ = "0.13.0"
+__version__ = "0.14.0"
 
 
 def decode(path, rate: int | None = None, limits: Limits | None = None, region=None) -> dict:

@@ -1,4 +1,4 @@
-"""The ANS decoder (§6.2) and symbol/escape decoding (§6.4).
+"""The ANS decoder (§6.2), symbol/escape decoding (§6.4) and wide scales (§6.3.6, 0.14).
 
 Faults are raised as `AnsFault(fault)`; the caller turns them into `AnsStreamInvalid`
 (naming the chunk and tile) or `EscapeOverflow`.
@@ -6,7 +6,7 @@ Faults are raised as `AnsFault(fault)`; the caller turns them into `AnsStreamInv
 from __future__ import annotations
 
 from .errors import SalvqError
-from .tables import P, scale_tables
+from .tables import P, SCALE_COUNT, SCALE_INDEX_COUNT, scale_tables
 
 _L = 1 << 32
 _MASK_P = (1 << P) - 1
@@ -96,7 +96,10 @@ class AnsDecoder:
         return bit
 
     def decode_symbol(self, k: int) -> int:
-        """A symbol under scale k (§6.4), escapes included."""
+        """A symbol under scale index k, 0 … 127 (§6.1): k ≤ 63 by §6.4 (escapes included),
+        k ≥ 64 a wide scale (§6.3.6)."""
+        if k >= SCALE_COUNT:
+            return self.decode_wide(k)
         t = self.tables[k]
         x = self.x
         q = x & _MASK_P
@@ -123,6 +126,18 @@ class AnsDecoder:
         sign = self.decode_escape_bit()
         u = w + r
         return -u if sign else u
+
+    def decode_wide(self, k: int) -> int:
+        """A symbol under a wide scale k, 64 … 127 (§6.3.6, since 0.14): b = floor((k − 56) / 8)
+        low bits (1 … 8), table scale t = k − 8b (56 … 63); the high part h (§6.4 at scale t,
+        an escape included), then the low bits l, a uniform value of b bits (§6.2.1 item 4);
+        u = h·2^b + l."""
+        if not SCALE_COUNT <= k < SCALE_INDEX_COUNT:
+            raise ValueError(f"scale index {k}: wide scales are 64 … 127 (§6.3.6)")
+        b = (k - 56) >> 3
+        h = self.decode_symbol(k - 8 * b)
+        low = self.decode_uniform(b)
+        return (h << b) + low
 
     def finish(self) -> None:
         """§6.2.6 step 5."""

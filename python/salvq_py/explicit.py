@@ -207,7 +207,7 @@ class GLayer:
     shift: list = field(default_factory=list)         # shift[g - 1][c]
     scale_offset: list = field(default_factory=list)  # scale_offset[g - 1][c]
     predict: list = field(default_factory=list)       # predict[g]
-    scale_table: list = field(default_factory=list)   # scale_table[v][x]
+    scale_table: list = field(default_factory=list)   # scale_table[v][x], 0 … 127 (0.14)
     rest_count_freq: list = field(default_factory=list)  # node m of the sh_rest count's tree at m − 1
 
 
@@ -285,8 +285,8 @@ def parse_glay(payload: bytes, h: GHead) -> GLayer:
         rest_count_freq.append(r.u16())
         rng(f"rest_count_freq[{m}]", rest_count_freq[-1], 1, 65535)
     table = r.take(CONTEXT_CLASSES * h.D)
-    for i, k in enumerate(table):
-        rng(f"scale_table[{i // CONTEXT_CLASSES}][{i % CONTEXT_CLASSES}]", k, 0, 63)
+    for i, k in enumerate(table):          # 0 … 127 since 0.14 (from 64 wide scales, §6.3.6)
+        rng(f"scale_table[{i // CONTEXT_CLASSES}][{i % CONTEXT_CLASSES}]", k, 0, 127)
     scale_table = [list(table[v * CONTEXT_CLASSES:(v + 1) * CONTEXT_CLASSES]) for v in range(h.D)]
     return GLayer(coord_bits, f32_from_bits(vbits), pred_level, rotation_freq, size_threshold,
                   refine, shift, scale_offset, predict, scale_table, rest_count_freq)

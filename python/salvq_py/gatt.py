@@ -1,6 +1,7 @@
 """`GATT` (§3.5): the explicit profile's attribute symbols, one ANS body per tile (§10.2),
 decoded under the causal integer prior (reference, context classes, size classes, position
-refinement, step shifts, scale-index offsets)."""
+refinement, step shifts, scale-index offsets; scale indices 0 … 127, from 64 on a wide scale,
+§6.3.6, since 0.14)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -103,8 +104,8 @@ def _tile(dec: AnsDecoder, tile: Tile, h: GHead, lay: GLayer, voxels: np.ndarray
             for v in range(offs[g], offs[g] + d):
                 if v - offs[g] < coded:
                     x = context_class(prev_r[v], s_ref, s) if has_ref else 0
-                    k = min(max(lay.scale_table[v][x] + o, 0), 63)
-                    r[v] = dec.decode_symbol(k)
+                    k = min(max(lay.scale_table[v][x] + o, 0), 127)   # 64 … 127: wide (0.14)
+                    r[v] = dec.decode_symbol(k)                          # §6.4 or §6.3.6
                 else:
                     r[v] = 0
                 p = rescale(prev_u[v], s_ref, s) if predict else 0

@@ -15,6 +15,7 @@ P = 16                      # coder precision (§6.2)
 TAIL_Q4 = 80                # §6.3.2
 R_MAX = 127                 # §6.3.2
 SCALE_COUNT = 64            # §6.3.1
+SCALE_INDEX_COUNT = 128      # §6.3.6 (0.14): scale indices 0 … 127 in all, 64 … 127 wide
 
 # Table 5-2: STEP_FACTOR[a + 64] = round((1 + tanh(a/16)) * 2^16), a = -64 .. 64.
 STEP_FACTOR = (

@@ -190,6 +190,62 @@ def test_ans_uniform_values():                         # §6.2.1 item 4 (0.12)
         d.finish()
 
 
+def test_ans_wide_scales():                            # §6.3.6 (0.14)
+    """Symbols at wide scales 64 … 127 among table symbols, binary events and uniform values,
+    encoded by tools/reencode.py (high part h = floor(u / 2^b) at t = k − 8b, then b low
+    bits) and decoded back: every shift 1 … 8, negative u (q rounded toward −∞), and q beyond
+    the table's radius (an escape inside a wide scale, which g-wide-scales does not have)."""
+    import random
+    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
+    from reencode import binary_interval, encode_body, symbol_intervals, uniform_interval
+    from salvq_py.tables import scale_tables
+    # u = −1 at k = 64 (b = 1, t = 56): q = −1, low bit 1
+    assert symbol_intervals(-1, 64) == symbol_intervals(-1, 56) + [uniform_interval(1, 1)]
+    # u = 2^31 + 2^8 at k = 127 (b = 8, t = 63): q = 2^23 + 1, escaped (R_63 = 127), w = q − 127
+    # has L = 22: ESCAPE, 22 + 1 prefix bits, 22 suffix bits, the sign, then the 8 low bits
+    assert len(symbol_intervals((1 << 31) + 256, 127)) == 1 + 23 + 22 + 1 + 1
+    rng = random.Random(14)
+    for trial in range(40):
+        events = []
+        for _ in range(rng.randrange(0, 300)):
+            kind = rng.randrange(4)
+            if kind == 0:
+                b = rng.randrange(1, 13)
+                events.append(("u", b, rng.randrange(1 << b)))
+            elif kind == 1:
+                f = rng.choice((1, 1 << 15, 65535, rng.randrange(1, 1 << 16)))
+                events.append(("b", f, int(rng.random() < f / 65536)))
+            else:
+                k = rng.randrange(64, 128) if kind == 2 else rng.randrange(128)
+                b = max((k - 56) >> 3, 0)
+                spread = rng.choice((2, 200 << b, 1 << (24 + b // 2), 1 << 30))
+                events.append(("s", k, rng.choice((-1, 0, rng.randrange(-spread, spread + 1)))))
+        intervals = []
+        for kind, p, v in events:
+            if kind == "u":
+                intervals.append(uniform_interval(v, p))
+            elif kind == "b":
+                intervals.append(binary_interval(v, p))
+            else:
+                intervals += symbol_intervals(v, p)
+        d = AnsDecoder(encode_body(intervals))
+        for kind, p, v in events:
+            got = (d.decode_uniform(p) if kind == "u" else
+                   d.decode_binary(p) if kind == "b" else d.decode_symbol(p))
+            assert got == v, f"trial {trial}: {kind} {p}: {got} != {v}"
+        d.finish()
+    # a wide scale's q escaped past 30 prefix zeros is EscapeOverflow, as at its table scale
+    from salvq_py.ans import EscapeOverflowFault
+    t = scale_tables()[63]
+    body = encode_body([(t.cum[t.escape], t.freq[t.escape])] + [(0, 1 << 15)] * 31)
+    try:
+        AnsDecoder(body).decode_symbol(127)
+    except EscapeOverflowFault:
+        pass
+    else:
+        raise AssertionError("31 zero prefix bits in a wide scale's high part not refused")
+
+
 def _mlps_edit(data: bytes, body_fn) -> bytes:
     """Replace the MLPS payload by body_fn(payload), CRC recomputed (§1.3)."""
     pos = 12
@@ -358,7 +414,10 @@ def explicit_cases() -> list[tuple[str, bytes, int, str]]:
     the reference decoder's (that wrote the 0.11 vectors), which salvq_py matched; they
     still hold on the 0.12 vectors (0.12 changed only the octree's events, §8.2) and on 0.13's
     (0.13 changed only layers with an sh_rest group, §3.4, §3.5; the cases re-encode g-sh0,
-    which has none, and edit only the first byte of g-sh3-rates' payloads), and
+    which has none, and edit only the first byte of g-sh3-rates' payloads) and on 0.14's (0.14
+    changed only the explicit profile's scale indices above 63, §3.4, §3.5, §6.3.6: g-sh0's
+    layer now codes 2 symbols at wide scale 64 and the re-encoded cases code theirs by
+    §6.3.6 too, so the decoded values, hence the expected hashes, are unchanged), and
     `tools/probe_reference.py` reruns them on both."""
     import struct
     sys.path.insert(0, os.path.join(HERE, "..", "tools"))
@@ -543,6 +602,26 @@ def test_rest_count_reencoded():                       # §3.5 (0.13)
     assert gatt == _payload(s3, "GATT")
 
 
+def test_wide_scales_reencoded():                      # §6.3.6, §3.5 (0.14)
+    """g-wide-scales (scale indices 64 … 127 through scale_table and scale_offset), its values
+    decoded by salvq_py and re-encoded by tools/reencode.py, is the stream's GATT payload byte
+    for byte: the high part and the low bits in the order the reference encoder wrote."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
+    from reencode import encode_gatt
+    from salvq_py.explicit import parse_glay
+    from salvq_py.tiles import parse_tils
+    s = _read("g-wide-scales.salvq")
+    base = decode_bytes(s, 0)
+    h, ints = base.head, base.integers
+    lay = parse_glay(_payload(s, "GLAY"), h)
+    assert max(max(row) for row in lay.scale_table) >= 64
+    tils = parse_tils(_payload(s, "TILS"), h.N, lay.coord_bits)
+    gatt = encode_gatt(h, lay, tils, ints["gaussian.voxel"], ints["symbols.coordinates"],
+                       ints["symbols.rotation_index"], ints["symbols.size_class"],
+                       ints["symbols.refinement"])
+    assert gatt == _payload(s, "GATT")
+
+
 def test_valid_vectors():
     for vec in _manifest():
         if vec["kind"] == "valid":
@@ -559,7 +638,8 @@ def main() -> int:
     failed = 0
     for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector,
               test_ans_uniform_values, test_mlps_precision_checks, test_explicit_profile_checks,
-              test_rest_count_reencoded, test_region_decodes):
+              test_rest_count_reencoded, test_ans_wide_scales, test_wide_scales_reencoded,
+              test_region_decodes):
         try:
             t()
             print(f"pass  {t.__name__}")

@@ -4,7 +4,8 @@ against a reference binary (optional; needs it).
     python3 tools/prior_fuzz.py REF_BINARY VECTORS_DIR [ITERATIONS] [SEED]
 
 Takes an explicit-profile vector, draws a new valid `GLAY` (prediction level, rotation
-frequencies, size thresholds, refinement bits, step shifts, scale-index offsets, predict flags, scale tables),
+frequencies, size thresholds, refinement bits, step shifts, scale-index offsets, predict
+flags, the `sh_rest` count's tree, scale tables with entries 0 … 127, wide scales included),
 new coordinates (small, large, escaped, up to ±2^24), rotation indices and refinements,
 re-encodes the layer's `GATT` with `tools/reencode.py` (salvq_py's reading of §3.5), and checks
 that the reference decodes it to the same canonical form (both hashes)."""
@@ -20,7 +21,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from diff_fuzz import chunks, rebuild, run_mine, run_ref  # noqa: E402
 from reencode import encode_gatt  # noqa: E402
 from salvq_py import decode_bytes  # noqa: E402
-from salvq_py.explicit import glay_length, parse_glay  # noqa: E402
+from salvq_py.explicit import glay_length, parse_glay, rest_count_bits  # noqa: E402
 from salvq_py.gatt import size_class  # noqa: E402
 from salvq_py.tiles import parse_tils  # noqa: E402
 
@@ -44,7 +45,10 @@ def random_glay(rng: random.Random, h, coord_bits: int, voxel_size: bytes) -> by
     out += bytes((rng.randint(-16, 16)) & 0xFF for _ in range(4 * (G - 1)))  # shift
     out += bytes((rng.randint(-63, 63)) & 0xFF for _ in range(4 * (G - 1)))  # scale_offset
     out += bytes(rng.randint(0, 1) for _ in range(G))                         # predict
-    out += bytes(rng.randint(0, 63) for _ in range(8 * D))                    # scale_table
+    for _ in range((1 << rest_count_bits(h)) - 1):                            # rest_count_freq (0.13)
+        out += struct.pack("<H", rng.choice([1, 32768, 65535, rng.randint(1, 65535)]))
+    out += bytes(rng.choice([rng.randint(0, 63), rng.randint(0, 127), rng.randint(56, 127)])
+                 for _ in range(8 * D))                                       # scale_table (0.14: 0 … 127)
     assert len(out) == glay_length(h)
     return bytes(out)
 
@@ -53,8 +57,10 @@ def random_coordinate(rng: random.Random) -> int:
     kind = rng.random()
     if kind < 0.6:
         return rng.randint(-6, 6)
-    if kind < 0.9:
+    if kind < 0.85:
         return rng.randint(-300, 300)
+    if kind < 0.92:
+        return rng.randint(-20000, 20000)         # spreads the wide scales (0.14) serve
     if kind < 0.97:
         return rng.randint(-(1 << 20), 1 << 20)
     return rng.choice([1 << 24, -(1 << 24), (1 << 24) - 1])

@@ -31,6 +31,13 @@ def encode_body(intervals: list[tuple[int, int]]) -> bytes:
 
 
 def symbol_intervals(u: int, k: int) -> list[tuple[int, int]]:
+    """The intervals of symbol u under scale index k: §6.4 for k ≤ 63 (escapes included), a
+    wide scale's high part and low bits for k = 64 … 127 (§6.3.6, since 0.14)."""
+    if k >= 64:
+        assert k <= 127
+        b = (k - 56) >> 3
+        q = u >> b                              # floor(u / 2^b), toward −∞
+        return symbol_intervals(q, k - 8 * b) + [uniform_interval(u - (q << b), b)]
     t = scale_tables()[k]
     r = t.radius
     if abs(u) <= r:
@@ -56,7 +63,7 @@ def model_state(data: bytes, rate: int):
     captured = {}
     orig = D.decode_layer
 
-    def grab(payloads, d, tiles, mask, prior, groups):
+    def grab(payloads, d, tiles, mask, prior, groups, *region):   # region: sel, rows (§10.3.1)
         captured.update(d=d, tiles=tiles, mask=mask, prior=prior, groups=groups)
         raise _Capture()
 
@@ -163,7 +170,7 @@ def gatt_intervals(h, lay, tile, voxels, coords, rot_index, size_class, refineme
                     node = 2 * node + bit
             for v in range(offs[g], offs[g] + coded):
                 x = context_class(prev_r[v], s_ref, s) if has_ref else 0
-                k = min(max(lay.scale_table[v][x] + o, 0), 63)
+                k = min(max(lay.scale_table[v][x] + o, 0), 127)   # 64 … 127: wide (0.14)
                 out += symbol_intervals(r[v], k)
         prev_u, prev_r, prev_c = u, r, c
     return out

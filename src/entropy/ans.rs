@@ -39,7 +39,8 @@ pub const MAX_PRECISION: u32 = 24;
 /// next one, and a binary search between them over the cumulative frequencies finishes the
 /// search. Most buckets lie within one or two symbols; a bucket in a wide table's tails holds
 /// up to 2^(P − COARSE_BITS) symbols of frequency 1, which a forward walk took one step each
-/// (at rate 0, fruit_drops and alti put 13 % and 7 % of their symbols in the widest table,
+/// (at rate 0 under format 0.13, fruit_drops and alti put 13 % and 7 % of their symbols in
+/// the widest table,
 /// at 14.7 and 13.2 steps). This is an implementation choice: §6.2.4 step 2 defines the
 /// symbol whatever the search.
 pub const COARSE_BITS: u32 = 8;

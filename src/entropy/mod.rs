@@ -11,6 +11,7 @@
 //! | §6.2 | the ANS coder (`constriction`'s `AnsCoder<u32, u64>`), bit-exact | [`ans`], [`reference`](mod@reference) (a port from the text alone) |
 //! | §6.3.1 | scale grid σ_k, thresholds θ_k, [`scale_index`] | [`scale`] |
 //! | §6.3.2 – §6.3.5 | radius R_k, integer Φ, frequencies, the data file | [`tables`], `spec/tables/gaussian_tables.txt` |
+//! | §6.3.6 | wide scales 64 … 127: a high part at a table scale and uniform low bits | [`scale`], [`symbols`] |
 //! | §6.4 | escapes: Exp-Golomb order 0 with ½-probability bits | [`symbols`] |
 //! | §6.5 | choice of P, TAIL, R_MAX (informative) | [`analysis`], `salvq_bench::coder`, `crates/salvq-bench/benches/entropy_precision.rs` |
 //!
@@ -43,6 +44,8 @@ pub mod scale;
 pub mod symbols;
 pub mod tables;
 
-pub use scale::{scale_index, SCALE_COUNT, SIGMA_Q16, THRESHOLD_Q16};
+pub use scale::{
+    scale_index, wide_scale, SCALE_COUNT, SCALE_INDEX_COUNT, SIGMA_Q16, THRESHOLD_Q16,
+};
 pub use symbols::{checked_scale_index, SymbolReader, SymbolWriter};
 pub use tables::{GaussianTables, ScaleTable, PRECISION, R_MAX, TAIL_Q4};

@@ -6,8 +6,25 @@
 //! round(2^((k − 24)/8) · 2^16) and round(2^((k − 24.5)/8) · 2^16); a test checks them
 //! against f64, but no decoder ever computes them.
 
-/// Number of scale indices (and of frequency tables), spec §6.3.1.
+/// Number of scale indices with a frequency table of their own (spec §6.3.1).
 pub const SCALE_COUNT: usize = 64;
+
+/// Number of scale indices a symbol may be coded with (spec §6.3.6): the 64 tables' indices
+/// and the 64 wide scales 64 … 127, each coded as a high part at a table scale and uniform
+/// low bits.
+pub const SCALE_INDEX_COUNT: usize = 128;
+
+/// A wide scale index k = 64 … 127 (spec §6.3.6) as its table scale k − 8·b (56 … 63) and
+/// its number of low bits b = ⌊(k − 56) / 8⌋ (1 … 8); `None` below 64 or from 128 on.
+#[inline]
+pub fn wide_scale(k: u8) -> Option<(u8, u32)> {
+    if (SCALE_COUNT..SCALE_INDEX_COUNT).contains(&usize::from(k)) {
+        let low_bits = (k - 56) / 8;
+        Some((k - 8 * low_bits, u32::from(low_bits)))
+    } else {
+        None
+    }
+}
 
 /// σ_k in Q16 (σ_k · 2^16 rounded to the nearest integer), k = 0 … 63 (spec Table 6-1).
 pub const SIGMA_Q16: [u32; SCALE_COUNT] = [
@@ -78,6 +95,12 @@ mod tests {
     fn scale_index_counts_thresholds() {
         assert_eq!(scale_index(0), 0);
         assert_eq!(scale_index(u64::MAX), 63);
+        assert_eq!(wide_scale(63), None);
+        assert_eq!(wide_scale(64), Some((56, 1)));
+        assert_eq!(wide_scale(71), Some((63, 1)));
+        assert_eq!(wide_scale(72), Some((56, 2)));
+        assert_eq!(wide_scale(127), Some((63, 8)));
+        assert_eq!(wide_scale(128), None);
         for k in 1..SCALE_COUNT {
             let t = u64::from(THRESHOLD_Q16[k - 1]);
             assert_eq!(scale_index(t), k as u8);

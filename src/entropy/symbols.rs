@@ -1,4 +1,5 @@
-//! Symbols over the ANS coder (spec §6.1, §6.4): table symbols with escapes, and binary events.
+//! Symbols over the ANS coder (spec §6.1, §6.3.6, §6.4): table symbols with escapes, wide
+//! scales, and binary events.
 //!
 //! [`SymbolWriter`] turns each event into one or more coder intervals at once (so errors are
 //! reported at the call that caused them) and encodes them all, in reverse, at
@@ -9,7 +10,7 @@ use super::ans::{
     self, clamp_freq_one, encode_intervals, with_precision, AnsReader, BinaryModel, Interval,
     UniformModel,
 };
-use super::scale::SCALE_COUNT;
+use super::scale::{wide_scale, SCALE_COUNT, SCALE_INDEX_COUNT};
 use super::tables::{GaussianTables, PRECISION};
 
 /// The widest uniform value a call reads or writes (at most the lowest precision, 12).
@@ -18,17 +19,18 @@ pub use super::tables::{ESCAPE_MAX_PREFIX, ESCAPE_MAX_W};
 use crate::container::chunk::ChunkTag;
 use crate::error::{AnsFault, Error, Result};
 
-/// Checks a computed scale index (§6.3.1): returns it as `u8` when it selects a table, else
-/// `ScaleIndexOutOfRange` naming the chunk and the symbol's index.
+/// Checks a scale index (§6.3.1, §6.3.6): returns it as `u8` when a symbol can be coded with
+/// it (a table's index 0 … 63 or a wide scale 64 … 127), else `ScaleIndexOutOfRange` naming
+/// the chunk and the symbol's index.
 pub fn checked_scale_index(tag: ChunkTag, symbol: u64, scale_index: i64) -> Result<u8> {
-    if (0..SCALE_COUNT as i64).contains(&scale_index) {
+    if (0..SCALE_INDEX_COUNT as i64).contains(&scale_index) {
         Ok(scale_index as u8)
     } else {
         Err(Error::ScaleIndexOutOfRange {
             tag,
             symbol,
             scale_index,
-            max: SCALE_COUNT as u64 - 1,
+            max: SCALE_INDEX_COUNT as u64 - 1,
         })
     }
 }
@@ -69,12 +71,32 @@ impl<'t> SymbolWriter<'t> {
             .push(BinaryModel::interval(p, 1 << (p - 1), bit));
     }
 
-    /// Writes symbol `u` with scale index `k` (§6.4).
+    /// Writes symbol `u` with scale index `k` (§6.4; a wide scale by §6.3.6).
     ///
-    /// Errors: `ScaleIndexOutOfRange` if `k ≥ SCALE_COUNT`; `EscapeOverflow` if
-    /// |u| − R_k ≥ 2^31 (the escape's prefix would exceed 30 bits). Nothing is written then.
+    /// Errors: `ScaleIndexOutOfRange` if `k ≥ SCALE_INDEX_COUNT`; `EscapeOverflow` if the
+    /// high part's |h| − R_t ≥ 2^31 (the escape's prefix would exceed 30 bits). Nothing is
+    /// written then.
     pub fn symbol(&mut self, u: i64, k: u8) -> Result<()> {
         let k = checked_scale_index(self.tag, self.symbols, i64::from(k))?;
+        match wide_scale(k) {
+            None => self.table_symbol(u, k)?,
+            Some((table, low_bits)) => {
+                // §6.3.6: the high part h = ⌊u / 2^b⌋ at the table scale, then u − h·2^b in b
+                // uniform bits.
+                let high = u >> low_bits;
+                self.table_symbol(high, table)?;
+                let low = (u - (high << low_bits)) as u32;
+                let p = self.tables.precision();
+                self.intervals
+                    .push(UniformModel { bits: low_bits }.interval(p, low));
+            }
+        }
+        self.symbols += 1;
+        Ok(())
+    }
+
+    /// §6.4 for a table scale `k` (0 … 63): one interval, or the escape's.
+    fn table_symbol(&mut self, u: i64, k: u8) -> Result<()> {
         let table = self.tables.scale(k);
         let r = u64::from(table.radius());
         let mag = u.unsigned_abs();
@@ -108,7 +130,6 @@ impl<'t> SymbolWriter<'t> {
             }
             self.half_bit(u < 0);
         }
-        self.symbols += 1;
         Ok(())
     }
 
@@ -189,19 +210,23 @@ impl<'a> SymbolReader<'a> {
         self.fail(Error::AnsStreamInvalid { tag, fault })
     }
 
-    /// Reads one symbol coded with scale index `k` (§6.4).
+    /// Reads one symbol coded with scale index `k` (§6.4; a wide scale by §6.3.6).
     ///
-    /// Errors: `ScaleIndexOutOfRange` if `k ≥ SCALE_COUNT` (nothing is read);
+    /// Errors: `ScaleIndexOutOfRange` if `k ≥ SCALE_INDEX_COUNT` (nothing is read);
     /// `AnsStreamInvalid { OutOfWords }`; `EscapeOverflow` if an escape's prefix exceeds 30 bits.
     #[inline(always)]
     pub fn symbol(&mut self, k: u8) -> Result<i64> {
         // The format's precision with nothing broken: the common case, inlined into the
         // caller's loop; the rest (other precisions for experiments, errors) out of line.
-        if self.tables.precision() == PRECISION
-            && self.broken.is_none()
-            && usize::from(k) < SCALE_COUNT
-        {
-            let u = self.symbol_p::<{ PRECISION as usize }>(k)?;
+        if self.tables.precision() == PRECISION && self.broken.is_none() {
+            const P: usize = PRECISION as usize;
+            let u = if usize::from(k) < SCALE_COUNT {
+                self.symbol_p::<P>(k)?
+            } else if let Some((table, low_bits)) = wide_scale(k) {
+                self.wide_p::<P>(table, low_bits)?
+            } else {
+                return self.symbol_any(k);
+            };
             self.symbols += 1;
             return Ok(u);
         }
@@ -214,9 +239,27 @@ impl<'a> SymbolReader<'a> {
             return Err(err.clone());
         }
         let k = checked_scale_index(self.tag, self.symbols, i64::from(k))?;
-        let u = with_precision!(self.tables.precision(), P => self.symbol_p::<P>(k))?;
+        let u = match wide_scale(k) {
+            None => with_precision!(self.tables.precision(), P => self.symbol_p::<P>(k))?,
+            Some((table, low_bits)) => {
+                with_precision!(self.tables.precision(), P => self.wide_p::<P>(table, low_bits))?
+            }
+        };
         self.symbols += 1;
         Ok(u)
+    }
+
+    /// §6.3.6: a wide scale's symbol, its high part at scale `table`, then `low_bits`
+    /// uniform bits.
+    #[inline(never)]
+    fn wide_p<const P: usize>(&mut self, table: u8, low_bits: u32) -> Result<i64> {
+        let high = self.symbol_p::<P>(table)?;
+        let low = self
+            .ans
+            .decode_uniform::<P>(UniformModel { bits: low_bits })
+            .map_err(|fault| self.ans_fault(fault))?;
+        // |high| ≤ 2^31 − 1 + R_MAX and low_bits ≤ 8: no overflow.
+        Ok((high << low_bits) + i64::from(low))
     }
 
     #[inline(always)]

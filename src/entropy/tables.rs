@@ -6,7 +6,7 @@ use std::sync::OnceLock;
 
 use super::ans::ScaleModel;
 use super::ans::{COARSE_BITS, COARSE_LEN, MAX_PRECISION, MIN_PRECISION};
-use super::scale::{SCALE_COUNT, SIGMA_Q16, THRESHOLD_Q16};
+use super::scale::{wide_scale, SCALE_COUNT, SIGMA_Q16, THRESHOLD_Q16};
 
 /// Longest Exp-Golomb prefix (leading zeros) an escape may have (§6.4).
 pub const ESCAPE_MAX_PREFIX: u32 = 30;
@@ -215,12 +215,16 @@ impl GaussianTables {
     }
 
     /// −log2 of the probability with which `u` is coded at scale index `k`, escape bits
-    /// included (§6.4: each escape bit costs exactly 1 bit). Infinite for symbols that cannot
-    /// be coded (|u| − R_k ≥ 2^31).
+    /// included (§6.4: each escape bit costs exactly 1 bit), and for a wide scale (§6.3.6)
+    /// its high part ⌊u / 2^b⌋ and b uniform bits. Infinite for symbols that cannot be coded
+    /// (|u| − R_k ≥ 2^31, or the high part's |h| − R_t).
     ///
     /// # Panics
-    /// If `k ≥ SCALE_COUNT`.
+    /// If `k ≥ SCALE_INDEX_COUNT`.
     pub fn ideal_bits(&self, k: u8, u: i64) -> f64 {
+        if let Some((table, low_bits)) = wide_scale(k) {
+            return self.ideal_bits(table, u >> low_bits) + f64::from(low_bits);
+        }
         let t = self.scale(k);
         let p = f64::from(self.precision);
         let mag = u.unsigned_abs();

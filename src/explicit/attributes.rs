@@ -3,7 +3,7 @@
 //! [`crate::geometry::walk`] does): it asks an [`Events`] for each event, so both compute
 //! the same references, size classes, predictions and scale indices.
 
-use crate::entropy::SCALE_COUNT;
+use crate::entropy::SCALE_INDEX_COUNT;
 use crate::error::{Error, Result};
 use crate::explicit::groups::{Group, GroupKind};
 use crate::explicit::layer::{rest_count_bits, Layer, CONTEXT_CLASSES, SIZE_CLASSES};
@@ -227,10 +227,10 @@ pub fn rescale(u: i64, from: i8, to: i8) -> i64 {
 }
 
 /// §3.5: the scale index of table entry `k` with its size class's offset:
-/// `clamp(k + offset, 0, 63)`.
+/// `clamp(k + offset, 0, 127)` (a table scale or a wide one, §6.3.6).
 #[inline]
 pub fn offset_scale(k: u8, offset: i8) -> u8 {
-    (i32::from(k) + i32::from(offset)).clamp(0, SCALE_COUNT as i32 - 1) as u8
+    (i32::from(k) + i32::from(offset)).clamp(0, SCALE_INDEX_COUNT as i32 - 1) as u8
 }
 
 /// §3.5: walks the events of one tile whose Gaussians sit at `voxels` (tile order).

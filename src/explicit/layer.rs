@@ -4,7 +4,7 @@
 use crate::container::bytes::{PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, expect_len, METHOD_RAW};
-use crate::entropy::SCALE_COUNT;
+use crate::entropy::SCALE_INDEX_COUNT;
 use crate::error::{Error, Field, Result};
 
 /// §3.5: context classes per coded value.
@@ -243,12 +243,12 @@ impl Layer {
             let mut row = [0u8; CONTEXT_CLASSES];
             for k in &mut row {
                 *k = r.u8()?;
-                if usize::from(*k) >= SCALE_COUNT {
+                if usize::from(*k) >= SCALE_INDEX_COUNT {
                     return Err(out_of_range(
                         Field::ScaleTable,
                         (*k).into(),
                         0,
-                        SCALE_COUNT as i64 - 1,
+                        SCALE_INDEX_COUNT as i64 - 1,
                     ));
                 }
             }

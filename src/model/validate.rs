@@ -47,7 +47,7 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::GaussianCount => (1, u32::MAX as u64),
         Field::ShDegree => (0, 3),
         Field::PredLevel => (0, MAX_COORD_BITS as u64),
-        Field::ScaleTable => (0, 63),
+        Field::ScaleTable => (0, 127),
         Field::RotationFreq | Field::RestCountFreq => (1, u16::MAX as u64),
         Field::PredictFlag => (0, 1),
         Field::Refine => (0, 23),

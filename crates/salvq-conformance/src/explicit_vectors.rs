@@ -176,6 +176,23 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                 options(16_384, Some(vec![1]), None),
             )?,
         ),
+        vector(
+            "g-wide-scales",
+            "150 synthetic Gaussians, SH degree 0, steps 40 to 300 times finer than g-sh0's, so \
+             that the residuals spread over hundreds to thousands of steps: wide scales \
+             (scale indices 64 … 127, §6.3.6), 2 tiles",
+            &["§6.3.6"],
+            encode_synthetic(
+                &GaussianParams::new(150, 0, 17),
+                vec![plan(
+                    0.05,
+                    [3, 2, 1, 0],
+                    &[0.0005, 0.05, 0.0001, 0.01],
+                    &SHIFTS_SH0,
+                )],
+                options(80, None, Some(vec![false; 4])),
+            )?,
+        ),
     ])
 }
 
@@ -440,8 +457,8 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "x-g-scale-table",
             "FieldOutOfRange",
             &["§3.4"],
-            "GLAY's last scale_table entry = 64",
-            glay(&|p| *p.last_mut().expect("a table") = 64),
+            "GLAY's last scale_table entry = 128 (0 … 127 are scales, §6.3.6)",
+            glay(&|p| *p.last_mut().expect("a table") = 128),
         ),
         must_fail(
             "x-g-glay-length",

@@ -4,7 +4,7 @@
 
 use rustc_hash::FxHashMap;
 
-use salvq::entropy::{GaussianTables, SCALE_COUNT};
+use salvq::entropy::{GaussianTables, SCALE_INDEX_COUNT};
 use salvq::explicit::attributes::{context_class, has_reference, offset_scale, rescale};
 use salvq::explicit::layer::{CONTEXT_CLASSES, MAX_SCALE_OFFSET, SIZE_CLASSES};
 use salvq::tiles::TileTable;
@@ -12,9 +12,14 @@ use salvq::tiles::TileTable;
 /// `pred_level` candidates the encoder tries, as offsets below `coord_bits`.
 pub(super) const PRED_LEVEL_CANDIDATES: [u8; 5] = [0, 2, 4, 6, 8];
 
-/// Ideal bits of |r| = m under scale k, cached for small m.
+/// Ideal bits of |r| = m under scale k, cached for small m: the mean of +m's and −m's (they
+/// differ only under a wide scale, §6.3.6, whose high part is ⌊r / 2^b⌋).
 pub struct BitCost {
-    small: Vec<[f64; SCALE_COUNT]>,
+    small: Vec<[f64; SCALE_INDEX_COUNT]>,
+}
+
+fn magnitude_bits(tables: &GaussianTables, k: u8, m: i64) -> f64 {
+    0.5 * (tables.ideal_bits(k, m) + tables.ideal_bits(k, -m))
 }
 
 const SMALL: usize = 4096;
@@ -24,14 +29,14 @@ impl BitCost {
     pub fn new(tables: &GaussianTables) -> Self {
         BitCost {
             small: (0..SMALL)
-                .map(|m| std::array::from_fn(|k| tables.ideal_bits(k as u8, m as i64)))
+                .map(|m| std::array::from_fn(|k| magnitude_bits(tables, k as u8, m as i64)))
                 .collect(),
         }
     }
     fn bits(&self, k: u8, m: u64) -> f64 {
         match self.small.get(m as usize) {
             Some(r) => r[usize::from(k)],
-            None => GaussianTables::standard().ideal_bits(k, m as i64),
+            None => magnitude_bits(GaussianTables::standard(), k, m as i64),
         }
     }
 }
@@ -144,7 +149,7 @@ fn fit_tables(
                 if hist.is_empty() {
                     continue;
                 }
-                let (k, b) = (0..SCALE_COUNT as u8)
+                let (k, b) = (0..SCALE_INDEX_COUNT as u8)
                     .map(|k| (k, histogram_bits(hist, k, offsets, cost)))
                     .fold((0, f64::INFINITY), |a, x| if x.1 < a.1 { x } else { a });
                 row[c] = k;

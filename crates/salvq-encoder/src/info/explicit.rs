@@ -8,7 +8,7 @@ use serde::Serialize;
 use crate::error::Result;
 use salvq::container::chunk::ChunkReader;
 use salvq::container::signature::{Signature, SIGNATURE_LEN};
-use salvq::entropy::{GaussianTables, SCALE_COUNT};
+use salvq::entropy::{wide_scale, GaussianTables, SCALE_COUNT, SCALE_INDEX_COUNT};
 use salvq::explicit::attributes::{rest_count_of, walk, BitEvent, Events};
 use salvq::explicit::decode_gaussians;
 use salvq::explicit::{DecodedGaussians, GroupKind};
@@ -37,10 +37,10 @@ pub struct ExplicitLayerInfo {
     pub refine_bits: f64,
     /// Bits per Gaussian of each group, by name (the rotation index in `rotation`).
     pub group_bits: Vec<(String, f64)>,
-    /// Per group: the share of its coded values whose table is the widest (scale index 63,
-    /// §6.3.1), and the share sent with an escape (|r| > R_k, §6.4). Values whose spread
-    /// passes the widest table's σ cost more than their entropy, and each escape is 2L + 2
-    /// binary events more to decode.
+    /// Per group: the share of its coded values at a wide scale (k ≥ 64, §6.3.6), at the
+    /// widest (k = 127), and sent with an escape (a symbol or high part past R_k, §6.4). Values whose
+    /// spread passes the widest scale's σ cost more than their entropy, and each escape is
+    /// 2L + 2 binary events more to decode.
     pub saturation: Vec<GroupSaturation>,
 }
 
@@ -49,8 +49,10 @@ pub struct ExplicitLayerInfo {
 pub struct GroupSaturation {
     /// The group's name.
     pub group: String,
-    /// Share of its coded values coded with the widest table (scale index 63).
-    pub widest_table: f64,
+    /// Share of its coded values coded at a wide scale (k ≥ 64, §6.3.6).
+    pub wide_scale: f64,
+    /// Share of its coded values coded at the widest scale (k = 127).
+    pub widest_scale: f64,
     /// Share of its coded values sent with an escape.
     pub escaped: f64,
 }
@@ -84,8 +86,8 @@ struct Cost<'a> {
     group_of: &'a [usize],
     tables: &'a GaussianTables,
     bits: Vec<f64>,
-    /// Per group: coded values, those at the widest table, those escaped.
-    counts: Vec<[u64; 3]>,
+    /// Per group: coded values, those at a wide scale, at the widest, those escaped.
+    counts: Vec<[u64; 4]>,
     refine: f64,
     rotation_group: usize,
     /// The `sh_rest` count of the Gaussian at hand (§3.5), and the group's index.
@@ -104,7 +106,7 @@ impl<'a> Cost<'a> {
             group_of,
             tables,
             bits: vec![0.0; d.groups.len()],
-            counts: vec![[0; 3]; d.groups.len()],
+            counts: vec![[0; 4]; d.groups.len()],
             refine: 0.0,
             rotation_group: position(GroupKind::Rotation),
             rest_count: 0,
@@ -167,11 +169,13 @@ impl Events for Cost<'_> {
         }
         let g = self.group_of[v];
         self.bits[g] += self.tables.ideal_bits(k, r);
-        let widest = usize::from(k) == SCALE_COUNT - 1;
-        let escaped = r.unsigned_abs() > u64::from(self.tables.radius(k));
+        // §6.3.6: a wide scale codes ⌊r / 2^b⌋ at its table scale.
+        let (table, high) = wide_scale(k).map_or((k, r), |(t, low_bits)| (t, r >> low_bits));
+        let escaped = high.unsigned_abs() > u64::from(self.tables.radius(table));
         self.counts[g][0] += 1;
-        self.counts[g][1] += u64::from(widest);
-        self.counts[g][2] += u64::from(escaped);
+        self.counts[g][1] += u64::from(usize::from(k) >= SCALE_COUNT);
+        self.counts[g][2] += u64::from(usize::from(k) == SCALE_INDEX_COUNT - 1);
+        self.counts[g][3] += u64::from(escaped);
         Ok(r)
     }
 }
@@ -240,11 +244,12 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
                 .groups
                 .iter()
                 .zip(&cost.counts)
-                .map(|(g, &[values, widest, escaped])| {
+                .map(|(g, &[values, wide, widest, escaped])| {
                     let share = |c: u64| c as f64 / values.max(1) as f64;
                     GroupSaturation {
                         group: g.kind.name().to_string(),
-                        widest_table: share(widest),
+                        wide_scale: share(wide),
+                        widest_scale: share(widest),
                         escaped: share(escaped),
                     }
                 })
@@ -341,17 +346,18 @@ impl ExplicitInfo {
                 g.join(" ")
             );
         }
-        // Where a group's values overrun the scale grid (§6.3.1, §6.4).
+        // Where a group's values need wide scales or overrun them (§6.3.6, §6.4).
         for l in &self.layers {
             let over: Vec<String> = l
                 .saturation
                 .iter()
-                .filter(|g| g.widest_table > 0.0 || g.escaped > 0.0)
+                .filter(|g| g.wide_scale > 0.0 || g.escaped > 0.0)
                 .map(|g| {
                     format!(
-                        "{} {:.1} % / {:.1} %",
+                        "{} {:.1} % / {:.1} % / {:.1} %",
                         g.group,
-                        100.0 * g.widest_table,
+                        100.0 * g.wide_scale,
+                        100.0 * g.widest_scale,
                         100.0 * g.escaped
                     )
                 })
@@ -359,9 +365,11 @@ impl ExplicitInfo {
             if !over.is_empty() {
                 let _ = writeln!(
                     s,
-                    "rate {}: values at the widest table (k = {}) / escaped: {}",
+                    "rate {}: values at a wide scale (k ≥ {}) / at the widest (k = {}) / \
+                     escaped: {}",
                     l.rate,
-                    SCALE_COUNT - 1,
+                    SCALE_COUNT,
+                    SCALE_INDEX_COUNT - 1,
                     over.join(", ")
                 );
             }
@@ -374,22 +382,24 @@ impl ExplicitInfo {
 mod tests {
     use super::*;
 
-    /// A value is escaped exactly when |r| passes its table's radius R_k (§6.4), and counted
-    /// at the widest table only for scale index 63.
+    /// A value is escaped exactly when its symbol passes the table's radius R_k (§6.4),
+    /// a wide scale's high part ⌊r / 2^b⌋ (§6.3.6), and counted as wide from k = 64.
     #[test]
     fn escapes_are_counted_past_the_radius() {
         let tables = GaussianTables::standard();
-        let (k, widest) = (40u8, (SCALE_COUNT - 1) as u8);
+        let (k, widest) = (40u8, (SCALE_INDEX_COUNT - 1) as u8);
         let r = i64::from(tables.radius(k));
-        // Gaussian 0 codes [R, −R − 1, R_63 + 1], the last at the widest table.
-        let coords = [r as i32, -(r as i32) - 1, tables.radius(widest) as i32 + 1];
+        let r63 = i64::from(tables.radius(63)) as i32;
+        // Gaussian 0 codes [R, −R − 1] at k = 40, then at k = 127 (table 63, b = 8) the
+        // largest value whose high part is R_63, and the next.
+        let coords = [r as i32, -(r as i32) - 1, (r63 << 8) + 255, (r63 + 1) << 8];
         let mut cost = Cost {
             coords: &coords,
-            values: 3,
-            group_of: &[0, 0, 1],
+            values: 4,
+            group_of: &[0, 0, 1, 1],
             tables,
             bits: vec![0.0; 2],
-            counts: vec![[0; 3]; 2],
+            counts: vec![[0; 4]; 2],
             refine: 0.0,
             rotation_group: 0,
             rest_count: 0,
@@ -399,6 +409,7 @@ mod tests {
         cost.symbol(k, 0, 0, 0).unwrap();
         cost.symbol(k, 0, 1, 0).unwrap();
         cost.symbol(widest, 0, 2, 0).unwrap();
-        assert_eq!(cost.counts, vec![[2, 0, 1], [1, 1, 1]]);
+        cost.symbol(widest, 0, 3, 0).unwrap();
+        assert_eq!(cost.counts, vec![[2, 0, 0, 1], [2, 2, 2, 1]]);
     }
 }
