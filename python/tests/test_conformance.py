@@ -603,15 +603,27 @@ def test_rest_count_reencoded():                       # §3.5 (0.13)
 
 
 def test_wide_scales_reencoded():                      # §6.3.6, §3.5 (0.14)
-    """g-wide-scales (scale indices 64 … 127 through scale_table and scale_offset), its values
-    decoded by salvq_py and re-encoded by tools/reencode.py, is the stream's GATT payload byte
-    for byte: the high part and the low bits in the order the reference encoder wrote."""
+    """g-wide-scales (scale indices 64 … 127 through scale_table and scale_offset, every number
+    of low bits 1 … 8), its values decoded by salvq_py and re-encoded by tools/reencode.py, is
+    the stream's GATT payload byte for byte: the high part and the low bits in the order the
+    reference encoder wrote."""
     sys.path.insert(0, os.path.join(HERE, "..", "tools"))
     from reencode import encode_gatt
     from salvq_py.explicit import parse_glay
     from salvq_py.tiles import parse_tils
+    from salvq_py.ans import AnsDecoder
     s = _read("g-wide-scales.salvq")
-    base = decode_bytes(s, 0)
+    # The vector must keep exercising every number of low bits, b = 1 … 8.
+    seen, original = set(), AnsDecoder.decode_wide
+    def counting(self, k):
+        seen.add((k - 56) >> 3)
+        return original(self, k)
+    AnsDecoder.decode_wide = counting
+    try:
+        base = decode_bytes(s, 0)
+    finally:
+        AnsDecoder.decode_wide = original
+    assert seen == set(range(1, 9)), f"low-bit counts used: {sorted(seen)}"
     h, ints = base.head, base.integers
     lay = parse_glay(_payload(s, "GLAY"), h)
     assert max(max(row) for row in lay.scale_table) >= 64
