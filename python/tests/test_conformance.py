@@ -155,12 +155,31 @@ def test_ans_golden_vector():                          # §6.2.8
     d.finish()
 
 
+def _ans_round_trip(events, trial):
+    """Encodes events ("u", bits, value), ("b", freq_one, bit) and ("s", k, u) by §6.2.3
+    (tools/reencode.py) and checks that they decode back."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
+    from reencode import binary_interval, encode_body, symbol_intervals, uniform_interval
+    intervals = []
+    for kind, p, v in events:
+        if kind == "u":
+            intervals.append(uniform_interval(v, p))
+        elif kind == "b":
+            intervals.append(binary_interval(v, p))
+        else:
+            intervals += symbol_intervals(v, p)
+    d = AnsDecoder(encode_body(intervals))
+    for kind, p, v in events:
+        got = (d.decode_uniform(p) if kind == "u" else
+               d.decode_binary(p) if kind == "b" else d.decode_symbol(p))
+        assert got == v, f"trial {trial}: {kind} {p}: {got} != {v}"
+    d.finish()
+
+
 def test_ans_uniform_values():                         # §6.2.1 item 4 (0.12)
     """Uniform values of 1 … 12 bits between binary events and symbols, encoded by §6.2.3
     (tools/reencode.py) and decoded back; no vector has b other than 3 (§8.2's octants)."""
     import random
-    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
-    from reencode import binary_interval, encode_body, symbol_intervals, uniform_interval
     rng = random.Random(12)
     for trial in range(40):
         events = []
@@ -174,34 +193,22 @@ def test_ans_uniform_values():                         # §6.2.1 item 4 (0.12)
                 events.append(("b", f, int(rng.random() < f / 65536)))
             else:
                 events.append(("s", rng.randrange(64), rng.randrange(-200, 201)))
-        intervals = []
-        for kind, p, v in events:
-            if kind == "u":
-                intervals.append(uniform_interval(v, p))
-            elif kind == "b":
-                intervals.append(binary_interval(v, p))
-            else:
-                intervals += symbol_intervals(v, p)
-        d = AnsDecoder(encode_body(intervals))
-        for kind, p, v in events:
-            got = (d.decode_uniform(p) if kind == "u" else
-                   d.decode_binary(p) if kind == "b" else d.decode_symbol(p))
-            assert got == v, f"trial {trial}: {kind} {p}: {got} != {v}"
-        d.finish()
+        _ans_round_trip(events, trial)
 
 
 def test_ans_wide_scales():                            # §6.3.6 (0.14)
     """Symbols at wide scales 64 … 127 among table symbols, binary events and uniform values,
     encoded by tools/reencode.py (high part h = floor(u / 2^b) at t = k − 8b, then b low
-    bits) and decoded back: every shift 1 … 8, negative u (q rounded toward −∞), and q beyond
-    the table's radius (an escape inside a wide scale, which g-wide-scales does not have)."""
+    bits) and decoded back: every number of low bits 1 … 8, negative u (h rounded toward −∞),
+    and h beyond the table's radius (an escape inside a wide scale, which g-wide-scales does
+    not have)."""
     import random
     sys.path.insert(0, os.path.join(HERE, "..", "tools"))
-    from reencode import binary_interval, encode_body, symbol_intervals, uniform_interval
+    from reencode import encode_body, symbol_intervals, uniform_interval
     from salvq_py.tables import scale_tables
-    # u = −1 at k = 64 (b = 1, t = 56): q = −1, low bit 1
+    # u = −1 at k = 64 (b = 1, t = 56): h = −1, low bit 1
     assert symbol_intervals(-1, 64) == symbol_intervals(-1, 56) + [uniform_interval(1, 1)]
-    # u = 2^31 + 2^8 at k = 127 (b = 8, t = 63): q = 2^23 + 1, escaped (R_63 = 127), w = q − 127
+    # u = 2^31 + 2^8 at k = 127 (b = 8, t = 63): h = 2^23 + 1, escaped (R_63 = 127), w = h − 127
     # has L = 22: ESCAPE, 22 + 1 prefix bits, 22 suffix bits, the sign, then the 8 low bits
     assert len(symbol_intervals((1 << 31) + 256, 127)) == 1 + 23 + 22 + 1 + 1
     rng = random.Random(14)
@@ -220,21 +227,8 @@ def test_ans_wide_scales():                            # §6.3.6 (0.14)
                 b = max((k - 56) >> 3, 0)
                 spread = rng.choice((2, 200 << b, 1 << (24 + b // 2), 1 << 30))
                 events.append(("s", k, rng.choice((-1, 0, rng.randrange(-spread, spread + 1)))))
-        intervals = []
-        for kind, p, v in events:
-            if kind == "u":
-                intervals.append(uniform_interval(v, p))
-            elif kind == "b":
-                intervals.append(binary_interval(v, p))
-            else:
-                intervals += symbol_intervals(v, p)
-        d = AnsDecoder(encode_body(intervals))
-        for kind, p, v in events:
-            got = (d.decode_uniform(p) if kind == "u" else
-                   d.decode_binary(p) if kind == "b" else d.decode_symbol(p))
-            assert got == v, f"trial {trial}: {kind} {p}: {got} != {v}"
-        d.finish()
-    # a wide scale's q escaped past 30 prefix zeros is EscapeOverflow, as at its table scale
+        _ans_round_trip(events, trial)
+    # a wide scale's h escaped past 30 prefix zeros is EscapeOverflow, as at its table scale
     from salvq_py.ans import EscapeOverflowFault
     t = scale_tables()[63]
     body = encode_body([(t.cum[t.escape], t.freq[t.escape])] + [(0, 1 << 15)] * 31)
