@@ -155,6 +155,28 @@ def test_ans_golden_vector():                          # §6.2.8
     d.finish()
 
 
+def _uniform_or_binary(rng, kind):
+    """A random uniform value of 1 … 12 bits (kind 0) or binary event (kind 1)."""
+    if kind == 0:
+        b = rng.randrange(1, 13)
+        return ("u", b, rng.randrange(1 << b))
+    f = rng.choice((1, 2, 1 << 15, 65535, rng.randrange(1, 1 << 16)))
+    return ("b", f, int(rng.random() < f / 65536))
+
+
+def _random_round_trips(seed, kinds, most, symbol):
+    """40 random event lists of up to `most` events, each event's kind drawn from 0 … kinds − 1:
+    a uniform value or a binary event for 0 and 1, symbol(rng, kind) for the others."""
+    import random
+    rng = random.Random(seed)
+    for trial in range(40):
+        events = []
+        for _ in range(rng.randrange(0, most)):
+            kind = rng.randrange(kinds)
+            events.append(_uniform_or_binary(rng, kind) if kind < 2 else symbol(rng, kind))
+        _ans_round_trip(events, trial)
+
+
 def _ans_round_trip(events, trial):
     """Encodes events ("u", bits, value), ("b", freq_one, bit) and ("s", k, u) by §6.2.3
     (tools/reencode.py) and checks that they decode back."""
@@ -179,21 +201,8 @@ def _ans_round_trip(events, trial):
 def test_ans_uniform_values():                         # §6.2.1 item 4 (0.12)
     """Uniform values of 1 … 12 bits between binary events and symbols, encoded by §6.2.3
     (tools/reencode.py) and decoded back; no vector has b other than 3 (§8.2's octants)."""
-    import random
-    rng = random.Random(12)
-    for trial in range(40):
-        events = []
-        for _ in range(rng.randrange(0, 400)):
-            kind = rng.randrange(3)
-            if kind == 0:
-                b = rng.randrange(1, 13)
-                events.append(("u", b, rng.randrange(1 << b)))
-            elif kind == 1:
-                f = rng.choice((1, 2, 1 << 15, 65535, rng.randrange(1, 1 << 16)))
-                events.append(("b", f, int(rng.random() < f / 65536)))
-            else:
-                events.append(("s", rng.randrange(64), rng.randrange(-200, 201)))
-        _ans_round_trip(events, trial)
+    _random_round_trips(12, 3, 400, lambda rng, kind: (
+        "s", rng.randrange(64), rng.randrange(-200, 201)))
 
 
 def test_ans_wide_scales():                            # §6.3.6 (0.14)
@@ -202,7 +211,6 @@ def test_ans_wide_scales():                            # §6.3.6 (0.14)
     bits) and decoded back: every number of low bits 1 … 8, negative u (h rounded toward −∞),
     and h beyond the table's radius (an escape inside a wide scale, which g-wide-scales does
     not have)."""
-    import random
     sys.path.insert(0, os.path.join(HERE, "..", "tools"))
     from reencode import encode_body, symbol_intervals, uniform_interval
     from salvq_py.tables import scale_tables
@@ -211,23 +219,12 @@ def test_ans_wide_scales():                            # §6.3.6 (0.14)
     # u = 2^31 + 2^8 at k = 127 (b = 8, t = 63): h = 2^23 + 1, escaped (R_63 = 127), w = h − 127
     # has L = 22: ESCAPE, 22 + 1 prefix bits, 22 suffix bits, the sign, then the 8 low bits
     assert len(symbol_intervals((1 << 31) + 256, 127)) == 1 + 23 + 22 + 1 + 1
-    rng = random.Random(14)
-    for trial in range(40):
-        events = []
-        for _ in range(rng.randrange(0, 300)):
-            kind = rng.randrange(4)
-            if kind == 0:
-                b = rng.randrange(1, 13)
-                events.append(("u", b, rng.randrange(1 << b)))
-            elif kind == 1:
-                f = rng.choice((1, 1 << 15, 65535, rng.randrange(1, 1 << 16)))
-                events.append(("b", f, int(rng.random() < f / 65536)))
-            else:
-                k = rng.randrange(64, 128) if kind == 2 else rng.randrange(128)
-                b = max((k - 56) >> 3, 0)
-                spread = rng.choice((2, 200 << b, 1 << (24 + b // 2), 1 << 30))
-                events.append(("s", k, rng.choice((-1, 0, rng.randrange(-spread, spread + 1)))))
-        _ans_round_trip(events, trial)
+    def wide_symbol(rng, kind):
+        k = rng.randrange(64, 128) if kind == 2 else rng.randrange(128)
+        b = max((k - 56) >> 3, 0)
+        spread = rng.choice((2, 200 << b, 1 << (24 + b // 2), 1 << 30))
+        return ("s", k, rng.choice((-1, 0, rng.randrange(-spread, spread + 1))))
+    _random_round_trips(14, 4, 300, wide_symbol)
     # a wide scale's h escaped past 30 prefix zeros is EscapeOverflow, as at its table scale
     from salvq_py.ans import EscapeOverflowFault
     t = scale_tables()[63]
