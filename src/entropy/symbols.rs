@@ -251,7 +251,7 @@ impl<'a> SymbolReader<'a> {
 
     /// §6.3.6: a wide scale's symbol, its high part at scale `table`, then `low_bits`
     /// uniform bits.
-    #[inline(never)]
+    #[inline(always)]
     fn wide_p<const P: usize>(&mut self, table: u8, low_bits: u32) -> Result<i64> {
         let high = self.symbol_p::<P>(table)?;
         let low = self
