@@ -40,9 +40,8 @@ pub const MAX_PRECISION: u32 = 24;
 /// search. Most buckets lie within one or two symbols; a bucket in a wide table's tails holds
 /// up to 2^(P − COARSE_BITS) symbols of frequency 1, which a forward walk took one step each
 /// (at rate 0 under format 0.13, fruit_drops and alti put 13 % and 7 % of their symbols in
-/// the widest table,
-/// at 14.7 and 13.2 steps). This is an implementation choice: §6.2.4 step 2 defines the
-/// symbol whatever the search.
+/// the widest table, at 14.7 and 13.2 steps). This is an implementation choice: §6.2.4 step 2
+/// defines the symbol whatever the search.
 pub const COARSE_BITS: u32 = 8;
 /// Entries of a scale's coarse table: one per bucket, then the last alphabet index.
 pub const COARSE_LEN: usize = (1 << COARSE_BITS) + 1;

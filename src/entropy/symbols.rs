@@ -74,8 +74,8 @@ impl<'t> SymbolWriter<'t> {
     /// Writes symbol `u` with scale index `k` (§6.4; a wide scale by §6.3.6).
     ///
     /// Errors: `ScaleIndexOutOfRange` if `k ≥ SCALE_INDEX_COUNT`; `EscapeOverflow` if the
-    /// high part's |h| − R_t ≥ 2^31 (the escape's prefix would exceed 30 bits). Nothing is
-    /// written then.
+    /// table symbol (`u`, or a wide scale's high part) passes its table's radius by 2^31 or
+    /// more (the escape's prefix would exceed 30 bits). Nothing is written then.
     pub fn symbol(&mut self, u: i64, k: u8) -> Result<()> {
         let k = checked_scale_index(self.tag, self.symbols, i64::from(k))?;
         match wide_scale(k) {

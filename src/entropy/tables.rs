@@ -217,7 +217,7 @@ impl GaussianTables {
     /// −log2 of the probability with which `u` is coded at scale index `k`, escape bits
     /// included (§6.4: each escape bit costs exactly 1 bit), and for a wide scale (§6.3.6)
     /// its high part ⌊u / 2^b⌋ and b uniform bits. Infinite for symbols that cannot be coded
-    /// (|u| − R_k ≥ 2^31, or the high part's |h| − R_t).
+    /// (|u| − R_k ≥ 2^31, or the high part's |h| − R_t ≥ 2^31).
     ///
     /// # Panics
     /// If `k ≥ SCALE_INDEX_COUNT`.

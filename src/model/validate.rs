@@ -2,6 +2,7 @@
 //! and the dimension ranges (§1.4, Table 1-4) that the decoder also applies to `HEAD`.
 
 use super::{names, Basis, Dims, GroupQuantizer, Mlp, SceneModel};
+use crate::entropy::SCALE_INDEX_COUNT;
 use crate::error::{Error, Field, Result};
 
 /// Largest accepted condition number max|s_i| / min|s_i| of a lattice basis (spec §2.6).
@@ -47,7 +48,7 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::GaussianCount => (1, u32::MAX as u64),
         Field::ShDegree => (0, 3),
         Field::PredLevel => (0, MAX_COORD_BITS as u64),
-        Field::ScaleTable => (0, 127),
+        Field::ScaleTable => (0, SCALE_INDEX_COUNT as u64 - 1),
         Field::RotationFreq | Field::RestCountFreq => (1, u16::MAX as u64),
         Field::PredictFlag => (0, 1),
         Field::Refine => (0, 23),

@@ -38,9 +38,9 @@ pub struct ExplicitLayerInfo {
     /// Bits per Gaussian of each group, by name (the rotation index in `rotation`).
     pub group_bits: Vec<(String, f64)>,
     /// Per group: the share of its coded values at a wide scale (k ≥ 64, §6.3.6), at the
-    /// widest (k = 127), and sent with an escape (a symbol or high part past R_k, §6.4). Values whose
-    /// spread passes the widest scale's σ cost more than their entropy, and each escape is
-    /// 2L + 2 binary events more to decode.
+    /// widest (k = 127), and sent with an escape (a symbol or high part past R_k, §6.4).
+    /// Values whose spread passes the widest scale's σ cost more than their entropy, and each
+    /// escape is 2L + 2 binary events more to decode.
     pub saturation: Vec<GroupSaturation>,
 }
 
