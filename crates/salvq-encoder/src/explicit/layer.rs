@@ -388,7 +388,13 @@ pub fn encode_layer(
         at += g.dim;
     }
     let rotation: Vec<u8> = grid.order.iter().map(|&i| p.rotation_index[i]).collect();
-    let cost = BitCost::new(tables);
+    let built;
+    let cost = if std::ptr::eq(tables, GaussianTables::standard()) {
+        BitCost::standard()
+    } else {
+        built = BitCost::new(tables);
+        &built
+    };
 
     // The prior: for each candidate pred_level, each group with and without prediction,
     // tables fitted by exact cost under the shifts' offsets; the cheapest wins, and its
@@ -430,7 +436,7 @@ pub fn encode_layer(
         for (gi, g) in groups.iter().enumerate() {
             let bits = |pr: bool| {
                 let (h, count_bits) = histograms(gi, at, level, pr);
-                let fit = fit_prior(&h, &cost, variant.factorized_prior, class_shifts(gi), false);
+                let fit = fit_prior(&h, cost, variant.factorized_prior, class_shifts(gi), false);
                 fit.2 + count_bits
             };
             let off = bits(false);
@@ -454,13 +460,8 @@ pub fn encode_layer(
     let mut at = 0;
     for (gi, g) in groups.iter().enumerate() {
         let (h, _) = histograms(gi, at, pred_level, predict[gi]);
-        let (rows, offsets, bits) = fit_prior(
-            &h,
-            &cost,
-            variant.factorized_prior,
-            class_shifts(gi),
-            gi > 0,
-        );
+        let (rows, offsets, bits) =
+            fit_prior(&h, cost, variant.factorized_prior, class_shifts(gi), gi > 0);
         scale_table.extend(rows);
         if gi > 0 {
             scale_offset.push(offsets);

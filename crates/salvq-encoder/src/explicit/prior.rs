@@ -33,6 +33,12 @@ impl BitCost {
                 .collect(),
         }
     }
+    /// The costs under the format's tables, built once per process (about 15 ms): every
+    /// layer the encoder codes or tries uses them.
+    pub fn standard() -> &'static BitCost {
+        static COST: std::sync::OnceLock<BitCost> = std::sync::OnceLock::new();
+        COST.get_or_init(|| BitCost::new(GaussianTables::standard()))
+    }
     fn bits(&self, k: u8, m: u64) -> f64 {
         match self.small.get(m as usize) {
             Some(r) => r[usize::from(k)],

@@ -103,7 +103,7 @@ pub fn measure_curves(
     let reference = grid(p, origin, start.position);
     let class_of = classes.classes(p);
     let n = p.len() as f64;
-    let cost = BitCost::new(tables);
+    let cost = BitCost::standard();
     let mut parts = Vec::new();
     for c in 0..SIZE_CLASSES as u8 {
         parts.push(Part::Position(c));
@@ -197,7 +197,7 @@ pub fn measure_curves(
                         &subset_voxels,
                         reference.coord_bits,
                         &tiles,
-                        &cost,
+                        cost,
                         variant,
                         one.kind == GroupKind::Rest,
                     ) * share
