@@ -10,7 +10,7 @@
 //! (median of 20 decodes). Taken in index order one per job, a large tile late in that order
 //! still finished alone: alti's last tile ended 4 ms after the one before it, in a 23 ms loop.
 
-use std::sync::Mutex;
+use std::cell::RefCell;
 
 #[cfg(feature = "parallel")]
 pub(crate) use rayon::prelude::*;
@@ -71,29 +71,44 @@ mod sequential {
     }
 }
 
-/// Scratch buffers handed from job to job. `map_init` makes a new value for every rayon job,
-/// and with one tile per job that is one per tile: a tile's buffers (megabytes for a large
-/// tile) were allocated afresh each time, and the kernel's zeroing of their pages
-/// (`clear_page_erms`) took 5 … 12 % of a decode. A job takes a value from the pool (or a
-/// new one) and gives it back when done, so there are at most as many as jobs run at once.
-pub(crate) struct Pool<T>(Mutex<Vec<T>>);
+/// Scratch buffers a thread keeps from job to job and from decode to decode: what a tile's
+/// decode needs besides its output (megabytes for a large tile). Made afresh for every tile
+/// or every decode, the allocator handed their pages back to the kernel and the next decode
+/// faulted them in again: 2-thread decodes of fruit_drops took 334 page faults each, 1-thread
+/// ones 17 (the eighteenth session's `perf stat`). Values are kept only up to
+/// [`MAX_RETAINED_SCRATCH`] bytes, so one huge tile does not pin its buffers for the thread's
+/// life; the threads of a [`crate::Decoder`]'s own pool free theirs when it is dropped.
+pub(crate) trait Scratch: Default {
+    /// The bytes this value holds on to.
+    fn retained_bytes(&self) -> usize;
+}
 
-impl<T: Default> Pool<T> {
-    pub(crate) fn new() -> Self {
-        Pool(Mutex::new(Vec::new()))
+impl<A: Scratch, B: Scratch> Scratch for (A, B) {
+    fn retained_bytes(&self) -> usize {
+        self.0.retained_bytes() + self.1.retained_bytes()
     }
+}
 
-    /// `f` with a value from the pool, given back afterwards. A poisoned lock (a job that
-    /// panicked) only means a new value.
-    pub(crate) fn with<R>(&self, f: impl FnOnce(&mut T) -> R) -> R {
-        let taken = self.0.lock().ok().and_then(|mut free| free.pop());
-        let mut value = taken.unwrap_or_default();
-        let out = f(&mut value);
-        if let Ok(mut free) = self.0.lock() {
-            free.push(value);
+/// The most a thread keeps of one kind of scratch between jobs.
+pub(crate) const MAX_RETAINED_SCRATCH: usize = 64 << 20;
+
+/// `f` with this thread's value of `key`, kept for its next job unless it grew past
+/// [`MAX_RETAINED_SCRATCH`]. A job that runs inside another on the same thread (rayon may
+/// run a stolen job while one waits) gets a new value.
+pub(crate) fn with_thread_scratch<T: Scratch, R>(
+    key: &'static std::thread::LocalKey<RefCell<T>>,
+    f: impl FnOnce(&mut T) -> R,
+) -> R {
+    key.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut value) => {
+            let out = f(&mut value);
+            if value.retained_bytes() > MAX_RETAINED_SCRATCH {
+                *value = T::default();
+            }
+            out
         }
-        out
-    }
+        Err(_) => f(&mut T::default()),
+    })
 }
 
 /// `f(i, item)` for every item, in parallel, results in item order. The items are taken
@@ -131,7 +146,10 @@ fn largest_first_on<I: Send, R: Send>(
 ) -> Vec<R> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let order = largest_first_order(items.len(), cost);
-    let slots: Vec<Mutex<Option<I>>> = items.into_iter().map(|x| Mutex::new(Some(x))).collect();
+    let slots: Vec<std::sync::Mutex<Option<I>>> = items
+        .into_iter()
+        .map(|x| std::sync::Mutex::new(Some(x)))
+        .collect();
     let next = AtomicUsize::new(0);
     // One job per thread, each taking the next item in `order` until none is left.
     let done: Vec<Vec<(usize, R)>> = (0..threads)
@@ -181,6 +199,35 @@ mod tests {
         assert_eq!(runs.into_inner(), 37);
         let want: Vec<(usize, u32)> = (0..37).map(|i| (i, i as u32 * 2)).collect();
         assert_eq!(out, want);
+    }
+
+    #[derive(Default)]
+    struct Buffer(Vec<u8>);
+
+    impl Scratch for Buffer {
+        fn retained_bytes(&self) -> usize {
+            self.0.capacity()
+        }
+    }
+
+    thread_local! {
+        static BUFFER: RefCell<Buffer> = RefCell::default();
+    }
+
+    #[test]
+    fn thread_scratch_is_kept_up_to_the_cap_and_fresh_inside_itself() {
+        // Kept from one job to the next on this thread.
+        with_thread_scratch(&BUFFER, |b| b.0.extend_from_slice(&[7; 100]));
+        let kept = with_thread_scratch(&BUFFER, |b| b.0.clone());
+        assert_eq!(kept, [7; 100]);
+        // A job that runs inside another gets a value of its own.
+        with_thread_scratch(&BUFFER, |outer| {
+            with_thread_scratch(&BUFFER, |inner| assert!(inner.0.is_empty()));
+            assert_eq!(outer.0.len(), 100);
+        });
+        // Past the cap, the next job starts afresh.
+        with_thread_scratch(&BUFFER, |b| b.0.reserve(MAX_RETAINED_SCRATCH + 1));
+        assert_eq!(with_thread_scratch(&BUFFER, |b| b.0.capacity()), 0);
     }
 
     #[test]

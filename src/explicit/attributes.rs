@@ -109,6 +109,16 @@ impl TileSymbols {
     }
 }
 
+impl crate::par::Scratch for TileSymbols {
+    fn retained_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.coords.capacity() * size_of::<i32>()
+            + self.rotation_index.capacity()
+            + self.size_class.capacity()
+            + self.refinement.capacity() * size_of::<[u32; 3]>()
+    }
+}
+
 /// Some Gaussians' symbols ([`TileSymbols`]'s fields) as mutable slices, so that tiles
 /// decoded on different threads write straight into one output.
 #[derive(Debug)]

@@ -1,6 +1,8 @@
 //! Decoding an explicit-profile stream (spec §3.7): the chunk order, the selected layer, and
 //! the tiles of its `GATT` decoded in parallel.
 
+use std::cell::RefCell;
+
 use crate::par::*;
 
 use crate::container::chunk::{peek_critical, ChunkReader, ChunkTag};
@@ -41,6 +43,11 @@ pub struct DecodedGaussians {
     pub tiles: TileTable,
     /// The Gaussians, in stream order.
     pub gaussians: Gaussians,
+}
+
+thread_local! {
+    /// A thread's buffers for the tiles it decodes with `APOS` and `GATT` together.
+    static FUSED_SCRATCH: RefCell<(WalkScratch, TileSymbols)> = RefCell::default();
 }
 
 /// §3.7 Table 3-2: the explicit profile's critical chunk types.
@@ -306,7 +313,6 @@ impl ExplicitDecoder {
         // Per tile: its voxels, and where `GATT` was framed, its outcome.
         type Fused = (Result<Vec<[u32; 3]>>, Option<Result<()>>);
         let inputs = (h, rate, l, g, &self.matrices[..], tables);
-        let pool = Pool::<(WalkScratch, TileSymbols)>::new();
         let jobs: Vec<_> = geometry.into_iter().zip(outputs).collect();
         let size = |t: usize| tiles.range(t).len();
         let results: Vec<Fused> = map_largest_first(jobs, size, |t, (b, output)| {
@@ -314,7 +320,7 @@ impl ExplicitDecoder {
                 // Another part's tile (§10.3.2): neither its geometry nor its attributes.
                 return (Ok(vec![[0; 3]; tiles.range(t).len()]), Some(Ok(())));
             }
-            pool.with(|scratch| {
+            with_thread_scratch(&FUSED_SCRATCH, |scratch| {
                 let voxels = read_apos_tile(b, t, tiles, tables, &mut scratch.0);
                 let tile = match (&voxels, &attributes, output) {
                     (Ok(v), Ok(bodies), Some(out)) => Some(decode_and_reconstruct(

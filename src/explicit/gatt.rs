@@ -2,6 +2,8 @@
 //! straight into the layer's output, so that tiles decoded on different threads need no
 //! concatenation afterwards.
 
+use std::cell::RefCell;
+
 use crate::par::*;
 
 use crate::container::chunk::ChunkTag;
@@ -17,6 +19,11 @@ use crate::explicit::reconstruct::reconstruct_tile_into;
 use crate::explicit::Gaussians;
 use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
+
+thread_local! {
+    /// A thread's buffer for the symbols of the `GATT` tiles it decodes without keeping them.
+    static GATT_SCRATCH: RefCell<TileSymbols> = RefCell::default();
+}
 
 struct Reader<'a> {
     symbols: SymbolReader<'a>,
@@ -155,11 +162,10 @@ pub(crate) fn read_gatt(
     let (mut decoded, values) =
         DecodedTiles::allocate(tiles, selected, groups, header.sh_degree, keep_symbols);
     let outputs = decoded.outputs(tiles, values);
-    let pool = Pool::<TileSymbols>::new();
     let jobs: Vec<_> = bodies.into_iter().zip(outputs).collect();
     let size = |t: usize| tiles.range(t).len();
     let results = map_largest_first(jobs, size, |t, (b, output)| match output {
-        Some(out) => pool.with(|scratch| {
+        Some(out) => with_thread_scratch(&GATT_SCRATCH, |scratch| {
             let tile_voxels = &voxels[tiles.range(t)];
             decode_and_reconstruct(inputs, tile_voxels, b, out, scratch)
         }),

@@ -216,6 +216,18 @@ pub struct WalkScratch {
     first_child: Vec<u32>,
 }
 
+impl crate::par::Scratch for WalkScratch {
+    fn retained_bytes(&self) -> usize {
+        use std::mem::size_of;
+        (self.nodes.capacity() + self.children.capacity()) * size_of::<[u32; 3]>()
+            + self.direct.capacity()
+            + self.child_direct.capacity()
+            + self.bytes.capacity()
+            + (self.nbr.capacity() + self.child_nbr.capacity()) * size_of::<Neighbours>()
+            + self.first_child.capacity() * size_of::<u32>()
+    }
+}
+
 /// [`walk`], in `scratch`'s buffers.
 pub fn walk_with<E: Events>(
     depth: u8,
