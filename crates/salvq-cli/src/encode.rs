@@ -61,7 +61,9 @@ pub struct EncodeArgs {
     auto: bool,
     /// Anchors (or Gaussians) per tile at most (spec §10): tiles decode independently, in
     /// parallel or alone. Default: 16384, and for a scene of fewer than 131072 about 8 tiles
-    /// of at least 2048, so that a small scene decodes on several threads too.
+    /// of at least 2048, so that a small scene decodes on several threads too; where those
+    /// leave one of 2 threads more than 52 % of the scene, smaller tiles (down to 1024) that
+    /// do not.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) tile_anchors: Option<u32>,
     /// How lattice points are searched: `auto` (exact for Z^n, D_n, E8; Babai nearest

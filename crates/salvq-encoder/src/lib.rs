@@ -53,7 +53,8 @@ pub struct EncodeOptions {
     pub feat_lattice: Option<LatticeKind>,
     /// How the encoder picks lattice points (§7.3 leaves it free).
     pub search: Search,
-    /// Anchors per tile (§10); 0: [`salvq::tiles::auto_tile_anchors`] of the scene's.
+    /// Anchors per tile (§10); 0: the reference's automatic tiles
+    /// ([`salvq::tiles::TileTable::cut_auto`]).
     pub tile_anchors: u32,
     /// Replace the feature group's lattice by a basis fitted to the anchors (the KLT,
     /// [`fit::fit_klt_basis`]); `feat_lattice` must then be `None` or the general kind.
@@ -282,11 +283,10 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     let [fs, ss] = searches;
     let searches = [fs?, ss?];
     // §10: tiles of consecutive canonical anchors.
-    let tile_anchors = match options.tile_anchors {
-        0 => salvq::tiles::auto_tile_anchors(m.anchors.voxel.len()),
-        t => t,
+    let tiles = match options.tile_anchors {
+        0 => salvq::tiles::TileTable::cut_auto(&m.anchors.voxel),
+        per => salvq::tiles::TileTable::cut(&m.anchors.voxel, per),
     };
-    let tiles = salvq::tiles::TileTable::cut(&m.anchors.voxel, tile_anchors);
     let amsk = attributes::code_masks(m, tables, &tiles);
     let grid_entries_stored = touched
         .iter()

@@ -308,7 +308,8 @@ fn rest_count_freq(counts: &[usize], dim: usize) -> (Vec<u16>, f64) {
 }
 
 /// Codes layer `rate` of `p` with the quantizers `groups` (rate steps), `classes` and the
-/// rate's `plan` (Annex A.8.3).
+/// rate's `plan` (Annex A.8.3), in tiles of at most `tile_gaussians` (0: the reference's
+/// automatic tiles, [`TileTable::cut_auto`]).
 #[allow(clippy::too_many_arguments)]
 pub fn encode_layer(
     p: &PreparedGaussians,
@@ -322,7 +323,10 @@ pub fn encode_layer(
     tables: &GaussianTables,
 ) -> Result<CodedLayer> {
     let grid = grid(p, origin, plan.voxel);
-    let tiles = TileTable::cut(&grid.voxels, tile_gaussians);
+    let tiles = match tile_gaussians {
+        0 => TileTable::cut_auto(&grid.voxels),
+        per => TileTable::cut(&grid.voxels, per),
+    };
     let values: usize = groups.iter().map(|g| g.dim).sum();
     let n = grid.order.len();
 

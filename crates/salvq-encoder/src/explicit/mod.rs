@@ -23,7 +23,6 @@ use salvq::entropy::GaussianTables;
 use salvq::explicit::groups::{write_gqua, Group, GroupKind};
 use salvq::explicit::header::GaussianHeader;
 use salvq::explicit::Gaussians;
-use salvq::tiles::auto_tile_anchors;
 use salvq_render::compare::RingTarget;
 
 /// Where the rate-distortion curves' trial steps are centred (Annex A.8.2): the voxel edge
@@ -95,8 +94,8 @@ pub struct ExplicitOptions {
     /// order; `None`: SH DC and SH rest each when it makes the middle rate's layer, basis
     /// included, smaller.
     pub klt: Option<Vec<bool>>,
-    /// Gaussians per tile at most (§10); 0: [`salvq::tiles::auto_tile_anchors`] of the
-    /// scene's.
+    /// Gaussians per tile at most (§10); 0: the reference's automatic tiles
+    /// ([`salvq::tiles::TileTable::cut_auto`]).
     pub tile_gaussians: u32,
     /// Text for an `encd` chunk (§1.7), written after `GQUA`.
     pub note: Option<String>,
@@ -275,17 +274,7 @@ pub fn rate_plans(
     let tables = GaussianTables::standard();
     let origin = p.min.map(|v| v as f32);
     let code = |groups: &[Group], plan: &RatePlan| {
-        layer::encode_layer(
-            p,
-            groups,
-            &classes,
-            plan,
-            origin,
-            0,
-            auto_tile_anchors(p.len()),
-            variant,
-            tables,
-        )
+        layer::encode_layer(p, groups, &classes, plan, origin, 0, 0, variant, tables)
     };
     let klt = match klt {
         Some(k) => k.to_vec(),
@@ -378,10 +367,7 @@ pub fn encode_prepared(
         rate_mask,
         origin,
     };
-    let tile_gaussians = match options.tile_gaussians {
-        0 => auto_tile_anchors(p.len()),
-        t => t,
-    };
+    let tile_gaussians = options.tile_gaussians;
     let code_layer = |groups: &[Group], r: u8| {
         layer::encode_layer(
             p,
