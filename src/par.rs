@@ -11,6 +11,7 @@
 //! still finished alone: alti's last tile ended 4 ms after the one before it, in a 23 ms loop.
 
 use std::cell::RefCell;
+use std::sync::Mutex;
 
 #[cfg(feature = "parallel")]
 pub(crate) use rayon::prelude::*;
@@ -75,7 +76,7 @@ mod sequential {
 /// decode needs besides its output (megabytes for a large tile). Made afresh for every tile
 /// or every decode, the allocator handed their pages back to the kernel and the next decode
 /// faulted them in again: 2-thread decodes of fruit_drops took 334 page faults each, 1-thread
-/// ones 17 (the eighteenth session's `perf stat`). Values are kept only up to
+/// ones 17 (`perf stat`, nineteenth session). Values are kept only up to
 /// [`MAX_RETAINED_SCRATCH`] bytes, so one huge tile does not pin its buffers for the thread's
 /// life; the threads of a [`crate::Decoder`]'s own pool free theirs when it is dropped.
 pub(crate) trait Scratch: Default {
@@ -117,11 +118,11 @@ pub(crate) fn with_thread_scratch<T: Scratch, R>(
 /// zeroing of their pages (`clear_page_erms`) took 5 … 12 % of a decode. A job takes a value
 /// from the pool (or a new one) and gives it back when done, so there are at most as many as
 /// jobs run at once.
-pub(crate) struct Pool<T>(std::sync::Mutex<Vec<T>>);
+pub(crate) struct Pool<T>(Mutex<Vec<T>>);
 
 impl<T: Default> Pool<T> {
     pub(crate) fn new() -> Self {
-        Pool(std::sync::Mutex::new(Vec::new()))
+        Pool(Mutex::new(Vec::new()))
     }
 
     /// `f` with a value from the pool, given back afterwards. A poisoned lock (a job that
@@ -172,10 +173,7 @@ fn largest_first_on<I: Send, R: Send>(
 ) -> Vec<R> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let order = largest_first_order(items.len(), cost);
-    let slots: Vec<std::sync::Mutex<Option<I>>> = items
-        .into_iter()
-        .map(|x| std::sync::Mutex::new(Some(x)))
-        .collect();
+    let slots: Vec<Mutex<Option<I>>> = items.into_iter().map(|x| Mutex::new(Some(x))).collect();
     let next = AtomicUsize::new(0);
     // One job per thread, each taking the next item in `order` until none is left.
     let done: Vec<Vec<(usize, R)>> = (0..threads)
