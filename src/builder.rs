@@ -99,7 +99,10 @@ impl DecoderBuilder {
         self
     }
 
-    /// Decode tiles on the caller's pool.
+    /// Decode tiles on the caller's pool: one the application shares, or one whose threads it
+    /// has pinned to CPUs. Where the kernel packs threads onto few CPUs (virtual machines
+    /// can), a pool thread woken by a busy thread may wait on that thread's CPU for a
+    /// scheduler tick, milliseconds, which only a short decode notices (docs/speed).
     #[cfg(feature = "parallel")]
     pub fn thread_pool(mut self, pool: Arc<rayon::ThreadPool>) -> Self {
         self.pool = Some(pool);

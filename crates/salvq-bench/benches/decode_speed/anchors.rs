@@ -20,7 +20,7 @@ use salvq_gen::{generate, GenParams};
 use salvq_render::camera::{Bounds, Ring};
 use salvq_render::neural;
 
-use super::{dump, floor, secs, timed, wasm_times, Args, Res, Row};
+use super::{dump, floor, pinned_pool, secs, timed, wasm_times, Args, Res, Row, IDLE_BEFORE_TWO};
 
 /// What an anchors-profile stream is in salvq-wasm: the neural Gaussians of ring camera 0
 /// (Annex C.1, C.2), as `crates/salvq-wasm`'s `decode` computes them.
@@ -111,10 +111,13 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
     (row.floor, row.floor_outside) = floor(&symbols, a.rounds);
     let d1 = Decoder::builder().threads(1).build();
     let d2 = Decoder::builder().threads(2).build();
+    let d2p = pinned_pool(2).map(|p| Decoder::builder().thread_pool(p).build());
     let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let (mut t1, mut t2, mut t2b, mut ratio, mut tw) = (vec![], vec![], vec![], vec![], vec![]);
+    let mut t2p = vec![];
     let mut neural = None;
     drop((d1.decode(&stream), d2.decode(&stream)));
+    drop(d2p.as_ref().map(|d| d.decode(&stream)));
     for _ in 0..a.rounds {
         // Each output is checked, then dropped, outside the timing.
         let (s1, got) = timed(|| d1.decode(&stream));
@@ -123,6 +126,7 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
             "{n} anchors: the 1-thread decode equals the reference"
         );
         drop(got);
+        std::thread::sleep(IDLE_BEFORE_TWO);
         let (s2, got) = timed(|| d2.decode(&stream));
         assert!(
             matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
@@ -135,6 +139,16 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
             "{n} anchors: the 2-thread decode, again, equals the reference"
         );
         drop(got);
+        if let Some(d) = &d2p {
+            std::thread::sleep(IDLE_BEFORE_TWO);
+            let (pinned, got) = timed(|| d.decode(&stream));
+            assert!(
+                matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
+                "{n} anchors: the 2-thread decode on pinned threads equals the reference"
+            );
+            drop(got);
+            t2p.push(pinned);
+        }
         t1.push(s1);
         t2.push(s2);
         t2b.push(again);
@@ -153,6 +167,7 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
     row.one = median(&mut t1);
     row.two = median(&mut t2);
     row.two_again = median(&mut t2b);
+    row.two_pinned = (!t2p.is_empty()).then(|| median(&mut t2p));
     row.two_over_one = median(&mut ratio);
     if let (Some(pkg), Some(g)) = (pkg, &neural) {
         row.wasm_native = median(&mut tw);

@@ -6,17 +6,24 @@ use plotters::prelude::*;
 
 use super::{Args, Res, Row, GOAL_GAUSSIANS_PER_S};
 
-pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
+/// The text tables; `wake`: [`super::wake_latencies`], seconds.
+pub(crate) fn report(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String {
     let mut t = format!(
-        "decode speed, medians of {} rounds (interleaved), {} logical CPUs{}\n\n",
+        "decode speed, medians of {} rounds (interleaved), {} logical CPUs{}\n",
         a.rounds,
         std::thread::available_parallelism().map_or(0, usize::from),
         if a.smoke { ", smoke" } else { "" }
     );
-    t += "| profile | scene | size | tiles | symbols | bytes | 1 thread s | 2 threads s | 2 threads again s | size/s 1T | size/s 2T | size/s 2T again | 2T/1T | bare coder s (untimed symbols) | receive 50 Mbit/s s | decode 2T / receive |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    t += &format!(
+        "a sleeping pool thread started a job handed over by a busy one after {:.3} ms (pool unpinned), {} (pinned one per CPU)\n\n",
+        wake.0 * 1e3,
+        wake.1.map_or("-".into(), |p| format!("{:.3} ms", p * 1e3))
+    );
+    t += "| profile | scene | size | tiles | symbols | bytes | 1 thread s | 2 threads s | 2 threads again s | 2 threads pinned s | size/s 1T | size/s 2T | size/s 2T again | size/s 2T pinned | 2T/1T | bare coder s (untimed symbols) | receive 50 Mbit/s s | decode 2T / receive |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    let pinned = |r: &Row, f: fn(&Row, f64) -> String| r.two_pinned.map_or("-".into(), |p| f(r, p));
     for r in rows {
         t += &format!(
-            "| {} | {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.3e} | {:.3e} | {:.3e} | {:.2} | {} | {:.4} | {:.3} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {:.3e} | {:.3e} | {:.3e} | {} | {:.2} | {} | {:.4} | {:.3} |\n",
             r.profile,
             r.scene,
             r.size,
@@ -26,9 +33,11 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
             r.one,
             r.two,
             r.two_again,
+            pinned(r, |_, p| format!("{p:.4}")),
             r.size as f64 / r.one,
             r.size as f64 / r.two,
             r.size as f64 / r.two_again,
+            pinned(r, |r, p| format!("{:.3e}", r.size as f64 / p)),
             r.two_over_one,
             r.floor
                 .map_or("-".into(), |f| format!("{f:.4} ({})", r.floor_outside)),
@@ -38,7 +47,7 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
     }
     let explicit: Vec<&Row> = rows.iter().filter(|r| r.profile == "explicit").collect();
     if !explicit.is_empty() {
-        t += "\nexplicit profile: goal >= 2 M Gaussians/s on 2 threads (after the 1-thread decode; again: the same decoder at once, its threads awake)\n";
+        t += "\nexplicit profile: goal >= 2 M Gaussians/s on 2 threads (after 50 ms idle; again: the same decoder at once, its threads awake; pinned: a pool whose threads are pinned one per CPU, after 50 ms idle as the first)\n";
         let verdict = |rate: f64| {
             if rate >= GOAL_GAUSSIANS_PER_S {
                 "met"
@@ -48,8 +57,12 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
         };
         for r in &explicit {
             let (rate, again) = (r.size as f64 / r.two, r.size as f64 / r.two_again);
+            let pinned = r.two_pinned.map_or("-".into(), |p| {
+                let rate = r.size as f64 / p;
+                format!("{:.2} M: {}", rate * 1e-6, verdict(rate))
+            });
             t += &format!(
-                "  {}: {:.2} M Gaussians/s on 2 threads ({:.2} M on 1): {}; again {:.2} M: {}\n",
+                "  {}: {:.2} M Gaussians/s on 2 threads ({:.2} M on 1): {}; again {:.2} M: {}; pinned {pinned}\n",
                 r.scene,
                 rate * 1e-6,
                 r.size as f64 / r.one * 1e-6,
@@ -129,13 +142,13 @@ pub(crate) fn report(a: &Args, rows: &[Row]) -> String {
 
 pub(crate) fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,decode_2t_again_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,wasm_1_worker_s,wasm_2_workers_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
+        "profile,scene,size,tiles,symbols,bytes,decode_1t_s,decode_2t_s,decode_2t_again_s,decode_2t_pinned_s,two_over_one,bare_coder_s,bare_coder_untimed_symbols,receive_50mbit_s,wasm_s,wasm_first_s,wasm_native_s,wasm_1_worker_s,wasm_2_workers_s,command_s,st_spz_ply_s,st_sog_ply_s,st_spz_null_s,st_sog_null_s,st_version_s\n",
     );
     let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6}"));
     for r in rows {
         let p = |i: usize| o(r.peers.map(|p| p[i]));
         s += &format!(
-            "{},{},{},{},{},{},{:.6},{:.6},{:.6},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{:.6},{:.6},{:.6},{},{:.4},{},{},{:.6},{},{},{:.6},{},{},{},{},{},{},{},{}\n",
             r.profile,
             r.scene,
             r.size,
@@ -145,6 +158,7 @@ pub(crate) fn csv(rows: &[Row]) -> String {
             r.one,
             r.two,
             r.two_again,
+            o(r.two_pinned),
             r.two_over_one,
             o(r.floor),
             r.floor_outside,
@@ -175,7 +189,7 @@ type Series = (
 );
 
 pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
-    let series: [Series; 13] = [
+    let series: [Series; 15] = [
         (
             "explicit, native, 1 thread",
             RGBColor(0, 114, 178),
@@ -189,6 +203,13 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
             false,
             "explicit",
             |r| Some(r.two),
+        ),
+        (
+            "explicit, native, 2 threads pinned one per CPU",
+            RGBColor(86, 180, 233),
+            true,
+            "explicit",
+            |r| r.two_pinned,
         ),
         (
             "explicit, wasm (Node V8, 1 thread)",
@@ -231,6 +252,13 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
             false,
             "anchors",
             |r| Some(r.two),
+        ),
+        (
+            "anchors, native, 2 threads pinned one per CPU",
+            RGBColor(230, 159, 0),
+            true,
+            "anchors",
+            |r| r.two_pinned,
         ),
         (
             "anchors, wasm (decode + neural Gaussians, camera 0)",
