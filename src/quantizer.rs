@@ -7,6 +7,10 @@
 pub use crate::model::lattice_kind::LatticeKind;
 use crate::model::{Basis, GroupQuantizer};
 
+/// Lanes a dense column is padded to (8 binary32: one AVX2 vector, two SSE2 or WebAssembly
+/// ones).
+pub(crate) const COLUMN_LANES: usize = 8;
+
 /// The reconstruction matrix B of one group in binary32 (§7.2, §7.3 step 1).
 ///
 /// A learned basis is dense; the fixed generators of D_n and E8 products are stored by their
@@ -18,10 +22,13 @@ use crate::model::{Basis, GroupQuantizer};
 pub struct LatticeMatrix {
     pub kind: LatticeKind,
     pub dim: usize,
-    /// Dense, column-major: `b[j * d + i]` is component i of basis vector j (so `B u` runs
-    /// over contiguous columns and vectorises; each `z_i` still sums in increasing j). Empty
-    /// unless the lattice is general.
+    /// Dense, column-major: `b[j * stride + i]` is component i of basis vector j (so `B u`
+    /// runs over contiguous columns and vectorises; each `z_i` still sums in increasing j),
+    /// 0 for `d <= i < stride`. Empty unless the lattice is general.
     b: Vec<f32>,
+    /// A dense column's length: `d` rounded up to whole vectors of [`COLUMN_LANES`], so
+    /// that the product has no scalar remainder (45 values: 48).
+    stride: usize,
     /// Sparse, column-major (fixed generators): column j's entries are
     /// `sparse_rows/vals[sparse_start[j] .. sparse_start[j + 1]]`. Empty otherwise.
     sparse_start: Vec<u32>,
@@ -39,6 +46,7 @@ impl LatticeMatrix {
             kind,
             dim,
             b: Vec::new(),
+            stride: dim.div_ceil(COLUMN_LANES) * COLUMN_LANES,
             sparse_start: Vec::new(),
             sparse_rows: Vec::new(),
             sparse_vals: Vec::new(),
@@ -76,8 +84,16 @@ impl LatticeMatrix {
             }
             (LatticeKind::General, Some(f)) => {
                 let row_major = general_matrix(dim, f);
-                m.b = (0..dim * dim)
-                    .map(|c| row_major[(c % dim) * dim + c / dim])
+                let stride = m.stride;
+                m.b = (0..dim * stride)
+                    .map(|c| {
+                        let (j, i) = (c / stride, c % stride);
+                        if i < dim {
+                            row_major[i * dim + j]
+                        } else {
+                            0.0
+                        }
+                    })
                     .collect();
             }
             _ => {}
@@ -96,7 +112,7 @@ impl LatticeMatrix {
         let mut out = vec![0.0; d * d];
         if !self.b.is_empty() {
             for (r, o) in out.iter_mut().enumerate() {
-                *o = f64::from(self.b[(r % d) * d + r / d]);
+                *o = f64::from(self.b[(r % d) * self.stride + r / d]);
             }
         } else if !self.sparse_start.is_empty() {
             for j in 0..d {
@@ -136,7 +152,12 @@ impl LatticeMatrix {
                 *zi = ui.into() as f32;
             }
         } else if self.dense_finite && self.dim == D && u.len() >= D {
-            for (column, &uj) in self.b.chunks_exact(D).zip(u) {
+            for (j, &uj) in u[..D].iter().enumerate() {
+                // Column j's D values (of its padded stride), a constant count to unroll.
+                let start = j * self.stride;
+                let Some(column) = self.b.get(start..).and_then(<[f32]>::first_chunk::<D>) else {
+                    break;
+                };
                 let uf = uj.into() as f32;
                 for (zi, &bij) in z.iter_mut().zip(column) {
                     *zi += bij * uf;
@@ -179,39 +200,7 @@ impl LatticeMatrix {
             }
             return;
         }
-        // Most coordinates of a fine rate are 0, at no pattern a branch predicts: list the
-        // non-zero columns of each run of 64 first (no branch), then add those in increasing j.
-        const RUN: usize = 64;
-        let mut nonzero = [0u8; RUN];
-        for (r, run) in u[..d.min(u.len())].chunks(RUN).enumerate() {
-            let mut n = 0;
-            for (j, &uj) in run.iter().enumerate() {
-                nonzero[n] = j as u8;
-                n += usize::from(uj.into() != 0);
-            }
-            // Four columns per pass over z: each z_i still takes its terms in increasing j,
-            // one rounding per product and per sum, with a quarter of the loads and stores.
-            let column = |j: u8| {
-                let j = r * RUN + usize::from(j);
-                (&self.b[j * d..(j + 1) * d], u[j].into() as f32)
-            };
-            let mut fours = nonzero[..n].chunks_exact(4);
-            for four in &mut fours {
-                let (b0, u0) = column(four[0]);
-                let (b1, u1) = column(four[1]);
-                let (b2, u2) = column(four[2]);
-                let (b3, u3) = column(four[3]);
-                for ((((zi, &c0), &c1), &c2), &c3) in z.iter_mut().zip(b0).zip(b1).zip(b2).zip(b3) {
-                    *zi = (((*zi + c0 * u0) + c1 * u1) + c2 * u2) + c3 * u3;
-                }
-            }
-            for &j in fours.remainder() {
-                let (b0, u0) = column(j);
-                for (zi, &c0) in z.iter_mut().zip(b0) {
-                    *zi += c0 * u0;
-                }
-            }
-        }
+        crate::hyperprior::simd::dense_product(&self.b, self.stride, &u[..d.min(u.len())], z);
     }
 }
 

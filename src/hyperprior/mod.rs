@@ -7,7 +7,7 @@ pub mod grid;
 pub mod mlp;
 pub mod prior;
 // Always compiled: without the `simd` feature it holds only the kernel that is never made.
-mod simd;
+pub(crate) mod simd;
 pub mod step;
 #[cfg(test)]
 mod test_scene;

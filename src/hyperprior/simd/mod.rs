@@ -1,6 +1,6 @@
 //! The one place with `unsafe` code: the context MLP (spec §5.3) with x86-64 SIMD (and the
-//! same kernel with WebAssembly SIMD, which needs none), and the hash-grid corners (§5.1,
-//! §5.2) with AVX2.
+//! same kernel with WebAssembly SIMD, which needs none), the hash-grid corners (§5.1, §5.2)
+//! with AVX2, and the lattices' dense product (§7.3) built for AVX2.
 //!
 //! Why: the context MLP is 365 multiply-adds per coded symbol and dominates decoding time
 //! (`cargo bench --bench decode_throughput`); the compiler does not turn the safe loops into
@@ -19,11 +19,16 @@
 //!   time, in builds for `wasm32` with that feature (the wasm package's, `.cargo/config.toml`);
 //! - [`grid_avx2::Avx2Grid`]: §5.1's interpolation for grids of 4 channels, a level's
 //!   corners in the lanes of one vector and their entries in one gather;
+//! - [`columns::dense_product`]: §7.3's `B u` for a dense B, built for AVX2 where the CPU
+//!   has it (the same loop as the portable build);
 //! - [`prefetch`]: a hint to load a hash-grid entry ahead of its use (§5.1's corners are
 //!   scattered over megabytes of tables, and waiting for them was most of the
 //!   interpolation's time). A hint changes no result.
 
 #![allow(unsafe_code)]
+
+pub mod columns;
+pub use columns::dense_product;
 
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod avx2;
