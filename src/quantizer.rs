@@ -185,8 +185,8 @@ impl LatticeMatrix {
             return;
         }
         let z = &mut z[..d];
-        z.fill(0.0);
         if self.b.is_empty() {
+            z.fill(0.0);
             for (j, &uj) in u.iter().enumerate().take(d) {
                 let uj: i64 = uj.into();
                 if uj == 0 {
@@ -200,6 +200,7 @@ impl LatticeMatrix {
             }
             return;
         }
+        // Writes every z_i (+0 where no column adds to it).
         crate::hyperprior::simd::dense_product(&self.b, self.stride, &u[..d.min(u.len())], z);
     }
 }
