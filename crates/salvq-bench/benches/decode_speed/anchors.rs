@@ -20,7 +20,9 @@ use salvq_gen::{generate, GenParams};
 use salvq_render::camera::{Bounds, Ring};
 use salvq_render::neural;
 
-use super::{dump, floor, pinned_pool, secs, timed, wasm_times, Args, Res, Row, IDLE_BEFORE_TWO};
+use super::{
+    checked_decode, dump, floor, pinned_pool, round_times, secs, wasm_times, Args, Res, Row,
+};
 
 /// What an anchors-profile stream is in salvq-wasm: the neural Gaussians of ring camera 0
 /// (Annex C.1, C.2), as `crates/salvq-wasm`'s `decode` computes them.
@@ -118,37 +120,18 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
     let mut neural = None;
     drop((d1.decode(&stream), d2.decode(&stream)));
     drop(d2p.as_ref().map(|d| d.decode(&stream)));
+    let same = |got: &salvq::Result<Decoded>| {
+        let Ok(Decoded::Anchors(m)) = got else {
+            return false;
+        };
+        **m == reference
+    };
+    let decode = |d: &Decoder, what: &str| {
+        checked_decode(d, &stream, same, &format!("{n} anchors: the {what}"))
+    };
     for _ in 0..a.rounds {
-        // Each output is checked, then dropped, outside the timing.
-        let (s1, got) = timed(|| d1.decode(&stream));
-        assert!(
-            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
-            "{n} anchors: the 1-thread decode equals the reference"
-        );
-        drop(got);
-        std::thread::sleep(IDLE_BEFORE_TWO);
-        let (s2, got) = timed(|| d2.decode(&stream));
-        assert!(
-            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
-            "{n} anchors: the 2-thread decode equals the reference"
-        );
-        drop(got);
-        let (again, got) = timed(|| d2.decode(&stream));
-        assert!(
-            matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
-            "{n} anchors: the 2-thread decode, again, equals the reference"
-        );
-        drop(got);
-        if let Some(d) = &d2p {
-            std::thread::sleep(IDLE_BEFORE_TWO);
-            let (pinned, got) = timed(|| d.decode(&stream));
-            assert!(
-                matches!(got, Ok(Decoded::Anchors(ref m)) if **m == reference),
-                "{n} anchors: the 2-thread decode on pinned threads equals the reference"
-            );
-            drop(got);
-            t2p.push(pinned);
-        }
+        let (s1, s2, again, pinned) = round_times(&d1, &d2, d2p.as_ref(), decode);
+        t2p.extend(pinned);
         t1.push(s1);
         t2.push(s2);
         t2b.push(again);

@@ -206,6 +206,40 @@ fn secs(f: impl FnOnce()) -> f64 {
     timed(f).0
 }
 
+/// One round's in-process decodes, each by `decode` (timed and checked): 1 thread (`d1`);
+/// 2 threads (`d2`) after [`IDLE_BEFORE_TWO`] idle, then again at once; 2 pinned threads
+/// after idle again, where there is a pinned pool. Their seconds, in that order.
+fn round_times(
+    d1: &Decoder,
+    d2: &Decoder,
+    pinned: Option<&Decoder>,
+    decode: impl Fn(&Decoder, &str) -> f64,
+) -> (f64, f64, f64, Option<f64>) {
+    let one = decode(d1, "1-thread decode");
+    std::thread::sleep(IDLE_BEFORE_TWO);
+    let two = decode(d2, "2-thread decode");
+    let again = decode(d2, "2-thread decode, again,");
+    let pinned = pinned.map(|d| {
+        std::thread::sleep(IDLE_BEFORE_TWO);
+        decode(d, "2-thread decode on pinned threads")
+    });
+    (one, two, again, pinned)
+}
+
+/// One decode of `stream` by `d`, timed; its output checked with `same` and dropped outside
+/// the timing. `what` names the decode in the failure.
+fn checked_decode(
+    d: &Decoder,
+    stream: &[u8],
+    same: impl Fn(&salvq::Result<Decoded>) -> bool,
+    what: &str,
+) -> f64 {
+    let (t, got) = timed(|| d.decode(stream));
+    assert!(same(&got), "{what} equals the reference");
+    drop(got);
+    t
+}
+
 /// `f`'s wall time and its result (dropped by the caller, outside the timing).
 fn timed<T>(f: impl FnOnce() -> T) -> (f64, T) {
     let t = Instant::now();
@@ -473,37 +507,11 @@ fn explicit_scene(
     // One round untimed first, as the commands' timer does (their warm-up run).
     drop((d1.decode(&stream), d2.decode(&stream)));
     drop(d2p.as_ref().map(|d| d.decode(&stream)));
+    let decode =
+        |d: &Decoder, what: &str| checked_decode(d, &stream, same, &format!("{scene}: the {what}"));
     for _ in 0..a.rounds {
-        // Each output is checked, then dropped, outside the timing.
-        let (s1, got) = timed(|| d1.decode(&stream));
-        assert!(
-            same(&got),
-            "{scene}: the 1-thread decode equals the reference"
-        );
-        drop(got);
-        std::thread::sleep(IDLE_BEFORE_TWO);
-        let (s2, got) = timed(|| d2.decode(&stream));
-        assert!(
-            same(&got),
-            "{scene}: the 2-thread decode equals the reference"
-        );
-        drop(got);
-        let (again, got) = timed(|| d2.decode(&stream));
-        assert!(
-            same(&got),
-            "{scene}: the 2-thread decode, again, equals the reference"
-        );
-        drop(got);
-        if let Some(d) = &d2p {
-            std::thread::sleep(IDLE_BEFORE_TWO);
-            let (pinned, got) = timed(|| d.decode(&stream));
-            assert!(
-                same(&got),
-                "{scene}: the 2-thread decode on pinned threads equals the reference"
-            );
-            drop(got);
-            t2p.push(pinned);
-        }
+        let (s1, s2, again, pinned) = round_times(&d1, &d2, d2p.as_ref(), decode);
+        t2p.extend(pinned);
         t1.push(s1);
         t2.push(s2);
         t2b.push(again);
