@@ -166,9 +166,9 @@ fn pinned_pool(threads: usize) -> Option<Arc<rayon::ThreadPool>> {
 /// keeps working: the median over `tries` of the time from a `rayon::join` on one of the
 /// pool's 2 threads to its second half starting (taken by the other thread, or by the same
 /// one once the first half's 10 ms of spinning end: the measure is capped there). Each try
-/// starts after [`IDLE_BEFORE_TWO`] of idle, so the pool's threads are asleep; the two pools take turns,
-/// after 5 untimed tries each (a pool's first tries, its threads new, started sooner). For
-/// the unpinned pool and for [`pinned_pool`]'s (`None`: none).
+/// starts after [`IDLE_BEFORE_TWO`] of idle, so the pool's threads are asleep; the two pools
+/// take turns, after 5 untimed tries each (a pool's first tries, its threads new, started
+/// sooner). For the unpinned pool and for [`pinned_pool`]'s (`None`: none).
 fn wake_latencies(tries: usize) -> (f64, Option<f64>) {
     let once = |pool: &rayon::ThreadPool| {
         std::thread::sleep(IDLE_BEFORE_TWO);
