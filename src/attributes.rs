@@ -9,7 +9,7 @@ use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, METHOD_CODED};
 use crate::entropy::{GaussianTables, SymbolReader};
 use crate::error::{Error, Result};
-use crate::hyperprior::prior::{Group, Prior};
+use crate::hyperprior::prior::{Group, Prior, BATCH};
 use crate::model::{Dims, HashGrid};
 use crate::quantizer::{reconstruct_value, GroupLattices};
 use crate::tiles::{split_bodies, TileTable};
@@ -120,7 +120,7 @@ impl PriorBlock {
         let cout = prior.mlp.cout;
         let width = f + s + 3 * k;
         let m = voxels.len();
-        // Runs of anchors, each walked in order so that the next anchor's grid entries are
+        // Runs of anchors, each walked in order so that the next batch's grid entries are
         // requested while this one is computed.
         const RUN: usize = 64;
         self.ys[..m * cout]
@@ -132,16 +132,30 @@ impl PriorBlock {
             .for_each_init(
                 || prior.context(),
                 |ctx, ((((ys, kks), deltas), vs), run_masks)| {
+                    // §5.3 for BATCH anchors at a time, the next batch's grid entries
+                    // requested first; a run's last, short batch anchor by anchor.
+                    let batches = ys.chunks_mut(BATCH * cout.max(1)).zip(vs.chunks(BATCH));
+                    for (b, (batch, v)) in batches.enumerate() {
+                        for &next in vs.iter().skip((b + 1) * BATCH).take(BATCH) {
+                            prior.prefetch(grid, next);
+                        }
+                        match v.first_chunk::<BATCH>() {
+                            Some(v) if batch.len() == BATCH * cout => {
+                                prior.eval_batch_into(grid, v, ctx, batch);
+                            }
+                            _ => {
+                                for (&va, y) in v.iter().zip(batch.chunks_mut(cout.max(1))) {
+                                    prior.eval_into(grid, va, ctx, y);
+                                }
+                            }
+                        }
+                    }
                     let anchors = ys
                         .chunks_mut(cout.max(1))
                         .zip(kks.chunks_mut(width.max(1)))
                         .zip(deltas.iter_mut())
                         .zip(run_masks.chunks(k.max(1)));
-                    for (a, (((y, kk), delta), mask)) in anchors.enumerate() {
-                        if let Some(&next) = vs.get(a + 1) {
-                            prior.prefetch(grid, next);
-                        }
-                        prior.eval_into(grid, vs[a], ctx, y);
+                    for (((y, kk), delta), mask) in anchors {
                         for (gi, (g, w)) in [(Group::Feature, f), (Group::Scaling, s)]
                             .into_iter()
                             .enumerate()

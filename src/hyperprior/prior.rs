@@ -29,7 +29,12 @@ impl Group {
     }
 }
 
-/// Scratch space and outputs of one anchor's evaluation.
+/// Anchors [`Prior::eval_batch_into`] evaluates at once: two share each of the context MLP's
+/// weight loads (`simd::avx2_batch`); four ran slower than two.
+pub const BATCH: usize = 2;
+
+/// Scratch space and outputs of one anchor's evaluation (of [`BATCH`] anchors' inputs and
+/// hidden units, for [`Prior::eval_batch_into`]).
 #[derive(Debug, Clone)]
 pub struct AnchorContext {
     x: Vec<i16>,
@@ -145,7 +150,10 @@ impl Prior {
         // The kernel reads zero-padded inputs and writes padded hidden scratch.
         let (x_len, h_len) = (self.layout.features(), self.mlp.hidden);
         let (x_len, h_len) = match &self.fast {
-            Some(k) => (x_len.max(k.input_len()), h_len.max(k.hidden_len())),
+            Some(k) => (
+                BATCH * x_len.max(k.input_len()),
+                h_len.max(k.hidden_len()).max(k.batch_hidden_len(BATCH)),
+            ),
             None => (x_len, h_len),
         };
         AnchorContext {
@@ -181,6 +189,30 @@ impl Prior {
     /// [`Prior::eval`] with the outputs written to `y` (length `cout`) instead of `ctx.y`.
     pub fn eval_into(&self, grid: &HashGrid, v: [u32; 3], ctx: &mut AnchorContext, y: &mut [i32]) {
         self.eval_parts(grid, v, &mut ctx.x, &mut ctx.h, y);
+    }
+
+    /// [`Prior::eval_into`] of [`BATCH`] anchors, `ys` (`BATCH · cout`) holding their
+    /// outputs one after the other: the same values, with the kernel's batch where this
+    /// target has one.
+    pub fn eval_batch_into(
+        &self,
+        grid: &HashGrid,
+        v: &[[u32; 3]; BATCH],
+        ctx: &mut AnchorContext,
+        ys: &mut [i32],
+    ) {
+        let cout = self.mlp.cout;
+        if let Some(k) = &self.fast {
+            let (n, stride) = (self.layout.features(), k.input_len());
+            for (&va, x) in v.iter().zip(ctx.x.chunks_exact_mut(stride)) {
+                self.features(grid, va, &mut x[..n]);
+            }
+            k.eval_batch::<BATCH>(&ctx.x, &mut ctx.h, ys);
+            return;
+        }
+        for (&va, y) in v.iter().zip(ys.chunks_exact_mut(cout)) {
+            self.eval_into(grid, va, ctx, y);
+        }
     }
 
     fn eval_parts(

@@ -33,16 +33,16 @@ use std::arch::x86_64::{
 use crate::hyperprior::mlp::IntMlp;
 
 /// Input lanes per `vpmaddwd` block.
-const LANES: usize = 16;
+pub(super) const LANES: usize = 16;
 /// Weight rows evaluated together.
-const ROWS: usize = 8;
+pub(super) const ROWS: usize = 8;
 
 fn round_up(n: usize, m: usize) -> usize {
     n.div_ceil(m) * m
 }
 
 /// How the kernel stores a weight: i16, or i8 where every weight of the MLP fits.
-trait Weight: Copy + Default {
+pub(super) trait Weight: Copy + Default {
     /// Whether [`load16`] widens 16 bytes (i8) rather than loading 32 (i16).
     const NARROW: bool;
     /// `w`, which the caller has checked fits.
@@ -66,7 +66,7 @@ impl Weight for i8 {
 /// The 16 weights at `p` as 16 i16 lanes (i8 weights sign-extended: the same values).
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn load16<W: Weight>(p: *const W) -> __m256i {
+pub(super) unsafe fn load16<W: Weight>(p: *const W) -> __m256i {
     if W::NARROW {
         _mm256_cvtepi8_epi16(_mm_loadu_si128(p.cast()))
     } else {
@@ -114,12 +114,12 @@ impl<W: Weight> Layer<W> {
 /// contiguous at `(q * outputs + 8 g) * 2`: one `vpmaddwd` with the broadcast pair of
 /// activations adds both units' products to the group's 8 sums.
 #[derive(Debug, Clone)]
-struct Pairs<W> {
-    weights: Vec<W>,
+pub(super) struct Pairs<W> {
+    pub(super) weights: Vec<W>,
     /// Biases padded with zeros to `outputs`.
-    bias: Vec<i32>,
+    pub(super) bias: Vec<i32>,
     /// Outputs padded to a multiple of 8.
-    outputs: usize,
+    pub(super) outputs: usize,
 }
 
 impl<W: Weight> Pairs<W> {
@@ -144,34 +144,48 @@ impl<W: Weight> Pairs<W> {
 /// Output groups of 8 that one pass over the nonzero unit pairs accumulates in registers.
 const PASS_GROUPS: usize = 11;
 
-/// Both layers of `mlp` in the kernel's layout, each weight stored as a `W`.
-fn laid_out<W: Weight>(mlp: &IntMlp, hidden_pad: usize) -> (Layer<W>, Pairs<W>) {
-    let (cin, hidden, cout) = (mlp.cin, mlp.hidden, mlp.cout);
-    (
-        Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
-        Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
-    )
+/// Both layers of `mlp` in the kernel's layouts, each weight stored as a `W`: layer 0 by
+/// row groups (one anchor) and by input pairs (a batch, `super::avx2_batch`), layer 1 by
+/// unit pairs (both).
+#[derive(Debug, Clone)]
+pub(super) struct Laid<W> {
+    l0: Layer<W>,
+    pub(super) l0_pairs: Pairs<W>,
+    pub(super) l1: Pairs<W>,
 }
 
-/// Both layers' weights, stored one way.
+impl<W: Weight> Laid<W> {
+    fn new(mlp: &IntMlp, hidden_pad: usize) -> Laid<W> {
+        let (cin, hidden, cout) = (mlp.cin, mlp.hidden, mlp.cout);
+        Laid {
+            l0: Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
+            l0_pairs: Pairs::new(&mlp.w0, &mlp.b0, hidden, cin, round_up(cin, 2)),
+            l1: Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
+        }
+    }
+}
+
+/// The weights, stored one way.
 #[derive(Debug, Clone)]
-enum Weights {
-    Wide(Layer<i16>, Pairs<i16>),
-    Narrow(Layer<i8>, Pairs<i8>),
+pub(super) enum Weights {
+    Wide(Laid<i16>),
+    Narrow(Laid<i8>),
 }
 
 /// The context MLP in the AVX2 kernel's layout. Only [`Avx2Mlp::new`] makes one, and only
 /// on a CPU with AVX2.
 #[derive(Debug, Clone)]
 pub struct Avx2Mlp {
-    weights: Weights,
+    pub(super) weights: Weights,
     /// Layer 0's input blocks of 16.
     blocks: usize,
-    shift0: u8,
-    cin: usize,
+    pub(super) shift0: u8,
+    pub(super) cin: usize,
     /// Hidden units padded to a multiple of 8 (padding units are always 0).
-    hidden_pad: usize,
-    cout: usize,
+    pub(super) hidden_pad: usize,
+    pub(super) cout: usize,
+    /// The input pairs 0, 1, … of layer 0 (every one), as the batch kernel's list.
+    pub(super) input_pairs: Vec<i16>,
 }
 
 impl Avx2Mlp {
@@ -199,11 +213,9 @@ impl Avx2Mlp {
         }
         let fits = |w: &[i16]| w.iter().all(|&v| i8::try_from(v).is_ok());
         let weights = if fits(&mlp.w0) && fits(&mlp.w1) {
-            let (l0, l1) = laid_out(mlp, hidden_pad);
-            Weights::Narrow(l0, l1)
+            Weights::Narrow(Laid::new(mlp, hidden_pad))
         } else {
-            let (l0, l1) = laid_out(mlp, hidden_pad);
-            Weights::Wide(l0, l1)
+            Weights::Wide(Laid::new(mlp, hidden_pad))
         };
         Some(Avx2Mlp {
             weights,
@@ -212,6 +224,7 @@ impl Avx2Mlp {
             cin,
             hidden_pad,
             cout,
+            input_pairs: (0..cin.div_ceil(2)).map(|q| q as u16 as i16).collect(),
         })
     }
 
@@ -247,8 +260,8 @@ impl Avx2Mlp {
         // assertion above gives `eval_avx2` the slice lengths it reads and writes.
         unsafe {
             match &self.weights {
-                Weights::Wide(l0, l1) => self.eval_avx2(l0, l1, x, h, y),
-                Weights::Narrow(l0, l1) => self.eval_avx2(l0, l1, x, h, y),
+                Weights::Wide(w) => self.eval_avx2(&w.l0, &w.l1, x, h, y),
+                Weights::Narrow(w) => self.eval_avx2(&w.l0, &w.l1, x, h, y),
             }
         }
     }
@@ -378,7 +391,7 @@ unsafe fn rows8<W: Weight>(layer: &Layer<W>, g: usize, x: *const i16) -> __m256i
 /// which equals `(acc + 2^(s-1)) >> s` for every i32 and 1 <= s <= 31.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn round_shift(acc: __m256i, s: u8) -> __m256i {
+pub(super) unsafe fn round_shift(acc: __m256i, s: u8) -> __m256i {
     if s == 0 {
         return acc;
     }

@@ -8,6 +8,54 @@ pub(super) trait MlpKernel {
     fn input_len(&self) -> usize;
     fn hidden_len(&self) -> usize;
     fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]);
+    /// Hidden scratch of a batch of `a` anchors.
+    fn batch_hidden_len(&self, a: usize) -> usize;
+    /// [`MlpKernel::eval`] of `A` anchors, inputs and outputs one after the other.
+    fn eval_batch<const A: usize>(&self, x: &[i16], h: &mut [i16], y: &mut [i32]);
+}
+
+/// A kernel's batch seen as a one-anchor kernel: the tested input goes to anchor 0 and its
+/// negation (zero padding kept) to the others, whose outputs must equal the kernel's
+/// one-anchor `eval` of it (their nonzero units change which pairs layer 1 skips).
+struct Batch<K, const A: usize>(K, usize);
+
+impl<K: MlpKernel, const A: usize> MlpKernel for Batch<K, A> {
+    fn input_len(&self) -> usize {
+        self.0.input_len()
+    }
+    fn hidden_len(&self) -> usize {
+        self.0.batch_hidden_len(A)
+    }
+    fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        let (n, cout) = (self.0.input_len(), self.1);
+        let neg: Vec<i16> = x[..n].iter().map(|v| v.wrapping_neg()).collect();
+        let mut xs = x[..n].to_vec();
+        for _ in 1..A {
+            xs.extend_from_slice(&neg);
+        }
+        let mut ys = vec![0i32; A * cout];
+        self.0.eval_batch::<A>(&xs, h, &mut ys);
+        let (mut h1, mut y1) = (vec![0i16; self.0.hidden_len()], vec![0i32; cout]);
+        self.0.eval(&neg, &mut h1, &mut y1);
+        for a in 1..A {
+            assert_eq!(&ys[a * cout..(a + 1) * cout], &y1[..], "anchor {a} of {A}");
+        }
+        y.copy_from_slice(&ys[..cout]);
+    }
+    fn batch_hidden_len(&self, _: usize) -> usize {
+        unreachable!("a batch is not batched again")
+    }
+    fn eval_batch<const B: usize>(&self, _: &[i16], _: &mut [i16], _: &mut [i32]) {
+        unreachable!("a batch is not batched again")
+    }
+}
+
+/// [`matches_the_portable_mlp`] for the kernel's batches of 1 … 4 anchors.
+pub(super) fn batches_match_the_portable_mlp<K: MlpKernel>(make: impl Fn(&IntMlp) -> K) {
+    matches_the_portable_mlp(|m| Batch::<K, 1>(make(m), m.cout));
+    matches_the_portable_mlp(|m| Batch::<K, 2>(make(m), m.cout));
+    matches_the_portable_mlp(|m| Batch::<K, 3>(make(m), m.cout));
+    matches_the_portable_mlp(|m| Batch::<K, 4>(make(m), m.cout));
 }
 
 /// Accumulators at which a rounding shift (§0.5 `rshr`) can go wrong: the ends of i32 and
@@ -197,6 +245,12 @@ impl MlpKernel for super::avx2::Avx2Mlp {
     fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
         self.eval(x, h, y)
     }
+    fn batch_hidden_len(&self, a: usize) -> usize {
+        self.batch_hidden_len(a)
+    }
+    fn eval_batch<const A: usize>(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        self.eval_batch::<A>(x, h, y)
+    }
 }
 
 impl MlpKernel for super::wasm::WasmMlp {
@@ -208,5 +262,11 @@ impl MlpKernel for super::wasm::WasmMlp {
     }
     fn eval(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
         self.eval(x, h, y)
+    }
+    fn batch_hidden_len(&self, a: usize) -> usize {
+        self.batch_hidden_len(a)
+    }
+    fn eval_batch<const A: usize>(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        self.eval_batch::<A>(x, h, y)
     }
 }

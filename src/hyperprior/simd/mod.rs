@@ -14,7 +14,7 @@
 //!
 //! - [`sse2::dot`]: one dot product, 8 lanes (every x86-64 CPU);
 //! - [`avx2::Avx2Mlp`]: the whole MLP, 16 lanes, 8 rows at a time, selected once per stream
-//!   when the CPU has AVX2;
+//!   when the CPU has AVX2; [`avx2_batch`] evaluates it for several anchors at once;
 //! - `wasm::WasmMlp`: the same plan with WebAssembly SIMD (`simd128`), 8 lanes, 4 rows at a
 //!   time, in builds for `wasm32` with that feature (the wasm package's, `.cargo/config.toml`);
 //! - [`grid_avx2::Avx2Grid`]: §5.1's interpolation for grids of 4 channels, a level's
@@ -32,6 +32,8 @@ pub use columns::dense_product;
 
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod avx2;
+#[cfg(all(feature = "simd", target_arch = "x86_64"))]
+pub mod avx2_batch;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod grid_avx2;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
@@ -80,6 +82,12 @@ impl NoKernel {
         match *self {}
     }
     pub fn eval(&self, _: &[i16], _: &mut [i16], _: &mut [i32]) {
+        match *self {}
+    }
+    pub fn batch_hidden_len(&self, _: usize) -> usize {
+        match *self {}
+    }
+    pub fn eval_batch<const A: usize>(&self, _: &[i16], _: &mut [i16], _: &mut [i32]) {
         match *self {}
     }
 }

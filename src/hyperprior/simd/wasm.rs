@@ -146,6 +146,24 @@ impl WasmMlp {
         self.hidden_pad + self.hidden_pad / 2
     }
 
+    /// Length of the hidden scratch [`Self::eval_batch`] needs: each anchor's in turn.
+    pub fn batch_hidden_len(&self, anchors: usize) -> usize {
+        anchors * self.hidden_len()
+    }
+
+    /// [`Self::eval`] of `A` anchors in turn (the AVX2 kernel's batch, which shares each
+    /// weight's load between anchors, is not written for this one): `x` holds their inputs,
+    /// [`Self::input_len`] each, `h` their scratch, `y` their outputs, `cout` each.
+    pub fn eval_batch<const A: usize>(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        let anchors = x
+            .chunks_exact(self.input_len())
+            .zip(h.chunks_exact_mut(self.hidden_len()))
+            .zip(y.chunks_exact_mut(self.cout));
+        for ((xa, ha), ya) in anchors.take(A) {
+            self.eval(xa, ha, ya);
+        }
+    }
+
     /// §5.3 steps 1-3, bit-identical to [`IntMlp::eval`]: `x` holds the `cin` inputs followed
     /// by zeros up to [`Self::input_len`]; `h` is scratch of [`Self::hidden_len`] whose first
     /// `hidden` values are the hidden activations afterwards; `y` gets the `cout` outputs.
@@ -351,6 +369,13 @@ mod tests {
     #[test]
     fn matches_the_portable_mlp() {
         super::super::kernel_tests::matches_the_portable_mlp(|m| {
+            WasmMlp::new(m).expect("the test's shapes fit the kernel")
+        });
+    }
+
+    #[test]
+    fn batches_match_the_portable_mlp() {
+        super::super::kernel_tests::batches_match_the_portable_mlp(|m| {
             WasmMlp::new(m).expect("the test's shapes fit the kernel")
         });
     }

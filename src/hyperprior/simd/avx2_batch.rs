@@ -1,0 +1,220 @@
+//! The context MLP (spec §5.3) of several anchors at once with AVX2: each weight loaded (and
+//! widened from i8) once for all of them.
+//!
+//! Why: one anchor's evaluation ([`Avx2Mlp::eval`]) loads every weight it multiplies, so the
+//! loads and the widening shuffles, not the multiplies, bound it. Two anchors share them:
+//! a generated 100 k-anchor decode ran 0.91 … 0.93 of its time on one thread (docs/speed,
+//! twenty-first session). Four anchors leave too few registers for the sums and ran slower
+//! than two.
+//!
+//! Both layers go by pairs of inputs (c, c + 1), as [`Avx2Mlp::eval`]'s layer 1 does: the
+//! broadcast pair of one anchor's inputs times the pair's interleaved weights gives 8 sums
+//! per `vpmaddwd`, and the same weight vector serves every anchor of the batch. Layer 0 takes
+//! every input pair; layer 1 the unit pairs with a nonzero unit in any anchor of the batch
+//! (a pair that is zero in one anchor adds nothing to its sums). §5.3 takes the sums modulo
+//! 2^32, so the order of the additions and the pairs left out change no bit: the outputs are
+//! [`Avx2Mlp::eval`]'s, anchor by anchor.
+
+use std::arch::x86_64::{
+    __m128i, __m256i, _mm256_add_epi32, _mm256_castsi256_si128, _mm256_extracti128_si256,
+    _mm256_loadu_si256, _mm256_madd_epi16, _mm256_set1_epi32, _mm256_setzero_si256,
+    _mm256_storeu_si256, _mm_max_epi16, _mm_packs_epi32, _mm_setzero_si128, _mm_storeu_si128,
+};
+
+use super::avx2::{load16, round_shift, Avx2Mlp, Pairs, Weight, Weights, ROWS};
+
+/// Output groups of 8 that one pass keeps in registers for a batch of `a` anchors: `a` sums
+/// per group, `a` broadcast inputs and the weight vector within AVX2's 16 registers.
+const fn pass_groups(a: usize) -> usize {
+    match a {
+        1 => 13,
+        2 => 6,
+        3 => 4,
+        _ => 3,
+    }
+}
+
+/// The most groups [`pass`] is built for.
+const MAX_PASS_GROUPS: usize = 13;
+
+impl Avx2Mlp {
+    /// Length of the hidden scratch [`Self::eval_batch`] writes for `a` anchors: their
+    /// activations, then the list of unit pairs with a nonzero unit.
+    pub fn batch_hidden_len(&self, a: usize) -> usize {
+        a * self.hidden_pad + self.hidden_pad / 2
+    }
+
+    /// [`Self::eval`] of `A` anchors (1 ≤ A ≤ 8): `x` holds their inputs one after the
+    /// other, each `cin` values followed by zeros up to [`Self::input_len`]; `h` is scratch
+    /// of [`Self::batch_hidden_len`]`(A)`; `y` gets their outputs, `cout` each.
+    pub fn eval_batch<const A: usize>(&self, x: &[i16], h: &mut [i16], y: &mut [i32]) {
+        let stride = self.input_len();
+        assert!(
+            (1..=8).contains(&A)
+                && x.len() >= A * stride
+                && x[..A * stride]
+                    .chunks_exact(stride)
+                    .all(|xa| xa[self.cin..].iter().all(|&v| v == 0))
+                && h.len() >= self.batch_hidden_len(A)
+                && y.len() == A * self.cout,
+            "Avx2Mlp::eval_batch: scratch of the wrong shape"
+        );
+        // SAFETY: `new` returned this kernel only after detecting AVX2 on this CPU; the
+        // assertion above gives `batch_avx2` the slice lengths it reads and writes.
+        unsafe {
+            match &self.weights {
+                Weights::Wide(w) => self.batch_avx2::<_, A>(&w.l0_pairs, &w.l1, x, h, y),
+                Weights::Narrow(w) => self.batch_avx2::<_, A>(&w.l0_pairs, &w.l1, x, h, y),
+            }
+        }
+    }
+
+    #[target_feature(enable = "avx2")]
+    unsafe fn batch_avx2<W: Weight, const A: usize>(
+        &self,
+        l0: &Pairs<W>,
+        l1: &Pairs<W>,
+        x: &[i16],
+        h: &mut [i16],
+        y: &mut [i32],
+    ) {
+        let (stride, hp) = (self.input_len(), self.hidden_pad);
+        let (act, list) = h.split_at_mut(A * hp);
+        // Layer 0: s_h = b0[h] + W0[h] . x, then a_h = min(max(rshr(s_h, shift0), 0), 32767).
+        // The last pair of an odd `cin` reads the first zero of the padding.
+        let groups = hp / ROWS;
+        let mut first = 0;
+        while first < groups {
+            let b = (groups - first).min(pass_groups(A));
+            let sums = pass_in::<W, A>(b, l0, first, x.as_ptr(), stride, &self.input_pairs);
+            for (i, group) in sums[..b].iter().enumerate() {
+                let o = (first + i) * ROWS;
+                let bias = _mm256_loadu_si256(l0.bias.as_ptr().add(o).cast());
+                for (a, &s) in group.iter().enumerate() {
+                    let q = round_shift(_mm256_add_epi32(s, bias), self.shift0);
+                    // Signed saturation to i16 then max with 0 is the clamp to 0 ..= 32767.
+                    let packed =
+                        _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
+                    let relu = _mm_max_epi16(packed, _mm_setzero_si128());
+                    _mm_storeu_si128(act.as_mut_ptr().add(a * hp + o).cast::<__m128i>(), relu);
+                }
+            }
+            first += b;
+        }
+        // The unit pairs with a nonzero unit in any anchor, in order, written without
+        // branches (see `Avx2Mlp::eval`). In bounds: the store for pair q is at n <= q <
+        // hp / 2, the list's length.
+        let mut n = 0;
+        for q in 0..hp / 2 {
+            let mut any = 0u32;
+            for a in 0..A {
+                any |= act
+                    .as_ptr()
+                    .add(a * hp + 2 * q)
+                    .cast::<u32>()
+                    .read_unaligned();
+            }
+            *list.get_unchecked_mut(n) = q as u16 as i16;
+            n += usize::from(any != 0);
+        }
+        let list = &list[..n];
+        // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.
+        let groups = l1.outputs / ROWS;
+        let mut first = 0;
+        while first < groups {
+            let b = (groups - first).min(pass_groups(A));
+            let sums = pass_in::<W, A>(b, l1, first, act.as_ptr(), hp, list);
+            for (i, group) in sums[..b].iter().enumerate() {
+                let o = (first + i) * ROWS;
+                let bias = _mm256_loadu_si256(l1.bias.as_ptr().add(o).cast());
+                for (a, &s) in group.iter().enumerate() {
+                    let v = _mm256_add_epi32(s, bias);
+                    let ya = &mut y[a * self.cout..(a + 1) * self.cout];
+                    if o + ROWS <= self.cout {
+                        _mm256_storeu_si256(ya.as_mut_ptr().add(o).cast::<__m256i>(), v);
+                    } else {
+                        let mut last = [0i32; ROWS];
+                        _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), v);
+                        ya[o..].copy_from_slice(&last[..self.cout - o]);
+                    }
+                }
+            }
+            first += b;
+        }
+    }
+}
+
+/// [`pass`] for `b` output groups (1 ..= 13), its sums at the front of 13.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn pass_in<W: Weight, const A: usize>(
+    b: usize,
+    layer: &Pairs<W>,
+    first: usize,
+    act: *const i16,
+    stride: usize,
+    list: &[i16],
+) -> [[__m256i; A]; MAX_PASS_GROUPS] {
+    let mut out = [[_mm256_setzero_si256(); A]; MAX_PASS_GROUPS];
+    macro_rules! by_groups {
+        ($($n:literal)*) => {
+            match b {
+                $($n => out[..$n].copy_from_slice(
+                    &pass::<W, A, $n>(layer, first, act, stride, list),
+                ),)*
+                _ => unreachable!("pass_groups gives 1 ..= 13"),
+            }
+        };
+    }
+    by_groups!(1 2 3 4 5 6 7 8 9 10 11 12 13);
+    out
+}
+
+/// The sums of output groups `first .. first + B` of `layer` over the input pairs in `list`,
+/// for the `A` activation vectors at `act`, `stride` values apart. The caller guarantees
+/// that every listed pair q < `layer`'s inputs / 2 and that `act` holds A vectors of at
+/// least 2q + 2 values.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn pass<W: Weight, const A: usize, const B: usize>(
+    layer: &Pairs<W>,
+    first: usize,
+    act: *const i16,
+    stride: usize,
+    list: &[i16],
+) -> [[__m256i; A]; B] {
+    let mut acc = [[_mm256_setzero_si256(); A]; B];
+    let base = layer.weights.as_ptr().add(first * ROWS * 2);
+    for &q in list {
+        let q = usize::from(q as u16);
+        let mut both = [_mm256_setzero_si256(); A];
+        for (a, v) in both.iter_mut().enumerate() {
+            *v = _mm256_set1_epi32(act.add(a * stride + 2 * q).cast::<i32>().read_unaligned());
+        }
+        let col = base.add(q * layer.outputs * 2);
+        for (i, sums) in acc.iter_mut().enumerate() {
+            let w = load16(col.add(i * 2 * ROWS));
+            for (s, v) in sums.iter_mut().zip(&both) {
+                *s = _mm256_add_epi32(*s, _mm256_madd_epi16(w, *v));
+            }
+        }
+    }
+    acc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn batches_match_the_portable_mlp() {
+        if !super::super::avx2_or_skip(
+            "hyperprior::simd::avx2_batch::tests::batches_match_the_portable_mlp",
+        ) {
+            return;
+        }
+        super::super::kernel_tests::batches_match_the_portable_mlp(|m| {
+            Avx2Mlp::new(m).expect("AVX2 present")
+        });
+    }
+}
