@@ -12,7 +12,7 @@ use salvq::container::payload::{read_mlps, read_quan};
 use salvq::container::preflight::Preflight;
 use salvq::decoder::decode_with_symbols;
 use salvq::entropy::{GaussianTables, SymbolReader};
-use salvq::hyperprior::prior::{Group, Prior};
+use salvq::hyperprior::prior::{Group, Prior, BATCH};
 use salvq::tiles::TileTable;
 use salvq::Limits;
 use salvq_bench::coder as measure;
@@ -115,6 +115,46 @@ fn main() {
         }
         std::hint::black_box(&ctx);
     });
+    // The context MLP one anchor at a time and BATCH at a time (as the full decode runs it),
+    // back to back in each round; both must give the same outputs.
+    let voxels = &expected.anchors.voxel;
+    let cout = prior.mlp.cout;
+    let (mut ys_one, mut ys_batch) = (
+        vec![0i32; voxels.len() * cout],
+        vec![0i32; voxels.len() * cout],
+    );
+    let mut eval_one = |ys: &mut [i32]| {
+        for (&v, y) in voxels.iter().zip(ys.chunks_exact_mut(cout)) {
+            prior.eval_into(&expected.grid, v, &mut ctx, y);
+        }
+    };
+    let mut batch_ctx = prior.context();
+    let mut eval_batch = |ys: &mut [i32]| {
+        let batches = voxels.chunks(BATCH).zip(ys.chunks_mut(BATCH * cout));
+        for (v, y) in batches {
+            match v.first_chunk::<BATCH>() {
+                Some(v) => prior.eval_batch_into(&expected.grid, v, &mut batch_ctx, y),
+                None => {
+                    for (&va, ya) in v.iter().zip(y.chunks_exact_mut(cout)) {
+                        prior.eval_into(&expected.grid, va, &mut batch_ctx, ya);
+                    }
+                }
+            }
+        }
+    };
+    let mut batch_ratios: Vec<f64> = (0..runs)
+        .map(|_| {
+            let one = median_secs(1, || eval_one(&mut ys_one));
+            let batch = median_secs(1, || eval_batch(&mut ys_batch));
+            batch / one
+        })
+        .collect();
+    batch_ratios.sort_by(f64::total_cmp);
+    assert!(
+        ys_one == ys_batch,
+        "the context MLP's outputs differ between one anchor and {BATCH} at a time"
+    );
+    let t_mlp_batch = median_secs(runs, || eval_batch(&mut ys_batch));
     let mut ks: [Vec<u8>; 3] = [vec![], vec![], vec![]];
     let t_prior = median_secs(runs, || {
         for v in ks.iter_mut() {
@@ -232,6 +272,14 @@ fn main() {
         "  grid + MLP             {:>8.3} s  {:>7.1} ns/symbol",
         t_mlp,
         per(t_mlp)
+    );
+    println!(
+        "  grid + MLP, {BATCH} at once  {:>8.3} s  {:>7.1} ns/symbol  (per-round median / one at a time: {:.3}, min {:.3}, max {:.3}; outputs checked equal)",
+        t_mlp_batch,
+        per(t_mlp_batch),
+        batch_ratios[runs / 2],
+        batch_ratios[0],
+        batch_ratios[runs - 1]
     );
     println!(
         "  prior (grid+MLP+index) {:>8.3} s  {:>7.1} ns/symbol",
