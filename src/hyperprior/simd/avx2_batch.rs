@@ -2,11 +2,11 @@
 //! widened from i8) once for all of them.
 //!
 //! Why: one anchor's evaluation ([`Avx2Mlp::eval`]) loads and widens every weight it
-//! multiplies. Two anchors share those loads; this kernel then runs about 5 200 instructions
-//! an anchor, a `vpmaddwd`, a `vpaddd` and half a load for each 16 products. In profiles of
-//! the decode (docs/speed, twenty-first session) the MLP's time fell by 12 … 14 % against the
-//! unchanged grid interpolation's. Four anchors leave too few registers for the sums and ran
-//! slower than two.
+//! multiplies. Two anchors share those loads; the passes over the weights then run about
+//! 5 200 instructions an anchor, a `vpmaddwd`, a `vpaddd` and half a load for each 16
+//! products. In profiles of the decode (docs/speed, twenty-first session) the MLP's time fell
+//! by 12 … 14 % against the unchanged grid interpolation's. Four anchors leave too few
+//! registers for the sums and ran slower than two.
 //!
 //! Both layers go by pairs of inputs (c, c + 1), as [`Avx2Mlp::eval`]'s layer 1 does: the
 //! broadcast pair of one anchor's inputs times the pair's interleaved weights gives 8 sums
