@@ -280,11 +280,7 @@ impl Avx2Mlp {
             let s = rows8(l0, g, x.as_ptr());
             let acc =
                 _mm256_add_epi32(s, _mm256_loadu_si256(l0.bias.as_ptr().add(g * ROWS).cast()));
-            let q = round_shift(acc, self.shift0);
-            // Signed saturation to i16 then max with 0 is exactly the clamp to 0 ..= 32767.
-            let packed = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
-            let relu = _mm_max_epi16(packed, _mm_setzero_si128());
-            _mm_storeu_si128(h.as_mut_ptr().add(g * ROWS).cast::<__m128i>(), relu);
+            store_hidden(acc, self.shift0, &mut h[g * ROWS..]);
         }
         // The unit pairs with a nonzero unit, in order. Written without branches: each pair
         // is stored and the count advances only past nonzero ones (a branch per pair would be
@@ -348,14 +344,36 @@ impl Avx2Mlp {
         for (i, a) in acc.into_iter().enumerate() {
             let o = (first + i) * ROWS;
             let v = _mm256_add_epi32(a, _mm256_loadu_si256(l1.bias.as_ptr().add(o).cast()));
-            if o + ROWS <= self.cout {
-                _mm256_storeu_si256(y.as_mut_ptr().add(o).cast::<__m256i>(), v);
-            } else {
-                let mut last = [0i32; ROWS];
-                _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), v);
-                y[o..].copy_from_slice(&last[..self.cout - o]);
-            }
+            store_outputs(v, o, y);
         }
+    }
+}
+
+/// §5.3 step 2 on 8 layer-0 sums (biases added): `min(max(rshr(s, shift0), 0), 32767)`,
+/// stored at the front of `h`.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn store_hidden(sums: __m256i, shift0: u8, h: &mut [i16]) {
+    let q = round_shift(sums, shift0);
+    // Signed saturation to i16 then max with 0 is exactly the clamp to 0 ..= 32767.
+    let packed = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
+    let relu = _mm_max_epi16(packed, _mm_setzero_si128());
+    assert!(h.len() >= ROWS, "store_hidden: fewer than 8 units");
+    _mm_storeu_si128(h.as_mut_ptr().cast::<__m128i>(), relu);
+}
+
+/// Stores the 8 sums `v` of outputs `o .. o + 8` into `y`, leaving out those past its end.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn store_outputs(v: __m256i, o: usize, y: &mut [i32]) {
+    if o + ROWS <= y.len() {
+        _mm256_storeu_si256(y.as_mut_ptr().add(o).cast::<__m256i>(), v);
+    } else {
+        let mut last = [0i32; ROWS];
+        _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), v);
+        let at = o.min(y.len());
+        let n = y.len() - at;
+        y[at..].copy_from_slice(&last[..n.min(ROWS)]);
     }
 }
 
