@@ -33,7 +33,7 @@ use std::arch::x86_64::{
 use crate::hyperprior::mlp::IntMlp;
 
 /// Input lanes per `vpmaddwd` block.
-pub(super) const LANES: usize = 16;
+const LANES: usize = 16;
 /// Weight rows evaluated together.
 pub(super) const ROWS: usize = 8;
 
@@ -190,8 +190,8 @@ pub struct Avx2Mlp {
 
 impl Avx2Mlp {
     /// The kernel for `mlp`, or `None` where the CPU lacks AVX2, the MLP's tensors do not
-    /// have the lengths its dimensions give, or it has more hidden units than the kernel's
-    /// 16-bit pair indices reach (the portable path then handles it).
+    /// have the lengths its dimensions give, or it has more inputs or hidden units than the
+    /// kernel's 16-bit pair indices reach (the portable path then handles it).
     pub fn new(mlp: &IntMlp) -> Option<Avx2Mlp> {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return None;
@@ -208,7 +208,8 @@ impl Avx2Mlp {
         // pairs): padding to 8, not to a whole 16-lane vector, spares HAC's 100 units a
         // group of 8 rows of zeros.
         let hidden_pad = round_up(hidden, ROWS);
-        if hidden_pad > usize::from(u16::MAX) {
+        // The batch kernel lists layer 0's input pairs with the same 16-bit indices.
+        if hidden_pad > usize::from(u16::MAX) || cin.div_ceil(2) > usize::from(u16::MAX) {
             return None;
         }
         let fits = |w: &[i16]| w.iter().all(|&v| i8::try_from(v).is_ok());
