@@ -172,7 +172,10 @@ impl Prior {
     /// Starts loading the grid entries that evaluating the anchor at voxel `v` reads (see
     /// [`GridLayout::prefetch`]).
     pub fn prefetch(&self, grid: &HashGrid, v: [u32; 3]) {
-        self.layout.prefetch(grid, v);
+        match &self.fast_grid {
+            Some(k) => k.prefetch(&self.layout, grid, v),
+            None => self.layout.prefetch(grid, v),
+        }
     }
 
     /// §5.1: the grid features of the anchor at voxel `v` into `x` (length

@@ -37,7 +37,7 @@ const LANES: usize = 16;
 /// Weight rows evaluated together.
 pub(super) const ROWS: usize = 8;
 
-fn round_up(n: usize, m: usize) -> usize {
+pub(super) fn round_up(n: usize, m: usize) -> usize {
     n.div_ceil(m) * m
 }
 
@@ -112,7 +112,8 @@ impl<W: Weight> Layer<W> {
 /// Layer 1 by unit pairs: for the pair of hidden units (2q, 2q + 1) and a group of 8
 /// outputs, the 16 weights `W1[o][2q], W1[o][2q + 1]` of the 8 outputs o in turn are
 /// contiguous at `(q * outputs + 8 g) * 2`: one `vpmaddwd` with the broadcast pair of
-/// activations adds both units' products to the group's 8 sums.
+/// activations adds both units' products to the group's 8 sums. (The AVX-512 kernel's
+/// copy pads the outputs to 16 and reads groups of 16 the same way.)
 #[derive(Debug, Clone)]
 pub(super) struct Pairs<W> {
     pub(super) weights: Vec<W>,
@@ -123,8 +124,16 @@ pub(super) struct Pairs<W> {
 }
 
 impl<W: Weight> Pairs<W> {
-    fn new(w: &[i16], bias: &[i32], rows: usize, cols: usize, cols_pad: usize) -> Pairs<W> {
-        let outputs = round_up(rows, ROWS);
+    /// `rows` outputs of `cols` inputs (row-major `w`), the inputs padded to `cols_pad` and
+    /// the outputs to a multiple of `group`.
+    pub(super) fn new(
+        w: &[i16],
+        bias: &[i32],
+        (rows, cols): (usize, usize),
+        cols_pad: usize,
+        group: usize,
+    ) -> Pairs<W> {
+        let outputs = round_up(rows, group);
         let mut weights = vec![W::default(); cols_pad * outputs];
         for r in 0..rows {
             for c in 0..cols {
@@ -159,8 +168,8 @@ impl<W: Weight> Laid<W> {
         let (cin, hidden, cout) = (mlp.cin, mlp.hidden, mlp.cout);
         Laid {
             l0: Layer::new(&mlp.w0, &mlp.b0, hidden, cin, hidden_pad),
-            l0_pairs: Pairs::new(&mlp.w0, &mlp.b0, hidden, cin, round_up(cin, 2)),
-            l1: Pairs::new(&mlp.w1, &mlp.b1, cout, hidden, hidden_pad),
+            l0_pairs: Pairs::new(&mlp.w0, &mlp.b0, (hidden, cin), round_up(cin, 2), ROWS),
+            l1: Pairs::new(&mlp.w1, &mlp.b1, (cout, hidden), hidden_pad, ROWS),
         }
     }
 }
@@ -186,6 +195,9 @@ pub struct Avx2Mlp {
     pub(super) cout: usize,
     /// The input pairs 0, 1, … of layer 0 (every one), as the batch kernel's list.
     pub(super) input_pairs: Vec<i16>,
+    /// The batch kernel with AVX-512, where the CPU has it (`super::avx512_batch`).
+    #[cfg(salvq_avx512)]
+    pub(super) avx512: Option<super::avx512_batch::Avx512Weights>,
 }
 
 impl Avx2Mlp {
@@ -213,7 +225,8 @@ impl Avx2Mlp {
             return None;
         }
         let fits = |w: &[i16]| w.iter().all(|&v| i8::try_from(v).is_ok());
-        let weights = if fits(&mlp.w0) && fits(&mlp.w1) {
+        let narrow = fits(&mlp.w0) && fits(&mlp.w1);
+        let weights = if narrow {
             Weights::Narrow(Laid::new(mlp, hidden_pad))
         } else {
             Weights::Wide(Laid::new(mlp, hidden_pad))
@@ -226,12 +239,24 @@ impl Avx2Mlp {
             hidden_pad,
             cout,
             input_pairs: (0..cin.div_ceil(2)).map(|q| q as u16 as i16).collect(),
+            #[cfg(salvq_avx512)]
+            avx512: super::avx512_batch::Avx512Weights::new(mlp, narrow),
         })
     }
 
     /// Length of the zero-padded input the kernel reads.
     pub fn input_len(&self) -> usize {
         self.blocks * LANES
+    }
+
+    /// The same kernel without its AVX-512 batch (to test the AVX2 batch on any CPU).
+    #[cfg(test)]
+    pub(super) fn without_avx512(self) -> Avx2Mlp {
+        Avx2Mlp {
+            #[cfg(salvq_avx512)]
+            avx512: None,
+            ..self
+        }
     }
 
     /// Whether the weights are stored as i8 (every weight fits).

@@ -42,7 +42,12 @@ impl Avx2Mlp {
     /// Length of the hidden scratch [`Self::eval_batch`] writes for `a` anchors: their
     /// activations, then the list of unit pairs with a nonzero unit.
     pub fn batch_hidden_len(&self, a: usize) -> usize {
-        a * self.hidden_pad + self.hidden_pad / 2
+        let avx2 = a * self.hidden_pad + self.hidden_pad / 2;
+        #[cfg(salvq_avx512)]
+        if let Some(w) = &self.avx512 {
+            return avx2.max(w.batch_hidden_len(a));
+        }
+        avx2
     }
 
     /// [`Self::eval`] of `A` anchors (1 ≤ A ≤ 8): `x` holds their inputs one after the
@@ -60,6 +65,13 @@ impl Avx2Mlp {
                 && y.len() == A * self.cout,
             "Avx2Mlp::eval_batch: scratch of the wrong shape"
         );
+        // SAFETY: the weights for AVX-512 exist only where `Avx512Weights::new` detected
+        // it; the assertion above gives the kernel the slice lengths it reads and writes.
+        #[cfg(salvq_avx512)]
+        if let Some(w) = &self.avx512 {
+            unsafe { w.eval_batch::<A>(self, x, h, y) };
+            return;
+        }
         // SAFETY: `new` returned this kernel only after detecting AVX2 on this CPU; the
         // assertion above gives `batch_avx2` the slice lengths it reads and writes.
         unsafe {
@@ -216,7 +228,7 @@ mod tests {
             return;
         }
         super::super::kernel_tests::batches_match_the_portable_mlp(|m| {
-            Avx2Mlp::new(m).expect("AVX2 present")
+            Avx2Mlp::new(m).expect("AVX2 present").without_avx512()
         });
     }
 }

@@ -98,6 +98,55 @@ impl Avx2Grid {
     }
 }
 
+impl Avx2Grid {
+    /// [`GridLayout::prefetch`] with the corners' entries computed as
+    /// [`Avx2Grid::interpolate`] computes them (a hint: it changes no result).
+    pub fn prefetch(&self, layout: &GridLayout, g: &HashGrid, v: [u32; 3]) {
+        let tensors = [&g.grid_3d, &g.grid_xy, &g.grid_xz, &g.grid_yz];
+        if tensors.iter().any(|t| t.len() < CHANNELS) {
+            return;
+        }
+        // SAFETY: `new` made this kernel only after detecting AVX2; each tensor holds at
+        // least one entry, and the lanes are clamped to its last (and a prefetch cannot
+        // fault in any case).
+        unsafe { prefetch_avx2(layout, tensors, v) }
+    }
+}
+
+/// Prefetches the lines of the corners with dx = 0 (3D) or di = 0 (2D): the corner one step
+/// along x is almost always the next entry or one in the same 64-byte line (§2.4: `i` is the
+/// hash's low bits, and the dense index's step), so requesting it too mostly repeats a
+/// request.
+#[target_feature(enable = "avx2")]
+unsafe fn prefetch_avx2(layout: &GridLayout, tensors: [&Vec<i8>; 4], v: [u32; 3]) {
+    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+    let bits = layout.coord_bits;
+    let mut lanes = [0u32; 8];
+    let base = tensors[0].as_ptr().cast::<i32>();
+    let top = _mm256_set1_epi32(last_entry(tensors[0]));
+    for l in &layout.l3 {
+        let (cx, _) = axis(v[0], l.res, bits);
+        let (cy, _) = axis(v[1], l.res, bits);
+        let (cz, _) = axis(v[2], l.res, bits);
+        _mm256_storeu_si256(lanes.as_mut_ptr().cast(), entries3(l, cx, cy, cz, top));
+        for e in lanes.iter().step_by(2) {
+            _mm_prefetch::<_MM_HINT_T0>(base.add(*e as usize).cast());
+        }
+    }
+    for (&(pa, pb), tensor) in PLANES.iter().zip(&tensors[1..]) {
+        let base = tensor.as_ptr().cast::<i32>();
+        let top = _mm_set1_epi32(last_entry(tensor));
+        for l in &layout.l2 {
+            let (ci, _) = axis(v[pa], l.res, bits);
+            let (cj, _) = axis(v[pb], l.res, bits);
+            _mm_storeu_si128(lanes.as_mut_ptr().cast(), entries2(l, ci, cj, top));
+            for e in lanes[..4].iter().step_by(2) {
+                _mm_prefetch::<_MM_HINT_T0>(base.add(*e as usize).cast());
+            }
+        }
+    }
+}
+
 /// The last entry of a tensor of at least one entry (as an unsigned lane bound).
 fn last_entry(t: &[i8]) -> i32 {
     (t.len() / CHANNELS - 1) as i32

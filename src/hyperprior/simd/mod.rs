@@ -14,7 +14,9 @@
 //!
 //! - [`sse2::dot`]: one dot product, 8 lanes (every x86-64 CPU);
 //! - [`avx2::Avx2Mlp`]: the whole MLP, 16 lanes, 8 rows at a time, selected once per stream
-//!   when the CPU has AVX2; [`avx2_batch`] evaluates it for several anchors at once;
+//!   when the CPU has AVX2; [`avx2_batch`] evaluates it for several anchors at once, and
+//!   `avx512_batch` does with AVX-512 (F, BW, VNNI) where the CPU has it and the compiler
+//!   its intrinsics (Rust 1.89 on; `build.rs` sets `cfg(salvq_avx512)`);
 //! - `wasm::WasmMlp`: the same plan with WebAssembly SIMD (`simd128`), 8 lanes, 4 rows at a
 //!   time, in builds for `wasm32` with that feature (the wasm package's, `.cargo/config.toml`);
 //! - [`grid_avx2::Avx2Grid`]: §5.1's interpolation for grids of 4 channels, a level's
@@ -34,6 +36,10 @@ pub use columns::dense_product;
 pub mod avx2;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod avx2_batch;
+// Built only where `build.rs` found Rust 1.89 or later, which its intrinsics need.
+#[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+#[clippy::msrv = "1.89"]
+pub mod avx512_batch;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod grid_avx2;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
@@ -126,6 +132,9 @@ impl NoGrid {
     ) {
         match *self {}
     }
+    pub fn prefetch(&self, _: &super::grid::GridLayout, _: &crate::model::HashGrid, _: [u32; 3]) {
+        match *self {}
+    }
 }
 
 /// Asks the CPU to bring the cache line of `data[index]` into its caches, where the index is
@@ -162,6 +171,29 @@ pub(crate) fn avx2_or_skip(test: &str) -> bool {
     let _ = writeln!(
         std::io::stderr(),
         "{test}: skipped: no AVX2 on this CPU, the AVX2 kernel is not tested"
+    );
+    false
+}
+
+/// For tests of the AVX-512 batch: whether this CPU has AVX-512 F, BW and VNNI, as
+/// [`avx2_or_skip`] (`SALVQ_REQUIRE_AVX512`, set by `.ci/run` on CPUs with them, makes a
+/// missing detection fail).
+#[cfg(all(test, feature = "simd", target_arch = "x86_64", salvq_avx512))]
+pub(crate) fn avx512_or_skip(test: &str) -> bool {
+    use std::io::Write;
+    if std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512bw")
+        && std::arch::is_x86_feature_detected!("avx512vnni")
+    {
+        return true;
+    }
+    assert!(
+        std::env::var_os("SALVQ_REQUIRE_AVX512").is_none(),
+        "{test}: no AVX-512 VNNI detected on this CPU, and SALVQ_REQUIRE_AVX512 is set"
+    );
+    let _ = writeln!(
+        std::io::stderr(),
+        "{test}: skipped: no AVX-512 VNNI on this CPU, the AVX-512 kernel is not tested"
     );
     false
 }
