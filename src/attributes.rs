@@ -167,11 +167,7 @@ impl PriorBlock {
                         }
                         let step = prior.step(y, Group::Offsets);
                         delta[2] = step.delta;
-                        for (slot, _) in mask.iter().enumerate().filter(|(_, &m)| m != 0) {
-                            let at = f + s + 3 * slot;
-                            let out = &mut kk[at..at + 3];
-                            prior.scale_indices(y, Group::Offsets, 3 * slot, &step, out);
-                        }
+                        prior.offset_scale_indices(y, &step, mask, &mut kk[f + s..]);
                     }
                 },
             );

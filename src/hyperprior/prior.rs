@@ -273,13 +273,22 @@ impl Prior {
     ) {
         let o = self.scale_at[g as usize] + first;
         let (ys, lifts) = (&y[o..o + out.len()], &self.lift[o..o + out.len()]);
-        let t = step.y_thresholds;
-        for ((k, &yv), &lift) in out.iter_mut().zip(ys).zip(lifts) {
-            // lift <= 30 (Table 5-1 bounds the weight fraction bits) and y < 2^31, so the
-            // lifted value stays below 2^61 < the sentinel.
-            let lifted = (yv.max(1) as u64) << lift;
-            let c = t.count(lifted);
-            *k = c as u8;
+        // lift <= 30 (Table 5-1 bounds the weight fraction bits) and y < 2^31, so the lifted
+        // value stays below 2^61 < the sentinel.
+        step.y_thresholds.counts_into(ys, lifts, out);
+    }
+
+    /// §5.4 step 3 for the offsets of the slots whose `mask` byte is not 0, into `out` (3
+    /// per slot, K slots): the others' are not needed and are left as they were, or
+    /// computed too where counting them with the rest costs nothing.
+    #[inline]
+    pub fn offset_scale_indices(&self, y: &[i32], step: &GroupStep, mask: &[u8], out: &mut [u8]) {
+        if step.y_thresholds.vectorized() {
+            return self.scale_indices(y, Group::Offsets, 0, step, &mut out[..3 * mask.len()]);
+        }
+        for (slot, _) in mask.iter().enumerate().filter(|(_, &m)| m != 0) {
+            let at = 3 * slot;
+            self.scale_indices(y, Group::Offsets, at, step, &mut out[at..at + 3]);
         }
     }
 

@@ -15,6 +15,9 @@ const SUB_BITS: u32 = 4;
 /// Powers of two a table covers from the first threshold's: the thresholds span 2^7.75.
 const OCTAVES: u32 = 10;
 const BUCKETS: usize = (OCTAVES as usize) << SUB_BITS;
+/// The bucket table's length: three zero bytes after the last bucket, so that a 4-byte
+/// read at any bucket stays inside it (the AVX-512 kernel gathers the counts that way).
+pub(crate) const COUNTS_LEN: usize = BUCKETS + 3;
 
 /// One increasing threshold set (63 thresholds and the sentinel `u64::MAX`) with its bucket
 /// table, or with none where the set does not fit the scheme (then the count is searched).
@@ -23,8 +26,21 @@ pub struct ThresholdSearch {
     thresholds: [u64; THRESHOLDS + 1],
     /// floor(log2 `T[0]`): values below 2^low are below every threshold.
     low: u32,
-    /// Per bucket: the count of thresholds <= the bucket's smallest value, at most 62.
-    counts: Option<Box<[u8; BUCKETS]>>,
+    /// Per bucket: the count of thresholds <= the bucket's smallest value, at most 62 (then
+    /// the padding of [`COUNTS_LEN`]).
+    counts: Option<Box<[u8; COUNTS_LEN]>>,
+}
+
+/// A threshold set's bucket table, as the vector kernels read it: the count of the
+/// thresholds <= `v` (for `v` >= 1) is 0 below 2^`low`, 63 from 2^(`low` + 10) on, and
+/// otherwise `c + (thresholds[c] <= v) + (thresholds[c + 1] <= v)` with `c` the count of
+/// bucket `((bit length of v − 1 − low) << 4) | (the 4 bits after v's leading one)`.
+#[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BucketTable<'a> {
+    pub thresholds: &'a [u64; THRESHOLDS + 1],
+    pub low: u32,
+    pub counts: &'a [u8; COUNTS_LEN],
 }
 
 /// The number of `thresholds` <= `v` (the thresholds increase; the last is the sentinel).
@@ -82,8 +98,8 @@ impl ThresholdSearch {
         if first == 0 || top >= 64 || thresholds[THRESHOLDS - 1] > 1u64 << top {
             return search;
         }
-        let mut counts = Box::new([0u8; BUCKETS]);
-        for (b, count) in counts.iter_mut().enumerate() {
+        let mut counts = Box::new([0u8; COUNTS_LEN]);
+        for (b, count) in counts.iter_mut().take(BUCKETS).enumerate() {
             let (lo, hi) = bucket_range(b, low);
             let at_lo = count_searched(&thresholds, lo);
             // Two comparisons finish the count only if the bucket holds at most two
@@ -95,6 +111,39 @@ impl ThresholdSearch {
         }
         search.counts = Some(counts);
         search
+    }
+
+    /// Whether [`ThresholdSearch::counts_into`] runs a vector kernel for this set (it has a
+    /// bucket table, and the CPU the kernel's instructions); then counting a few values
+    /// more costs next to nothing.
+    #[inline]
+    pub fn vectorized(&self) -> bool {
+        #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+        if self.counts.is_some() {
+            return crate::hyperprior::simd::scale_avx512::available();
+        }
+        false
+    }
+
+    /// `out[i]` = the count of thresholds <= `max(ys[i], 1) << lifts[i]` (§5.4 step 3), for
+    /// values whose lifted form stays below 2^61; with AVX-512 where the CPU has it, else
+    /// value by value. The three slices have the same length.
+    #[inline]
+    pub fn counts_into(&self, ys: &[i32], lifts: &[u32], out: &mut [u8]) {
+        #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+        if let Some(counts) = &self.counts {
+            let table = BucketTable {
+                thresholds: &self.thresholds,
+                low: self.low,
+                counts,
+            };
+            if crate::hyperprior::simd::scale_avx512::counts(table, ys, lifts, out) {
+                return;
+            }
+        }
+        for ((k, &yv), &lift) in out.iter_mut().zip(ys).zip(lifts) {
+            *k = self.count((yv.max(1) as u64) << lift) as u8;
+        }
     }
 
     /// The number of thresholds <= `v`, for `v` >= 1 (0 ..= 63).
@@ -194,6 +243,73 @@ mod tests {
             }
         }
         assert!(tabled * 2 > sets, "{tabled} of {sets} sets use the table");
+    }
+
+    /// `counts_into` (with AVX-512 where the CPU has it) gives `count` of every lifted value,
+    /// in slices of every length up to 19 (the kernel's short last vector), for the tabled
+    /// sets of `counts_equal_the_binary_search` and lifts across Table 5-1's range.
+    #[test]
+    fn counts_into_equals_the_count_of_each_value() {
+        #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+        let _ = crate::hyperprior::simd::scale_avx512::or_skip(
+            "hyperprior::threshold_search::tests::counts_into_equals_the_count_of_each_value",
+        );
+        let mut checked = 0usize;
+        for step in [1e-9f32, 0.001, 0.0173, 1.0, 7.25, 3e9] {
+            let base = BaseStep::new(step, 1.0);
+            for &factor in STEP_FACTOR.iter().step_by(16) {
+                for emax in [-8, 0, 16, 40] {
+                    let t = base.y_thresholds(factor, emax, &THRESHOLD_Q16);
+                    if t.windows(2).any(|w| w[0] > w[1]) {
+                        continue;
+                    }
+                    let s = ThresholdSearch::new(with_sentinel(t));
+                    let (mut ys, mut lifts) = (vec![i32::MIN, -1, 0, i32::MAX], vec![0, 3, 30, 0]);
+                    for lift in [0u32, 1, 5, 13, 30] {
+                        for v in probes(&s) {
+                            let y = (v >> lift).min(i32::MAX as u64) as i32;
+                            for y in [y.saturating_sub(1), y, y.saturating_add(1)] {
+                                ys.push(y);
+                                lifts.push(lift);
+                            }
+                        }
+                    }
+                    let mut out = vec![0u8; ys.len()];
+                    let mut at = 0;
+                    for len in (1..20).cycle() {
+                        let end = (at + len).min(ys.len());
+                        s.counts_into(&ys[at..end], &lifts[at..end], &mut out[at..end]);
+                        at = end;
+                        if at == ys.len() {
+                            break;
+                        }
+                    }
+                    for ((&y, &lift), &k) in ys.iter().zip(&lifts).zip(&out) {
+                        let v = (y.max(1) as u64) << lift;
+                        assert_eq!(usize::from(k), s.count(v), "y {y} lift {lift} step {step}");
+                    }
+                    checked += ys.len();
+                }
+            }
+        }
+        assert!(checked > 100_000, "{checked} values checked");
+        // A tabled set whose bucket [68, 71] holds two thresholds above its start (69, 70),
+        // where the second comparison decides: every value up to 2^17, as y with lift 0.
+        let mut t = [0u64; THRESHOLDS + 1];
+        t[..5].copy_from_slice(&[64, 69, 70, 80, 96]);
+        for i in 5..THRESHOLDS {
+            t[i] = t[i - 1] + t[i - 1] / 11 + 1;
+        }
+        t[THRESHOLDS] = u64::MAX;
+        let s = ThresholdSearch::new(t);
+        assert!(s.counts.is_some(), "the set is tabled");
+        let ys: Vec<i32> = (1..1 << 17).collect();
+        let lifts = vec![0u32; ys.len()];
+        let mut out = vec![0u8; ys.len()];
+        s.counts_into(&ys, &lifts, &mut out);
+        for (&y, &k) in ys.iter().zip(&out) {
+            assert_eq!(usize::from(k), count_searched(&t, y as u64), "y {y}");
+        }
     }
 
     /// Thresholds crowded into a few small integers do not fit two per bucket: the search is

@@ -21,6 +21,8 @@
 //!   time, in builds for `wasm32` with that feature (the wasm package's, `.cargo/config.toml`);
 //! - [`grid_avx2::Avx2Grid`]: §5.1's interpolation for grids of 4 channels, a level's
 //!   corners in the lanes of one vector and their entries in one gather;
+//! - `scale_avx512`: §5.4 step 3's scale indices of 8 values at once with AVX-512, where
+//!   the CPU and the compiler have it (as `avx512_batch`);
 //! - [`columns::dense_product`]: §7.3's `B u` for a dense B, built for AVX2 where the CPU
 //!   has it (the same loop as the portable build);
 //! - [`prefetch`]: a hint to load a hash-grid entry ahead of its use (§5.1's corners are
@@ -42,6 +44,9 @@ pub mod avx2_batch;
 pub mod avx512_batch;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod grid_avx2;
+#[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+#[clippy::msrv = "1.89"]
+pub mod scale_avx512;
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 pub mod sse2;
 
