@@ -388,6 +388,28 @@ pub(super) unsafe fn store_hidden(sums: __m256i, shift0: u8, h: &mut [i16]) {
     _mm_storeu_si128(h.as_mut_ptr().cast::<__m128i>(), relu);
 }
 
+/// The unit pairs with a nonzero unit in any of the `A` activation vectors in `act` (each
+/// `hp` units), in order, written to the front of `list`; returns how many. Written without
+/// branches (see `Avx2Mlp::eval`).
+#[inline(always)]
+pub(super) fn nonzero_pairs<const A: usize>(act: &[i16], hp: usize, list: &mut [i16]) -> usize {
+    let pairs = (hp / 2).min(list.len());
+    let mut n = 0;
+    for q in 0..pairs {
+        // `|` over the anchors, not `any`: no branch per anchor.
+        let any = (0..A).fold(false, |any, a| {
+            let at = a * hp + 2 * q;
+            any | act.get(at..at + 2).is_some_and(|p| (p[0] | p[1]) != 0)
+        });
+        // n <= q < pairs <= list.len(): in bounds.
+        if let Some(slot) = list.get_mut(n) {
+            *slot = q as u16 as i16;
+        }
+        n += usize::from(any);
+    }
+    n
+}
+
 /// Stores the 8 sums `v` of outputs `o .. o + 8` into `y`, leaving out those past its end.
 #[inline]
 #[target_feature(enable = "avx2")]

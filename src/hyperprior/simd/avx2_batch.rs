@@ -22,7 +22,9 @@ use std::arch::x86_64::{
     _mm_packs_epi32, _mm_setzero_si128, _mm_storeu_si128,
 };
 
-use super::avx2::{load16, round_shift, store_outputs, Avx2Mlp, Pairs, Weight, Weights, ROWS};
+use super::avx2::{
+    load16, nonzero_pairs, round_shift, store_outputs, Avx2Mlp, Pairs, Weight, Weights, ROWS,
+};
 
 /// Output groups of 8 that one pass keeps in registers for a batch of `a` anchors: `a` sums
 /// per group, `a` broadcast inputs and the weight vector within AVX2's 16 registers.
@@ -125,22 +127,7 @@ impl Avx2Mlp {
             }
             first += b;
         }
-        // The unit pairs with a nonzero unit in any anchor, in order, written without
-        // branches (see `Avx2Mlp::eval`). In bounds: the store for pair q is at n <= q <
-        // hp / 2, the list's length.
-        let mut n = 0;
-        for q in 0..hp / 2 {
-            let mut any = 0u32;
-            for a in 0..A {
-                any |= act
-                    .as_ptr()
-                    .add(a * hp + 2 * q)
-                    .cast::<u32>()
-                    .read_unaligned();
-            }
-            *list.get_unchecked_mut(n) = q as u16 as i16;
-            n += usize::from(any != 0);
-        }
+        let n = nonzero_pairs::<A>(act, hp, list);
         let list = &list[..n];
         // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.
         let groups = l1.outputs / ROWS;

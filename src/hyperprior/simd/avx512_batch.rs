@@ -22,7 +22,7 @@ use std::arch::x86_64::{
     _mm512_setzero_si512, _mm512_sra_epi32, _mm_cvtsi32_si128,
 };
 
-use super::avx2::{round_up, Avx2Mlp, Pairs, Weight};
+use super::avx2::{nonzero_pairs, round_up, Avx2Mlp, Pairs, Weight};
 use crate::hyperprior::mlp::IntMlp;
 
 /// Sums (outputs) per vector.
@@ -137,22 +137,7 @@ impl Avx512Weights {
             shift0: k.shift0,
         };
         passes::<W, A>(&w.l0, x.as_ptr(), stride, &k.input_pairs, hidden);
-        // The unit pairs with a nonzero unit in any anchor, in order, written without
-        // branches (see `Avx2Mlp::eval`). In bounds: the store for pair q is at n <= q <
-        // hp / 2, the list's length.
-        let mut n = 0;
-        for q in 0..hp / 2 {
-            let mut any = 0u32;
-            for a in 0..A {
-                any |= act
-                    .as_ptr()
-                    .add(a * hp + 2 * q)
-                    .cast::<u32>()
-                    .read_unaligned();
-            }
-            *list.get_unchecked_mut(n) = q as u16 as i16;
-            n += usize::from(any != 0);
-        }
+        let n = nonzero_pairs::<A>(act, hp, list);
         let list = &list[..n];
         // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.
         let outputs = Sink::Outputs { y, cout: k.cout };

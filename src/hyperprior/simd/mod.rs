@@ -158,47 +158,42 @@ pub fn prefetch(data: &[i8], index: usize) {
     let _ = (data, index);
 }
 
-/// For tests of the AVX2 kernel: whether this CPU has AVX2. Where it has none, the test
-/// cannot compare the kernel with anything, so it says that it skipped on stderr (written
-/// directly, so that `cargo test` shows it even though the test passes; libtest's capture only
-/// takes `print!` / `eprint!`), and it fails instead when `SALVQ_REQUIRE_AVX2` is set (`.ci/run`
-/// sets it on CPUs with AVX2, so that a detection bug cannot turn the tests into silent passes).
+/// For tests of a kernel: `detected`, whether this CPU has the kernel's instructions
+/// (`what`). Where it has not, the test cannot compare the kernel with anything, so it says
+/// that it skipped on stderr (written directly, so that `cargo test` shows it even though the
+/// test passes; libtest's capture only takes `print!` / `eprint!`), and it fails instead when
+/// the environment variable `require` is set (`.ci/run` sets `SALVQ_REQUIRE_AVX2` and
+/// `SALVQ_REQUIRE_AVX512` on CPUs with those, so that a detection bug cannot turn the tests
+/// into silent passes).
 #[cfg(all(test, feature = "simd", target_arch = "x86_64"))]
-pub(crate) fn avx2_or_skip(test: &str) -> bool {
+pub(crate) fn detected_or_skip(test: &str, detected: bool, what: &str, require: &str) -> bool {
     use std::io::Write;
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if detected {
         return true;
     }
     assert!(
-        std::env::var_os("SALVQ_REQUIRE_AVX2").is_none(),
-        "{test}: no AVX2 detected on this CPU, and SALVQ_REQUIRE_AVX2 is set"
+        std::env::var_os(require).is_none(),
+        "{test}: no {what} detected on this CPU, and {require} is set"
     );
     let _ = writeln!(
         std::io::stderr(),
-        "{test}: skipped: no AVX2 on this CPU, the AVX2 kernel is not tested"
+        "{test}: skipped: no {what} on this CPU, its kernel is not tested"
     );
     false
 }
 
-/// For tests of the AVX-512 batch: whether this CPU has AVX-512 F, BW and VNNI, as
-/// [`avx2_or_skip`] (`SALVQ_REQUIRE_AVX512`, set by `.ci/run` on CPUs with them, makes a
-/// missing detection fail).
+/// [`detected_or_skip`] for the AVX2 kernels.
+#[cfg(all(test, feature = "simd", target_arch = "x86_64"))]
+pub(crate) fn avx2_or_skip(test: &str) -> bool {
+    let detected = std::arch::is_x86_feature_detected!("avx2");
+    detected_or_skip(test, detected, "AVX2", "SALVQ_REQUIRE_AVX2")
+}
+
+/// [`detected_or_skip`] for the AVX-512 batch (F, BW and VNNI).
 #[cfg(all(test, feature = "simd", target_arch = "x86_64", salvq_avx512))]
 pub(crate) fn avx512_or_skip(test: &str) -> bool {
-    use std::io::Write;
-    if std::arch::is_x86_feature_detected!("avx512f")
+    let detected = std::arch::is_x86_feature_detected!("avx512f")
         && std::arch::is_x86_feature_detected!("avx512bw")
-        && std::arch::is_x86_feature_detected!("avx512vnni")
-    {
-        return true;
-    }
-    assert!(
-        std::env::var_os("SALVQ_REQUIRE_AVX512").is_none(),
-        "{test}: no AVX-512 VNNI detected on this CPU, and SALVQ_REQUIRE_AVX512 is set"
-    );
-    let _ = writeln!(
-        std::io::stderr(),
-        "{test}: skipped: no AVX-512 VNNI on this CPU, the AVX-512 kernel is not tested"
-    );
-    false
+        && std::arch::is_x86_feature_detected!("avx512vnni");
+    detected_or_skip(test, detected, "AVX-512 VNNI", "SALVQ_REQUIRE_AVX512")
 }

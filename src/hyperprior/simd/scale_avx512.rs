@@ -100,19 +100,13 @@ unsafe fn counts_avx512(table: BucketTable<'_>, ys: &[i32], lifts: &[u32], out: 
     }
 }
 
+/// [`super::detected_or_skip`] for this kernel.
 #[cfg(test)]
 pub(crate) fn or_skip(test: &str) -> bool {
-    use std::io::Write;
-    if available() {
-        return true;
-    }
-    assert!(
-        std::env::var_os("SALVQ_REQUIRE_AVX512").is_none(),
-        "{test}: no AVX-512 CD/VL/BW detected on this CPU, and SALVQ_REQUIRE_AVX512 is set"
-    );
-    let _ = writeln!(
-        std::io::stderr(),
-        "{test}: skipped: no AVX-512 on this CPU, the AVX-512 scale indices are not tested"
-    );
-    false
+    super::detected_or_skip(
+        test,
+        available(),
+        "AVX-512 CD/VL/BW",
+        "SALVQ_REQUIRE_AVX512",
+    )
 }
