@@ -390,22 +390,30 @@ pub(super) unsafe fn store_hidden(sums: __m256i, shift0: u8, h: &mut [i16]) {
 
 /// The unit pairs with a nonzero unit in any of the `A` activation vectors in `act` (each
 /// `hp` units), in order, written to the front of `list`; returns how many. Written without
-/// branches (see `Avx2Mlp::eval`).
+/// branches (see `Avx2Mlp::eval`): each pair is stored and the count advances only past
+/// nonzero ones. (Bounds-checked indexing here cost 1.6 % of a 100 k-anchor decode.)
+///
+/// # Safety
+/// `act` holds at least `A · hp` values and `list` at least `hp / 2`: the store for pair q
+/// is at n <= q < hp / 2.
 #[inline(always)]
-pub(super) fn nonzero_pairs<const A: usize>(act: &[i16], hp: usize, list: &mut [i16]) -> usize {
-    let pairs = (hp / 2).min(list.len());
+pub(super) unsafe fn nonzero_pairs<const A: usize>(
+    act: &[i16],
+    hp: usize,
+    list: &mut [i16],
+) -> usize {
     let mut n = 0;
-    for q in 0..pairs {
-        // `|` over the anchors, not `any`: no branch per anchor.
-        let any = (0..A).fold(false, |any, a| {
-            let at = a * hp + 2 * q;
-            any | act.get(at..at + 2).is_some_and(|p| (p[0] | p[1]) != 0)
-        });
-        // n <= q < pairs <= list.len(): in bounds.
-        if let Some(slot) = list.get_mut(n) {
-            *slot = q as u16 as i16;
+    for q in 0..hp / 2 {
+        let mut any = 0u32;
+        for a in 0..A {
+            any |= act
+                .as_ptr()
+                .add(a * hp + 2 * q)
+                .cast::<u32>()
+                .read_unaligned();
         }
-        n += usize::from(any);
+        *list.get_unchecked_mut(n) = q as u16 as i16;
+        n += usize::from(any != 0);
     }
     n
 }

@@ -127,6 +127,7 @@ impl Avx2Mlp {
             }
             first += b;
         }
+        // `act` holds A · hp units and `list` the rest of `h`, at least hp / 2.
         let n = nonzero_pairs::<A>(act, hp, list);
         let list = &list[..n];
         // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.

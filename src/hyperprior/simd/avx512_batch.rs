@@ -137,6 +137,7 @@ impl Avx512Weights {
             shift0: k.shift0,
         };
         passes::<W, A>(&w.l0, x.as_ptr(), stride, &k.input_pairs, hidden);
+        // `act` holds A · hp units and `list` the rest of `h`, at least hp / 2.
         let n = nonzero_pairs::<A>(act, hp, list);
         let list = &list[..n];
         // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.
