@@ -96,19 +96,21 @@ impl Avx2Grid {
         // clamped gathers stay inside it.
         unsafe { interpolate_avx2(layout, tensors, v, out) }
     }
-}
 
-impl Avx2Grid {
     /// [`GridLayout::prefetch`] with the corners' entries computed as
     /// [`Avx2Grid::interpolate`] computes them (a hint: it changes no result).
     pub fn prefetch(&self, layout: &GridLayout, g: &HashGrid, v: [u32; 3]) {
         let tensors = [&g.grid_3d, &g.grid_xy, &g.grid_xz, &g.grid_yz];
-        if tensors.iter().any(|t| t.len() < CHANNELS) {
+        if tensors
+            .iter()
+            .any(|t| t.len() < CHANNELS || t.len() / CHANNELS > i32::MAX as usize)
+        {
             return;
         }
         // SAFETY: `new` made this kernel only after detecting AVX2; each tensor holds at
-        // least one entry, and the lanes are clamped to its last (and a prefetch cannot
-        // fault in any case).
+        // least one entry and its entry count fits i32, and the lanes are clamped to its
+        // last entry, so every prefetched address is inside it (and a prefetch cannot fault
+        // in any case).
         unsafe { prefetch_avx2(layout, tensors, v) }
     }
 }
