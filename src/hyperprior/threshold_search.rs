@@ -29,6 +29,10 @@ pub struct ThresholdSearch {
     /// Per bucket: the count of thresholds <= the bucket's smallest value, at most 62 (then
     /// the padding of [`COUNTS_LEN`]).
     counts: Option<Box<[u8; COUNTS_LEN]>>,
+    /// The vector kernel for the table, where there is a table and the CPU has the kernel's
+    /// instructions.
+    #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+    kernel: Option<crate::hyperprior::simd::scale_avx512::Avx512Scales>,
 }
 
 /// A threshold set's bucket table, as the vector kernels read it: the count of the
@@ -91,6 +95,8 @@ impl ThresholdSearch {
             thresholds,
             low,
             counts: None,
+            #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+            kernel: None,
         };
         // Values of OCTAVES powers above `low` and more must be above every threshold, and
         // the table's values must stay below 2^64.
@@ -110,6 +116,10 @@ impl ThresholdSearch {
             *count = at_lo.min(THRESHOLDS - 1) as u8;
         }
         search.counts = Some(counts);
+        #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
+        {
+            search.kernel = crate::hyperprior::simd::scale_avx512::Avx512Scales::new();
+        }
         search
     }
 
@@ -119,9 +129,8 @@ impl ThresholdSearch {
     #[inline]
     pub fn vectorized(&self) -> bool {
         #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
-        if self.counts.is_some() {
-            return crate::hyperprior::simd::scale_avx512::available();
-        }
+        return self.kernel.is_some();
+        #[cfg(not(all(feature = "simd", target_arch = "x86_64", salvq_avx512)))]
         false
     }
 
@@ -131,13 +140,13 @@ impl ThresholdSearch {
     #[inline]
     pub fn counts_into(&self, ys: &[i32], lifts: &[u32], out: &mut [u8]) {
         #[cfg(all(feature = "simd", target_arch = "x86_64", salvq_avx512))]
-        if let Some(counts) = &self.counts {
+        if let (Some(kernel), Some(counts)) = (self.kernel, &self.counts) {
             let table = BucketTable {
                 thresholds: &self.thresholds,
                 low: self.low,
                 counts,
             };
-            if crate::hyperprior::simd::scale_avx512::counts(table, ys, lifts, out) {
+            if kernel.counts(table, ys, lifts, out) {
                 return;
             }
         }

@@ -27,7 +27,6 @@ use crate::hyperprior::threshold_search::BucketTable;
 const LANES: usize = 8;
 
 /// Whether this CPU has the instructions the kernel uses (AVX-512 F, CD, VL and BW).
-#[inline]
 pub fn available() -> bool {
     std::arch::is_x86_feature_detected!("avx512f")
         && std::arch::is_x86_feature_detected!("avx512cd")
@@ -35,16 +34,32 @@ pub fn available() -> bool {
         && std::arch::is_x86_feature_detected!("avx512bw")
 }
 
-/// `out[i]` = the count of `table`'s thresholds <= `max(ys[i], 1) << lifts[i]`, for lifted
-/// values below 2^61. Returns false, writing nothing, where the CPU lacks the instructions
-/// or the slices' lengths differ (the caller then counts value by value).
-pub fn counts(table: BucketTable<'_>, ys: &[i32], lifts: &[u32], out: &mut [u8]) -> bool {
-    if !available() || ys.len() != out.len() || lifts.len() != out.len() {
-        return false;
+/// The kernel. Only [`Avx512Scales::new`] makes one, on a CPU with the instructions:
+/// detected once per threshold set, not once per call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Avx512Scales {
+    _private: (),
+}
+
+impl Avx512Scales {
+    /// The kernel, or `None` where the CPU lacks its instructions.
+    pub fn new() -> Option<Avx512Scales> {
+        available().then_some(Avx512Scales { _private: () })
     }
-    // SAFETY: the instructions were detected just now; the lengths are equal.
-    unsafe { counts_avx512(table, ys, lifts, out) };
-    true
+
+    /// `out[i]` = the count of `table`'s thresholds <= `max(ys[i], 1) << lifts[i]`, for
+    /// lifted values below 2^61. Returns false, writing nothing, where the slices' lengths
+    /// differ (the caller then counts value by value).
+    #[inline]
+    pub fn counts(self, table: BucketTable<'_>, ys: &[i32], lifts: &[u32], out: &mut [u8]) -> bool {
+        if ys.len() != out.len() || lifts.len() != out.len() {
+            return false;
+        }
+        // SAFETY: `new` made this kernel only after detecting its instructions; the lengths
+        // are equal.
+        unsafe { counts_avx512(table, ys, lifts, out) };
+        true
+    }
 }
 
 #[target_feature(enable = "avx512f,avx512cd,avx512vl,avx512bw")]
