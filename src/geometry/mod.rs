@@ -309,8 +309,8 @@ pub fn walk_with<E: Events>(
             // not change while this node's children are decided.
             let last = bytes.len() - 1;
             let face = |slot: usize| {
-                let q = row[slot];
-                bytes[(q as usize).min(last)] & 0u8.wrapping_sub(u8::from(q != u32::MAX))
+                let has = (present >> slot & 1) as u8;
+                bytes[(row[slot] as usize).min(last)] & 0u8.wrapping_sub(has)
             };
             let face_bytes = [
                 face(nb([-1, 0, 0])),

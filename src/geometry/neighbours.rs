@@ -33,9 +33,9 @@ pub(super) const SIDE_MASKS: [u32; 8] = [
     side_mask(7),
 ];
 
-/// A node's neighbours at one level: the index of the node at offset `d` in slot `nb(d)`
-/// (slot 13, the node itself, unused), `u32::MAX` where there is none; bit `nb(d)` of
-/// `present` set where there is one.
+/// A node's neighbours at one level: bit `nb(d)` of `present` set where there is a node at
+/// offset `d`, and then its index in slot `nb(d)` (slot 13, the node itself, unused). The
+/// other slots hold nothing meaningful ([`child_neighbours`] leaves them stale).
 #[derive(Clone, Copy)]
 pub(super) struct Neighbours {
     pub(super) index: [u32; 27],
@@ -93,34 +93,19 @@ const POPCOUNT: [u8; 256] = {
     out
 };
 
-/// For child `i` and a slot `ps` of its parent's neighbourhood: which children of the node at
-/// `ps` are neighbours of child `i` (a mask over that node's occupancy byte; the child itself
-/// left out), and for each such child `c`, the slot it fills in child `i`'s neighbourhood
-/// (the inverse of [`CHILD_NEIGHBOUR`]). Only the parent itself and the 7 neighbours on the
-/// child's side ([`SIDE_MASKS`]) have any. With the mask, a row visits only the neighbour
-/// cells that are occupied.
-#[derive(Clone, Copy)]
-struct FromParent {
-    children: u8,
-    slot: [u8; 8],
-}
-
-const FROM_PARENT: [[FromParent; 27]; 8] = {
-    let empty = FromParent {
-        children: 0,
-        slot: [0; 8],
-    };
-    let mut out = [[empty; 27]; 8];
+/// `NEIGHBOUR_CHILDREN[i][ps]`: which children of the node at slot `ps` of child `i`'s
+/// parent's neighbourhood are neighbours of child `i` (a mask over that node's occupancy
+/// byte; the child itself left out). Only the parent itself and the 7 neighbours on the
+/// child's side ([`SIDE_MASKS`]) have any.
+const NEIGHBOUR_CHILDREN: [[u8; 27]; 8] = {
+    let mut out = [[0u8; 27]; 8];
     let mut i = 0;
     while i < 8 {
         let mut slot = 0;
         while slot < 27 {
             if slot != 13 {
-                // Indexing, not a `&mut` binding: the decoder's minimum Rust (1.80) allows
-                // no mutable references in constants.
                 let (ps, child) = CHILD_NEIGHBOUR[i][slot];
-                out[i][ps as usize].children |= 1 << child;
-                out[i][ps as usize].slot[child as usize] = slot as u8;
+                out[i][ps as usize] |= 1 << child;
             }
             slot += 1;
         }
@@ -129,13 +114,85 @@ const FROM_PARENT: [[FromParent; 27]; 8] = {
     out
 };
 
+/// For child `i` and each cell of the 2×2×2 block of its parent's neighbourhood on its side
+/// (the parent and its 7 neighbours of [`SIDE_MASKS`]): that cell's parent slot, which of its
+/// children are child `i`'s neighbours ([`NEIGHBOUR_CHILDREN`]), and the shift that takes
+/// [`SPREAD27`] of them to their slots in child `i`'s neighbourhood, plus 13 (so that it is
+/// never negative; the product is shifted back by 13).
+#[derive(Clone, Copy)]
+struct BlockCell {
+    slot: u8,
+    keep: u8,
+    shift: u8,
+}
+
+const BLOCK: [[BlockCell; 8]; 8] = {
+    let empty = BlockCell {
+        slot: 13,
+        keep: 0,
+        shift: 0,
+    };
+    let mut out = [[empty; 8]; 8];
+    let mut i = 0;
+    while i < 8 {
+        let mut b = 0;
+        while b < 8 {
+            // The cell's offset from the parent per axis: 0, or toward child `i`'s side.
+            let mut e = [0i64; 3];
+            let mut a = 0;
+            while a < 3 {
+                if (b >> a) & 1 == 1 {
+                    e[a] = if (i >> a) & 1 == 1 { 1 } else { -1 };
+                }
+                a += 1;
+            }
+            // The cell's child c sits at offset 2e + c − i from child `i`: slot
+            // Σ (2e_a − i_a + 1 + c_a) · 3^a, which is the base below plus SPREAD27's bit of c.
+            let mut base = 0i64;
+            let (mut a, mut weight) = (0, 1);
+            while a < 3 {
+                base += (2 * e[a] - ((i >> a) & 1) as i64 + 1) * weight;
+                weight *= 3;
+                a += 1;
+            }
+            let slot = nb(e);
+            out[i][b] = BlockCell {
+                slot: slot as u8,
+                keep: NEIGHBOUR_CHILDREN[i][slot],
+                shift: (base + 13) as u8,
+            };
+            b += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
+/// `SPREAD27[b]`: bit `x + 3y + 9z` set for each child (octant bits x, y, z) set in `b`.
+const SPREAD27: [u32; 256] = {
+    let mut out = [0u32; 256];
+    let mut b = 0;
+    while b < 256 {
+        let mut c = 0;
+        while c < 8 {
+            if (b >> c) & 1 == 1 {
+                out[b] |= 1 << ((c & 1) + 3 * ((c >> 1) & 1) + 9 * (c >> 2));
+            }
+            c += 1;
+        }
+        b += 1;
+    }
+    out
+};
+
 /// The next level's neighbours from this level's, into `out`: `bytes[p]` is node `p`'s
 /// occupancy byte and its children are numbered in order (node by node, octant by octant);
-/// `first` is scratch (each node's first child).
+/// `first` is scratch (each node's first child). Only the slots a row's `present` sets are
+/// written: `out`'s rows are reused from level to level, and their other slots are stale.
 ///
-/// A child's neighbours lie in its parent and the parent's 7 neighbours on the child's side,
-/// so only the neighbours the parent has are visited: deep in a sparse octree most nodes
-/// have none or few.
+/// A child's neighbours lie in its parent and the parent's 7 neighbours on the child's side:
+/// its `present` is the occupancy bytes of those 8 cells spread to its slots, without a
+/// branch, and only the slots it sets are visited to find the neighbours' indices.
 pub(super) fn child_neighbours(
     nbr: &[Neighbours],
     bytes: &[u8],
@@ -150,12 +207,15 @@ pub(super) fn child_neighbours(
         count += u32::from(POPCOUNT[usize::from(b)]);
     }
     let first = &first[..];
-    out.clear();
-    out.reserve(count as usize);
-    // The occupancy byte and first child of the node (slot 13) and of each neighbour it has;
-    // 32 entries so that a 5-bit index needs no bounds check. Only the slots a node has are
-    // written and read, so the arrays are not cleared per node.
-    let (mut near_bytes, mut near_first) = ([0u8; 32], [0u32; 32]);
+    // Rows are overwritten in place (their `present` and the slots it sets), not rebuilt: a
+    // level's rows take megabytes, and most of a row is slots without a neighbour.
+    out.truncate(count as usize);
+    out.resize(count as usize, Neighbours::NONE);
+    let mut rows = out.iter_mut();
+    // The first child of the node (slot 13) and of each neighbour it has; 32 entries so that
+    // a 5-bit index needs no bounds check. Only the slots whose byte is read as nonzero are
+    // read, so the array is not cleared per node.
+    let mut near_first = [0u32; 32];
     for (p, &byte) in bytes.iter().enumerate() {
         if byte == 0 {
             continue;
@@ -163,41 +223,42 @@ pub(super) fn child_neighbours(
         let present = nbr[p].present;
         if present == 0 && byte & (byte - 1) == 0 {
             // An only child of an isolated node (a direct node's, most often) is isolated.
-            out.push(Neighbours::NONE);
+            let Some(row) = rows.next() else { break };
+            row.present = 0;
             continue;
         }
+        // The occupancy byte of the node and of each neighbour it has, 0 elsewhere.
+        let mut near_bytes = [0u8; 32];
         near_bytes[13] = byte;
         near_first[13] = first[p];
         let mut rest = present;
         while rest != 0 {
             let slot = rest.trailing_zeros() as usize & 31;
             rest &= rest - 1;
-            let q = nbr[p].index[slot] as usize;
+            let q = nbr[p].index[slot.min(26)] as usize;
             near_bytes[slot] = bytes[q];
             near_first[slot] = first[q];
         }
-        for (i, (&side, from)) in SIDE_MASKS.iter().zip(&FROM_PARENT).enumerate() {
+        for (i, block) in BLOCK.iter().enumerate() {
             if byte >> i & 1 == 0 {
                 continue;
             }
-            // Built in place: a row built on the stack and then pushed was copied, 112 bytes.
-            out.push(Neighbours::NONE);
-            let Some(row) = out.last_mut() else { break };
-            let mut sources = (present & side) | (1 << 13);
-            while sources != 0 {
-                let ps = sources.trailing_zeros() as usize & 31;
-                sources &= sources - 1;
-                let (b, base) = (near_bytes[ps], near_first[ps]);
-                let f = &from[ps.min(26)];
-                let mut cells = b & f.children;
-                while cells != 0 {
-                    let child = cells.trailing_zeros() as usize & 7;
-                    cells &= cells - 1;
-                    let slot = usize::from(f.slot[child]);
-                    let below = POPCOUNT[usize::from(b & LOW[child])];
-                    row.index[slot.min(26)] = base + u32::from(below);
-                    row.present |= 1 << slot;
-                }
+            let Some(row) = rows.next() else { break };
+            let mut mask = 0u64;
+            for cell in block {
+                let b = near_bytes[usize::from(cell.slot) & 31] & cell.keep;
+                mask |= u64::from(SPREAD27[usize::from(b)]) << cell.shift;
+            }
+            let child_present = (mask >> 13) as u32;
+            row.present = child_present;
+            let mut slots = child_present;
+            while slots != 0 {
+                let slot = slots.trailing_zeros() as usize;
+                slots &= slots - 1;
+                let (ps, child) = CHILD_NEIGHBOUR[i][slot.min(26)];
+                let (ps, child) = (usize::from(ps) & 31, usize::from(child) & 7);
+                let below = POPCOUNT[usize::from(near_bytes[ps] & LOW[child])];
+                row.index[slot.min(26)] = near_first[ps] + u32::from(below);
             }
         }
     }
@@ -364,7 +425,12 @@ mod tests {
             assert_eq!(out.len(), expected.len(), "round {round}");
             for (j, (got, want)) in out.iter().zip(&expected).enumerate() {
                 assert_eq!(got.present, want.present, "round {round}, child {j}");
-                assert_eq!(got.index, want.index, "round {round}, child {j}");
+                for slot in (0..27).filter(|s| want.present >> s & 1 == 1) {
+                    assert_eq!(
+                        got.index[slot], want.index[slot],
+                        "round {round}, child {j}"
+                    );
+                }
             }
         }
     }
