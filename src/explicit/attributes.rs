@@ -184,9 +184,6 @@ pub struct TileSymbolsRef<'a> {
 /// §3.5: the context class of a value whose reference's symbol was `r_prev`.
 #[inline]
 pub fn context_class(has_reference: bool, r_prev: i64) -> usize {
-    if !has_reference {
-        return 0;
-    }
     // 1 + min(bit length of |r_prev|, 6). From a table, not `leading_zeros`: without the
     // `lzcnt` extension (not in the baseline x86-64 target) that is `bsr`, several cycles per
     // value on some CPUs.
@@ -205,7 +202,9 @@ pub fn context_class(has_reference: bool, r_prev: i64) -> usize {
         }
         t
     };
-    usize::from(CLASS[r_prev.unsigned_abs().min(CAP as u64) as usize])
+    // Without a reference the class is 0: a product, not a branch, since whether a Gaussian
+    // has one follows the data.
+    usize::from(CLASS[r_prev.unsigned_abs().min(CAP as u64) as usize]) * usize::from(has_reference)
 }
 
 /// §3.5: whether Gaussian `i` of a tile (voxels in tile order) has a reference: the previous
@@ -222,18 +221,18 @@ pub fn has_reference(voxels: &[[u32; 3]], i: usize, pred_level: u8) -> bool {
 pub fn rescale(u: i64, from: i8, to: i8) -> i64 {
     debug_assert!((-32..=32).contains(&(i32::from(from) - i32::from(to))));
     let d = i32::from(from) - i32::from(to);
-    if d >= 0 {
-        // §3.5 clamps the exact product. A symbol reaches 2^31 + 127, so for d ≤ 24 the
-        // product stays below 2^56 in i64; from d = 25 on, any u ≠ 0 is past 2^24.
-        if d > 24 {
-            u.signum() * MAX_COORDINATE
-        } else {
-            (u << d).clamp(-MAX_COORDINATE, MAX_COORDINATE)
-        }
-    } else {
-        let s = -d;
-        (u + (1 << (s - 1))) >> s
-    }
+    // Both directions computed and one selected: which applies follows the data (the size
+    // classes of a Gaussian and its reference), so a branch would often be mispredicted.
+    // §3.5 clamps the exact product. A symbol reaches 2^31 + 127, so for d ≤ 24 the
+    // product stays below 2^56 in i64; from d = 25 on, any u ≠ 0 is past 2^24, and the
+    // shift by min(d, 25) then still lands past it.
+    let up = (u << d.clamp(0, 25)).clamp(-MAX_COORDINATE, MAX_COORDINATE);
+    // For d < 0: rshr(u, s) with s = −d in 1 … 32 (d ≥ 0 shifts by 1, unused).
+    let s = (-d).clamp(1, 32);
+    let down = (u + (1 << (s - 1))) >> s;
+    // All ones where d < 0: the selection as a mask, which the compiler keeps branch-free.
+    let negative = i64::from(d >> 31);
+    (up & !negative) | (down & negative)
 }
 
 /// §3.5: the scale index of table entry `k` with its size class's offset:
@@ -314,7 +313,7 @@ pub fn walk_into(
                 gaussian: i,
                 first: v,
                 reference,
-                predicted: reference && layer.predict[gi],
+                predicted: reference & layer.predict[gi],
                 from,
                 to,
             };
@@ -373,14 +372,10 @@ impl Values {
         let (i, from, to) = (self.gaussian, self.from, self.to);
         let values = prev_r.iter_mut().zip(prev_u).zip(k_rows).zip(row);
         for (j, (((r_prev, u_prev), k_row), coord)) in values.enumerate() {
-            // The reference's symbol and coordinate, in this Gaussian's step units (the
-            // same units where the shifts agree: the rescaling is the identity there, as
-            // the clamp to ±2^24 is for a coordinate and for the context class).
-            let (r_ref, u_ref) = if from == to {
-                (*r_prev, *u_prev)
-            } else {
-                (rescale(*r_prev, from, to), rescale(*u_prev, from, to))
-            };
+            // The reference's symbol and coordinate, in this Gaussian's step units. Rescaled
+            // also where the shifts agree, without a branch: it is the identity there, as the
+            // clamp to ±2^24 is for a coordinate and for the context class.
+            let (r_ref, u_ref) = (rescale(*r_prev, from, to), rescale(*u_prev, from, to));
             let k = k_row[context_class(self.reference, r_ref)];
             let pred = if self.predicted { u_ref } else { 0 };
             let r = events.symbol(k, i, self.first + j, pred)?;

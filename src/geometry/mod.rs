@@ -163,16 +163,14 @@ fn child_event<E: Events, const I: usize>(
         occ.update(ctx, bit);
         bit
     };
-    if bit {
-        check_room(
-            node.nodes_before + decided.occupied,
-            node.depth,
-            node.anchors,
-        )?;
-        decided.byte |= 1 << I;
-        decided.occupied += 1;
-        decided.face_counts += LATER_SIBLINGS[I];
+    // An occupied child's updates as products with the bit, not under a branch: whether a
+    // child is occupied follows the data.
+    if bit & (node.nodes_before + decided.occupied == node.anchors as usize) {
+        check_room(node.anchors as usize, node.depth, node.anchors)?;
     }
+    decided.byte |= u8::from(bit) << I;
+    decided.occupied += usize::from(bit);
+    decided.face_counts += LATER_SIBLINGS[I] * u32::from(bit);
     Ok(())
 }
 
@@ -333,12 +331,14 @@ pub fn walk_with<E: Events>(
                 anchors,
             };
             let byte = occupancy_byte(events, &mut occ, node)?;
+            // Every child's cell written, the occupied ones kept: no branch per child.
+            let (mut cells, mut occupied) = ([[0u32; 3]; 8], 0usize);
             for i in 0..8 {
-                if byte >> i & 1 == 1 {
-                    children.push(child_cell(p, i));
-                    child_direct.push(false);
-                }
+                cells[occupied & 7] = child_cell(p, i);
+                occupied += usize::from(byte >> i & 1);
             }
+            children.extend_from_slice(&cells[..occupied.min(8)]);
+            child_direct.resize(child_direct.len() + occupied, false);
             bytes[pi] = byte;
         }
         if k + 1 < d {

@@ -239,10 +239,11 @@ pub(super) fn child_neighbours(
             near_bytes[slot] = bytes[q];
             near_first[slot] = first[q];
         }
-        for (i, block) in BLOCK.iter().enumerate() {
-            if byte >> i & 1 == 0 {
-                continue;
-            }
+        let mut kids = byte;
+        while kids != 0 {
+            let i = kids.trailing_zeros() as usize & 7;
+            kids &= kids - 1;
+            let block = &BLOCK[i];
             let Some(row) = rows.next() else { break };
             let mut mask = 0u64;
             for cell in block {
