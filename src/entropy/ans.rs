@@ -222,6 +222,16 @@ impl<const P: usize> DecoderModel<P> for ScaleModel<'_> {
         let bucket = (quantile >> (P as u32 - COARSE_BITS)) as usize;
         let mut lo = usize::from(self.coarse[bucket]);
         let mut hi = usize::from(self.coarse[bucket + 1]);
+        if hi - lo <= 3 {
+            // Most buckets: s is lo plus how many of the next three symbols start at or before
+            // q, counted without a branch (whether q falls past a boundary in its bucket
+            // follows the data). Past hi, every symbol starts above q (hi holds a quantile
+            // above q, or is A − 1, and cum[A] = 2^P), so the count stops at hi by itself.
+            let last = self.cum.len() - 1;
+            let starts_by_q = |t: usize| usize::from(self.cum[(lo + t).min(last)] <= quantile);
+            lo += starts_by_q(1) + starts_by_q(2) + starts_by_q(3);
+            hi = lo;
+        }
         while lo < hi {
             let mid = (lo + hi).div_ceil(2);
             if self.cum[mid] <= quantile {
