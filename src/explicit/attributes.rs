@@ -369,13 +369,35 @@ impl Values {
         k_rows: &[[u8; CONTEXT_CLASSES]],
         row: &mut [i32],
     ) -> Result<()> {
-        let (i, from, to) = (self.gaussian, self.from, self.to);
+        // The reference's symbols and coordinates in this Gaussian's step units: the same
+        // units where the shifts agree (the rescaling is the identity there, as the clamp to
+        // ±2^24 is for a coordinate and for the context class). Decided once per group, not
+        // per value: an `sh_rest` group's 45 values then take no rescaling at all.
+        let (from, to) = (self.from, self.to);
+        if from == to {
+            self.decode_with(events, prev_r, prev_u, k_rows, row, |v| v)
+        } else {
+            self.decode_with(events, prev_r, prev_u, k_rows, row, |v| {
+                rescale(v, from, to)
+            })
+        }
+    }
+
+    /// [`Values::decode`] with the reference's values taken through `in_units`.
+    #[inline(always)]
+    fn decode_with(
+        &self,
+        events: &mut impl Events,
+        prev_r: &mut [i64],
+        prev_u: &mut [i64],
+        k_rows: &[[u8; CONTEXT_CLASSES]],
+        row: &mut [i32],
+        in_units: impl Fn(i64) -> i64,
+    ) -> Result<()> {
+        let i = self.gaussian;
         let values = prev_r.iter_mut().zip(prev_u).zip(k_rows).zip(row);
         for (j, (((r_prev, u_prev), k_row), coord)) in values.enumerate() {
-            // The reference's symbol and coordinate, in this Gaussian's step units. Rescaled
-            // also where the shifts agree, without a branch: it is the identity there, as the
-            // clamp to ±2^24 is for a coordinate and for the context class.
-            let (r_ref, u_ref) = (rescale(*r_prev, from, to), rescale(*u_prev, from, to));
+            let (r_ref, u_ref) = (in_units(*r_prev), in_units(*u_prev));
             let k = k_row[context_class(self.reference, r_ref)];
             let pred = if self.predicted { u_ref } else { 0 };
             let r = events.symbol(k, i, self.first + j, pred)?;
