@@ -331,14 +331,19 @@ pub fn walk_with<E: Events>(
                 anchors,
             };
             let byte = occupancy_byte(events, &mut occ, node)?;
-            // Every child's cell written, the occupied ones kept: no branch per child.
+            // Every child's cell written, the occupied ones kept: no branch per child. All
+            // eight are appended and the rest cut off again, so that the copy has a constant
+            // size (a variable one is a call to `memcpy`).
             let (mut cells, mut occupied) = ([[0u32; 3]; 8], 0usize);
             for i in 0..8 {
                 cells[occupied & 7] = child_cell(p, i);
                 occupied += usize::from(byte >> i & 1);
             }
-            children.extend_from_slice(&cells[..occupied.min(8)]);
-            child_direct.resize(child_direct.len() + occupied, false);
+            let before = children.len();
+            children.extend_from_slice(&cells);
+            children.truncate(before + occupied);
+            child_direct.extend_from_slice(&[false; 8]);
+            child_direct.truncate(before + occupied);
             bytes[pi] = byte;
         }
         if k + 1 < d {
