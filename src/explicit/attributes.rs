@@ -221,18 +221,18 @@ pub fn has_reference(voxels: &[[u32; 3]], i: usize, pred_level: u8) -> bool {
 pub fn rescale(u: i64, from: i8, to: i8) -> i64 {
     debug_assert!((-32..=32).contains(&(i32::from(from) - i32::from(to))));
     let d = i32::from(from) - i32::from(to);
-    // Both directions computed and one selected: which applies follows the data (the size
-    // classes of a Gaussian and its reference), so a branch would often be mispredicted.
-    // §3.5 clamps the exact product. A symbol reaches 2^31 + 127, so for d ≤ 24 the
-    // product stays below 2^56 in i64; from d = 25 on, any u ≠ 0 is past 2^24, and the
-    // shift by min(d, 25) then still lands past it.
-    let up = (u << d.clamp(0, 25)).clamp(-MAX_COORDINATE, MAX_COORDINATE);
-    // For d < 0: rshr(u, s) with s = −d in 1 … 32 (d ≥ 0 shifts by 1, unused).
-    let s = (-d).clamp(1, 32);
-    let down = (u + (1 << (s - 1))) >> s;
-    // All ones where d < 0: the selection as a mask, which the compiler keeps branch-free.
-    let negative = i64::from(d >> 31);
-    (up & !negative) | (down & negative)
+    if d >= 0 {
+        // §3.5 clamps the exact product. A symbol reaches 2^31 + 127, so for d ≤ 24 the
+        // product stays below 2^56 in i64; from d = 25 on, any u ≠ 0 is past 2^24.
+        if d > 24 {
+            u.signum() * MAX_COORDINATE
+        } else {
+            (u << d).clamp(-MAX_COORDINATE, MAX_COORDINATE)
+        }
+    } else {
+        let s = -d;
+        (u + (1 << (s - 1))) >> s
+    }
 }
 
 /// §3.5: the scale index of table entry `k` with its size class's offset:
