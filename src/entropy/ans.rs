@@ -198,7 +198,8 @@ impl ReadWords<u32, Stack> for LeWords<'_> {
 }
 
 /// Decoding model of one scale table: the alphabet indices 0 … A−1 with cumulative
-/// frequencies `cum` (A + 1 entries, `cum[0] = 0`, `cum[A] = 2^P`), and the coarse table:
+/// frequencies `cum` (A + 1 entries, `cum[0] = 0`, `cum[A] = 2^P`, then entries of 2^P that
+/// let the search read a window of five from any symbol), and the coarse table:
 /// `coarse[b]` is the index of the symbol holding quantile `b · 2^(P − COARSE_BITS)`
 /// (2^COARSE_BITS entries), then A − 1. The model serves the precision P its table was built
 /// at; the bucket's shift is a constant of P, which the decoder's loops then need not load.
@@ -225,12 +226,21 @@ impl<const P: usize> DecoderModel<P> for ScaleModel<'_> {
         if hi - lo <= 3 {
             // Most buckets: s is lo plus how many of the next three symbols start at or before
             // q, counted without a branch (whether q falls past a boundary in its bucket
-            // follows the data). Past hi, every symbol starts above q (hi holds a quantile
-            // above q, or is A − 1, and cum[A] = 2^P), so the count stops at hi by itself.
-            let last = self.cum.len() - 1;
-            let starts_by_q = |t: usize| usize::from(self.cum[(lo + t).min(last)] <= quantile);
-            lo += starts_by_q(1) + starts_by_q(2) + starts_by_q(3);
-            hi = lo;
+            // follows the data), in a window of five entries read at once. Past hi, every
+            // symbol starts above q (hi holds a quantile above q, or is A − 1, and cum[A] =
+            // 2^P, as are the entries padding the table: `ScaleTable`), so the count stops at
+            // hi by itself.
+            if let Some(w) = self.cum.get(lo..lo + 5) {
+                let starts_by_q = |t: usize| usize::from(w[t] <= quantile);
+                let t = starts_by_q(1) + starts_by_q(2) + starts_by_q(3);
+                let (cum, next) = (w[t], w[t + 1]);
+                // Table frequencies are ≥ 1 by construction (§6.3.4); MIN is never taken.
+                return (
+                    lo + t,
+                    cum,
+                    NonZeroU32::new(next - cum).unwrap_or(NonZeroU32::MIN),
+                );
+            }
         }
         while lo < hi {
             let mid = (lo + hi).div_ceil(2);

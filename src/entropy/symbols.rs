@@ -170,6 +170,9 @@ pub struct SymbolReader<'a> {
     ans: AnsReader<'a>,
     symbols: u64,
     broken: Option<Error>,
+    /// The tables are at the format's precision and nothing is broken: one flag, tested
+    /// per call, for the two conditions of the inlined path.
+    fast: bool,
 }
 
 impl<'a> SymbolReader<'a> {
@@ -185,6 +188,7 @@ impl<'a> SymbolReader<'a> {
             ans,
             symbols: 0,
             broken: None,
+            fast: tables.precision() == PRECISION,
         })
     }
 
@@ -201,6 +205,7 @@ impl<'a> SymbolReader<'a> {
     #[cold]
     fn fail(&mut self, err: Error) -> Error {
         self.broken = Some(err.clone());
+        self.fast = false;
         err
     }
 
@@ -218,7 +223,7 @@ impl<'a> SymbolReader<'a> {
     pub fn symbol(&mut self, k: u8) -> Result<i64> {
         // The format's precision with nothing broken: the common case, inlined into the
         // caller's loop; the rest (other precisions for experiments, errors) out of line.
-        if self.tables.precision() == PRECISION && self.broken.is_none() {
+        if self.fast {
             const P: usize = PRECISION as usize;
             let u = if usize::from(k) < SCALE_COUNT {
                 self.symbol_p::<P>(k)?
@@ -318,7 +323,7 @@ impl<'a> SymbolReader<'a> {
     #[inline(always)]
     pub fn bit(&mut self, freq_one: u32) -> Result<bool> {
         // As in `symbol`: the format's precision inlined, the rest out of line.
-        if self.tables.precision() == PRECISION && self.broken.is_none() {
+        if self.fast {
             const P: usize = PRECISION as usize;
             let model = BinaryModel {
                 freq_zero: (1u32 << P) - clamp_freq_one(P as u32, freq_one),

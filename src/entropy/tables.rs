@@ -63,13 +63,23 @@ pub fn half_cdf_q64(b2: u64, sigma_q16: u32) -> u64 {
 }
 
 /// One scale's table (§6.3.4): radius R, frequencies of the alphabet
-/// u = −R … R then ESCAPE (A = 2R + 2 entries), and cumulative frequencies (A + 1 entries).
+/// u = −R … R then ESCAPE (A = 2R + 2 entries), and cumulative frequencies (A + 1 entries),
+/// with the decoder's search table beside them (one scale's lookups then share one base).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ScaleTable {
     radius: u32,
     freq: Vec<u32>,
+    /// The A + 1 cumulative frequencies, then [`SEARCH_PAD`] copies of 2^P: past the
+    /// alphabet no symbol starts at or before a quantile, so a search may read a fixed
+    /// window after any symbol without a bound of its own (`ScaleModel`).
     cum: Vec<u32>,
+    /// See [`ScaleModel::coarse`].
+    coarse: [u16; COARSE_LEN],
 }
+
+/// Entries of 2^P after a table's cumulative frequencies (see [`ScaleTable`]): a search
+/// reads `cum[s .. s + 5]` for any symbol s ≤ A − 1.
+pub const SEARCH_PAD: usize = 3;
 
 impl ScaleTable {
     /// R_k: symbols with |u| ≤ R_k are coded directly; others take the escape (§6.4).
@@ -82,7 +92,7 @@ impl ScaleTable {
     }
     /// Cumulative frequencies: `cum[i]` = Σ_(j<i) f(j), A + 1 entries ending in 2^P.
     pub fn cumulative(&self) -> &[u32] {
-        &self.cum
+        &self.cum[..self.freq.len() + 1]
     }
     /// Alphabet index of ESCAPE (2R + 1).
     pub fn escape_index(&self) -> usize {
@@ -96,10 +106,9 @@ pub struct GaussianTables {
     precision: u32,
     tail_q4: u32,
     r_max: u32,
-    scales: Vec<ScaleTable>,
-    /// Decoder search tables (see `ans::COARSE_BITS`), one per scale: bucket b's alphabet
-    /// index, then the scale's last alphabet index (the bound of the last bucket's search).
-    coarse: Vec<[u16; COARSE_LEN]>,
+    /// One per scale index: a fixed count, so that an index checked below [`SCALE_COUNT`]
+    /// needs no other bound.
+    scales: Box<[ScaleTable; SCALE_COUNT]>,
 }
 
 impl GaussianTables {
@@ -133,10 +142,14 @@ impl GaussianTables {
             (1..=RADIUS_LIMIT).contains(&r_max),
             "R_MAX {r_max} outside 1..={RADIUS_LIMIT}"
         );
-        let scales: Vec<ScaleTable> = (0..SCALE_COUNT)
-            .map(|k| build_scale(SIGMA_Q16[k], precision, tail_q4, r_max))
-            .collect();
-        Self::from_scales(precision, tail_q4, r_max, scales)
+        GaussianTables {
+            precision,
+            tail_q4,
+            r_max,
+            scales: Box::new(core::array::from_fn(|k| {
+                build_scale(SIGMA_Q16[k], precision, tail_q4, r_max)
+            })),
+        }
     }
 
     /// A deliberately wrong copy for conformance tests (a broken decoder must fail the
@@ -145,41 +158,17 @@ impl GaussianTables {
     #[cfg(feature = "test-hooks")]
     #[doc(hidden)]
     pub fn with_one_wrong_entry(&self, k: u8) -> GaussianTables {
-        let mut scales = self.scales.clone();
-        if let Some(t) = scales.get_mut(usize::from(k)) {
+        let mut wrong = self.clone();
+        if let Some(t) = wrong.scales.get_mut(usize::from(k)) {
             let zero = t.radius as usize;
             if t.freq[zero] > 1 {
                 t.freq[zero] -= 1;
                 t.freq[zero + 1] += 1;
                 t.cum[zero + 1] -= 1;
+                t.coarse = coarse_table(&t.cum, self.precision);
             }
         }
-        Self::from_scales(self.precision, self.tail_q4, self.r_max, scales)
-    }
-
-    fn from_scales(precision: u32, tail_q4: u32, r_max: u32, scales: Vec<ScaleTable>) -> Self {
-        // The coarse search table: bucket b's first quantile is b << shift.
-        let shift = precision - COARSE_BITS;
-        let mut coarse = Vec::with_capacity(SCALE_COUNT);
-        for t in &scales {
-            let mut search = [0u16; COARSE_LEN];
-            let mut i = 0usize;
-            for (b, entry) in (0u32..).zip(&mut search[..COARSE_LEN - 1]) {
-                while t.cum[i + 1] <= b << shift {
-                    i += 1;
-                }
-                *entry = i as u16;
-            }
-            search[COARSE_LEN - 1] = (t.cum.len() - 2) as u16;
-            coarse.push(search);
-        }
-        GaussianTables {
-            precision,
-            tail_q4,
-            r_max,
-            scales,
-            coarse,
-        }
+        wrong
     }
 
     /// Precision P: every table's frequencies sum to 2^P.
@@ -208,9 +197,10 @@ impl GaussianTables {
     /// The decoding model of scale `k` (panics if `k ≥ SCALE_COUNT`).
     #[inline]
     pub(crate) fn model(&self, k: u8) -> ScaleModel<'_> {
+        let t = &self.scales[usize::from(k)];
         ScaleModel {
-            cum: &self.scales[usize::from(k)].cum,
-            coarse: &self.coarse[usize::from(k)],
+            cum: &t.cum,
+            coarse: &t.coarse,
         }
     }
 
@@ -322,14 +312,38 @@ fn build_scale(sigma_q16: u32, precision: u32, tail_q4: u32, r_max: u32) -> Scal
         j += 1;
     }
     // §6.3.4 step 3.
-    let mut cum = Vec::with_capacity(a + 1);
+    let mut cum = Vec::with_capacity(a + 1 + SEARCH_PAD);
     let mut c = 0u32;
     cum.push(0);
     for &f in &freq {
         c += f;
         cum.push(c);
     }
-    ScaleTable { radius, freq, cum }
+    cum.extend([total; SEARCH_PAD]);
+    let coarse = coarse_table(&cum, precision);
+    ScaleTable {
+        radius,
+        freq,
+        cum,
+        coarse,
+    }
+}
+
+/// The decoder's search table of a scale at `precision` (see [`ScaleModel::coarse`]): bucket
+/// b's first quantile is b << (P − COARSE_BITS); `cum` as [`ScaleTable`] holds it.
+fn coarse_table(cum: &[u32], precision: u32) -> [u16; COARSE_LEN] {
+    let shift = precision - COARSE_BITS;
+    let last = cum.len() - SEARCH_PAD - 2;
+    let mut search = [0u16; COARSE_LEN];
+    let mut i = 0usize;
+    for (b, entry) in (0u32..).zip(&mut search[..COARSE_LEN - 1]) {
+        while cum[i + 1] <= b << shift {
+            i += 1;
+        }
+        *entry = i as u16;
+    }
+    search[COARSE_LEN - 1] = last as u16;
+    search
 }
 
 #[cfg(test)]
@@ -357,7 +371,10 @@ mod tests {
             let t = GaussianTables::new(p);
             for k in 0..SCALE_COUNT as u8 {
                 let s = t.scale(k);
-                assert_eq!(s.cum.last().copied(), Some(1 << p));
+                assert_eq!(s.cumulative().last().copied(), Some(1 << p));
+                // The search's window reads past the alphabet into entries of 2^P.
+                assert_eq!(s.cum.len(), s.freq.len() + 1 + SEARCH_PAD);
+                assert!(s.cum[s.freq.len()..].iter().all(|&c| c == 1 << p));
                 assert!(s.freq.iter().all(|&f| f >= 1));
                 let r = s.radius as usize;
                 for j in 0..=r {
