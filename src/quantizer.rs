@@ -83,18 +83,16 @@ impl LatticeMatrix {
                 }
             }
             (LatticeKind::General, Some(f)) => {
+                // Column-major with each column padded to `stride` (nested loops: a
+                // division per entry cost more than the rest for SH 3's 45 × 45).
                 let row_major = general_matrix(dim, f);
                 let stride = m.stride;
-                m.b = (0..dim * stride)
-                    .map(|c| {
-                        let (j, i) = (c / stride, c % stride);
-                        if i < dim {
-                            row_major[i * dim + j]
-                        } else {
-                            0.0
-                        }
-                    })
-                    .collect();
+                m.b = vec![0.0; dim * stride];
+                for (j, column) in m.b.chunks_exact_mut(stride).enumerate() {
+                    for (i, bij) in column[..dim].iter_mut().enumerate() {
+                        *bij = row_major[i * dim + j];
+                    }
+                }
             }
             _ => {}
         }
@@ -253,7 +251,10 @@ impl GroupLattices {
 /// product and sum in binary32, starting from +0.
 fn general_matrix(d: usize, f: &Basis) -> Vec<f32> {
     let mut b = vec![0f32; d * d];
-    let finite_products = || (0..d * d).all(|at| (f.u[at] * f.s[at % d]).is_finite());
+    let finite_products = || {
+        f.u.chunks_exact(d.max(1))
+            .all(|row| row.iter().zip(&f.s).all(|(u, s)| (u * s).is_finite()))
+    };
     if is_identity(d, &f.v) && finite_products() {
         // V = I (the explicit profile's bases, §3.3): every term but k = j is (U_ik·s_k)·0,
         // a ±0 (the products are finite) that leaves a sum started at +0 as it is, so
@@ -280,9 +281,11 @@ fn general_matrix(d: usize, f: &Basis) -> Vec<f32> {
 /// Whether `v` (row-major d × d) is exactly the identity.
 fn is_identity(d: usize, v: &[f32]) -> bool {
     v.len() == d * d
-        && v.iter().enumerate().all(|(at, &x)| {
-            let one = if at / d == at % d { 1.0f32 } else { 0.0 };
-            x.to_bits() == one.to_bits()
+        && v.chunks_exact(d.max(1)).enumerate().all(|(i, row)| {
+            row.iter().enumerate().all(|(j, &x)| {
+                let one = if i == j { 1.0f32 } else { 0.0 };
+                x.to_bits() == one.to_bits()
+            })
         })
 }
 
