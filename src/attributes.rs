@@ -9,8 +9,9 @@ use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, METHOD_CODED};
 use crate::entropy::{GaussianTables, SymbolReader};
 use crate::error::{Error, Result};
+use crate::hyperprior::grid::GridRef;
 use crate::hyperprior::prior::{Group, Prior, BATCH};
-use crate::model::{Dims, HashGrid};
+use crate::model::Dims;
 use crate::quantizer::{reconstruct_value, GroupLattices};
 use crate::tiles::{split_bodies, TileTable};
 
@@ -112,7 +113,7 @@ impl PriorBlock {
     fn fill(
         &mut self,
         prior: &Prior,
-        grid: &HashGrid,
+        grid: GridRef<'_>,
         voxels: &[[u32; 3]],
         masks: &[u8],
         (f, s, k): (usize, usize, usize),
@@ -214,7 +215,7 @@ pub fn read_attributes(
     voxels: &[[u32; 3]],
     masks: &[u8],
     first: u32,
-    grid: &HashGrid,
+    grid: GridRef<'_>,
     prior: &Prior,
     lattices: &[GroupLattices; 2],
     tables: &GaussianTables,

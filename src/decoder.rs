@@ -14,6 +14,7 @@ use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
+use crate::hyperprior::grid::GridRef;
 use crate::hyperprior::prior::Prior;
 use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
@@ -477,6 +478,12 @@ fn assemble(
             });
         }
     }
+    // The grid's signs for the interpolation kernel, made once for every tile.
+    let signs = prior.grid_signs(&grid);
+    let grid_ref = GridRef {
+        values: &grid,
+        signs: signs.as_ref(),
+    };
     let size = |j: usize| tiles.range(chosen[j]).len();
     let decoded = map_largest_first(rows, size, |j, out| {
         let (t, m0) = (chosen[j], mask_at[j]);
@@ -487,7 +494,7 @@ fn assemble(
             &voxel[r.clone()],
             &mask[m0..m0 + r.len() * k],
             r.start as u32,
-            &grid,
+            grid_ref,
             &prior,
             &lattices,
             tables,

@@ -239,9 +239,112 @@ impl GridLayout {
     }
 }
 
+/// A binary grid's values as sign bits, for the interpolation kernel (§2.4: every value is
+/// −1 or +1, so one bit holds it): in each tensor, bit `c` of nibble `e` is set where channel
+/// `c` of entry `e` is −1, eight entries (C = 4) to a word. Why: the kernel gathers scattered
+/// entries, and a HAC-size grid (12 3D levels of 2^13 entries, 3 × 4 2D levels of 2^15) takes
+/// 1.77 MB as bytes, which the L2 cache (2 MB on this machine) cannot hold beside the rest of
+/// a decode; as signs it takes 222 KB. A 100 k-anchor decode spent 7 … 10 % less time
+/// (docs/speed, twenty-fifth session).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GridSigns {
+    /// The 3D, xy, xz and yz tensors' words.
+    pub(crate) words: [Vec<u32>; 4],
+    /// Each tensor's entries.
+    pub(crate) entries: [usize; 4],
+}
+
+/// Channels per entry that [`GridSigns`] packs (HAC's C).
+pub const SIGN_CHANNELS: usize = 4;
+
+impl GridSigns {
+    /// The signs of `grid`, whose entries have `channels` values each: `None` unless
+    /// `channels` is [`SIGN_CHANNELS`]. A value's bit says only whether it is negative, so
+    /// the kernel that reads them gives §5.1's features for ±1 values, which every decoded
+    /// and every validated grid holds.
+    pub fn new(grid: &HashGrid, channels: usize) -> Option<GridSigns> {
+        if channels != SIGN_CHANNELS {
+            return None;
+        }
+        let tensors = [&grid.grid_3d, &grid.grid_xy, &grid.grid_xz, &grid.grid_yz];
+        Some(GridSigns {
+            words: tensors.map(|t| pack_signs(t)),
+            entries: tensors.map(|t| t.len() / SIGN_CHANNELS),
+        })
+    }
+}
+
+/// The sign bits of `values`, 32 to a word (value `j` of a word's 32 at bit `j`).
+fn pack_signs(values: &[i8]) -> Vec<u32> {
+    // The sign bits of 8 bytes x in one multiplication: (x & 0x80…80) holds them at bits
+    // 8j + 7, and the product with Σ_k 2^(7k) puts byte j's at bit 56 + j (k = 7 − j), every
+    // term a distinct power of two, so nothing carries.
+    const SIGNS: u64 = 0x8080_8080_8080_8080;
+    const GATHER: u64 = 0x0002_0408_1020_4081;
+    values
+        .chunks(32)
+        .map(|chunk| {
+            let mut word = 0u32;
+            for (j, bytes) in chunk.chunks(8).enumerate() {
+                let mut b = [0u8; 8];
+                for (o, &v) in b.iter_mut().zip(bytes) {
+                    *o = v as u8;
+                }
+                let x = u64::from_le_bytes(b) & SIGNS;
+                word |= ((x.wrapping_mul(GATHER) >> 56) as u32) << (8 * j);
+            }
+            word
+        })
+        .collect()
+}
+
+/// The grid a prior reads: its values, and their signs where the caller made them (the
+/// kernel then reads those).
+#[derive(Debug, Clone, Copy)]
+pub struct GridRef<'a> {
+    pub values: &'a HashGrid,
+    pub signs: Option<&'a GridSigns>,
+}
+
+impl<'a> From<&'a HashGrid> for GridRef<'a> {
+    fn from(values: &'a HashGrid) -> GridRef<'a> {
+        GridRef {
+            values,
+            signs: None,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each value's bit is its sign, at 4e + c of its tensor (the word e / 8, bits from
+    /// 4 (e mod 8)), for values ±1 and others, in full words and a last partial one.
+    #[test]
+    fn signs_are_packed_value_by_value() {
+        let mut rng = crate::hyperprior::test_scene::Rng::new(7);
+        let values = |n: usize, rng: &mut crate::hyperprior::test_scene::Rng| -> Vec<i8> {
+            (0..n).map(|_| rng.next() as i8).collect()
+        };
+        let grid = HashGrid {
+            grid_3d: values(4 * 37, &mut rng),
+            grid_xy: values(4 * 8, &mut rng),
+            grid_xz: vec![-1; 4 * 3],
+            grid_yz: vec![1; 4],
+        };
+        let signs = GridSigns::new(&grid, 4).expect("C = 4");
+        let tensors = [&grid.grid_3d, &grid.grid_xy, &grid.grid_xz, &grid.grid_yz];
+        for (t, values) in tensors.into_iter().enumerate() {
+            assert_eq!(signs.entries[t], values.len() / 4);
+            assert_eq!(signs.words[t].len(), values.len().div_ceil(32));
+            for (i, &v) in values.iter().enumerate() {
+                let bit = signs.words[t][i / 32] >> (i % 32) & 1;
+                assert_eq!(bit == 1, v < 0, "tensor {t}, value {i}");
+            }
+        }
+        assert_eq!(GridSigns::new(&grid, 2), None);
+    }
 
     #[test]
     fn axis_splits_position_into_cell_and_weight() {

@@ -1,7 +1,7 @@
 //! The per-anchor prior (spec §5.3-§5.5 together): features -> context MLP -> for each
 //! attribute group the step factor, and for each coded value its mean and scale index.
 
-use super::grid::GridLayout;
+use super::grid::{GridLayout, GridRef, GridSigns};
 use super::mlp::IntMlp;
 use super::simd::{FastGrid, FastMlp};
 use super::step::{factor_index, BaseStep, STEP_FACTOR};
@@ -166,31 +166,49 @@ impl Prior {
     /// §5.1 + §5.3: evaluates the anchor at voxel `v` into `ctx.y`.
     pub fn eval(&self, grid: &HashGrid, v: [u32; 3], ctx: &mut AnchorContext) {
         let AnchorContext { x, h, y } = ctx;
-        self.eval_parts(grid, v, x, h, y);
+        self.eval_parts(grid.into(), v, x, h, y);
     }
 
     /// Starts loading the grid entries that evaluating the anchor at voxel `v` reads (see
     /// [`GridLayout::prefetch`]).
-    pub fn prefetch(&self, grid: &HashGrid, v: [u32; 3]) {
-        match &self.fast_grid {
-            Some(k) => k.prefetch(&self.layout, grid, v),
-            None => self.layout.prefetch(grid, v),
+    pub fn prefetch(&self, grid: GridRef<'_>, v: [u32; 3]) {
+        match (&self.fast_grid, grid.signs) {
+            // The signs fit this machine's L2 cache beside the rest of a decode: requesting
+            // their words ahead cost more than waiting for them (docs/speed, twenty-fifth
+            // session).
+            (Some(_), Some(_)) => {}
+            (Some(k), None) => k.prefetch(&self.layout, grid.values, v),
+            (None, _) => self.layout.prefetch(grid.values, v),
         }
+    }
+
+    /// The signs of `grid`'s values ([`GridSigns`]) where this target's kernel reads them
+    /// (`None` otherwise: nothing would read them).
+    pub fn grid_signs(&self, grid: &HashGrid) -> Option<GridSigns> {
+        self.fast_grid.as_ref()?;
+        GridSigns::new(grid, self.layout.channels)
     }
 
     /// §5.1: the grid features of the anchor at voxel `v` into `x` (length
     /// `layout.features()`), with this target's kernel where it has one: the same integers
     /// as [`GridLayout::interpolate`] for a grid of ±1 values (§2.4), which every decoded
     /// and every validated grid is.
-    pub fn features(&self, grid: &HashGrid, v: [u32; 3], x: &mut [i16]) {
-        match &self.fast_grid {
-            Some(k) => k.interpolate(&self.layout, grid, v, x),
-            None => self.layout.interpolate(grid, v, x),
+    pub fn features(&self, grid: GridRef<'_>, v: [u32; 3], x: &mut [i16]) {
+        match (&self.fast_grid, grid.signs) {
+            (Some(k), Some(signs)) => k.interpolate_signs(&self.layout, grid.values, signs, v, x),
+            (Some(k), None) => k.interpolate(&self.layout, grid.values, v, x),
+            (None, _) => self.layout.interpolate(grid.values, v, x),
         }
     }
 
     /// [`Prior::eval`] with the outputs written to `y` (length `cout`) instead of `ctx.y`.
-    pub fn eval_into(&self, grid: &HashGrid, v: [u32; 3], ctx: &mut AnchorContext, y: &mut [i32]) {
+    pub fn eval_into(
+        &self,
+        grid: GridRef<'_>,
+        v: [u32; 3],
+        ctx: &mut AnchorContext,
+        y: &mut [i32],
+    ) {
         self.eval_parts(grid, v, &mut ctx.x, &mut ctx.h, y);
     }
 
@@ -199,7 +217,7 @@ impl Prior {
     /// target has one.
     pub fn eval_batch_into(
         &self,
-        grid: &HashGrid,
+        grid: GridRef<'_>,
         v: &[[u32; 3]; BATCH],
         ctx: &mut AnchorContext,
         ys: &mut [i32],
@@ -220,7 +238,7 @@ impl Prior {
 
     fn eval_parts(
         &self,
-        grid: &HashGrid,
+        grid: GridRef<'_>,
         v: [u32; 3],
         x: &mut [i16],
         h: &mut [i16],

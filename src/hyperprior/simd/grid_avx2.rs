@@ -18,13 +18,16 @@ use std::arch::x86_64::{
     __m128i, __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_blend_epi32,
     _mm256_castsi256_si128, _mm256_extracti128_si256, _mm256_hadd_epi32, _mm256_i32gather_epi32,
     _mm256_min_epu32, _mm256_mullo_epi32, _mm256_set1_epi32, _mm256_setr_epi32, _mm256_slli_epi32,
-    _mm256_srai_epi32, _mm256_storeu_si256, _mm256_xor_si256, _mm_add_epi32, _mm_and_si128,
-    _mm_blend_epi32, _mm_hadd_epi32, _mm_i32gather_epi32, _mm_min_epu32, _mm_mullo_epi32,
-    _mm_packs_epi32, _mm_set1_epi32, _mm_setr_epi32, _mm_slli_epi32, _mm_srai_epi32,
-    _mm_storel_epi64, _mm_storeu_si128, _mm_sub_epi32, _mm_xor_si128,
+    _mm256_srai_epi32, _mm256_srli_epi32, _mm256_srlv_epi32, _mm256_storeu_si256, _mm256_xor_si256,
+    _mm_add_epi32, _mm_and_si128, _mm_blend_epi32, _mm_hadd_epi32, _mm_i32gather_epi32,
+    _mm_min_epu32, _mm_mullo_epi32, _mm_packs_epi32, _mm_set1_epi32, _mm_setr_epi32,
+    _mm_slli_epi32, _mm_srai_epi32, _mm_srli_epi32, _mm_srlv_epi32, _mm_storel_epi64,
+    _mm_storeu_si128, _mm_sub_epi32, _mm_xor_si128,
 };
 
-use crate::hyperprior::grid::{axis, GridLayout, Level, PLANES, PRIME_Y, PRIME_Z, WEIGHT_BITS};
+use crate::hyperprior::grid::{
+    axis, GridLayout, GridSigns, Level, PLANES, PRIME_Y, PRIME_Z, WEIGHT_BITS,
+};
 use crate::model::HashGrid;
 
 /// Channels per entry the kernel handles (one i32 per entry).
@@ -113,6 +116,58 @@ impl Avx2Grid {
         // in any case).
         unsafe { prefetch_avx2(layout, tensors, v) }
     }
+
+    /// [`Avx2Grid::interpolate`] reading `signs`, the signs of `g`'s values
+    /// ([`GridSigns::new`]): the same features, from an eighth of the bytes.
+    pub fn interpolate_signs(
+        &self,
+        layout: &GridLayout,
+        g: &HashGrid,
+        signs: &GridSigns,
+        v: [u32; 3],
+        out: &mut [i16],
+    ) {
+        let features = CHANNELS * (layout.l3.len() + PLANES.len() * layout.l2.len());
+        if out.len() < features || !signs_fit(g, signs) {
+            return self.interpolate(layout, g, v, out);
+        }
+        // SAFETY: `new` made this kernel only after detecting AVX2; `out` holds every
+        // feature; each tensor has at least one entry, its entry count fits i32, and it has
+        // a word for every 8 entries, so the clamped gathers stay inside it.
+        unsafe { interpolate_signs_avx2(layout, signs, v, out) }
+    }
+}
+
+/// Whether `signs` are those of a grid shaped as `g` is (each tensor's entries, and a word
+/// for every 8 of them), every tensor with at least one entry and at most `i32::MAX`.
+fn signs_fit(g: &HashGrid, signs: &GridSigns) -> bool {
+    let tensors = [&g.grid_3d, &g.grid_xy, &g.grid_xz, &g.grid_yz];
+    tensors
+        .iter()
+        .zip(&signs.entries)
+        .zip(&signs.words)
+        .all(|((t, &e), w)| {
+            e == t.len() / CHANNELS && e >= 1 && e <= i32::MAX as usize && w.len() >= e.div_ceil(8)
+        })
+}
+
+/// The nibbles (entry `e`'s 4 sign bits at bits 0 … 3) of the 8 entries in `entry`, from the
+/// words at `base` (8 entries a word).
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn nibbles8(base: *const i32, entry: __m256i) -> __m256i {
+    let words = _mm256_i32gather_epi32::<4>(base, _mm256_srli_epi32::<3>(entry));
+    let shift = _mm256_slli_epi32::<2>(_mm256_and_si256(entry, _mm256_set1_epi32(7)));
+    _mm256_srlv_epi32(words, shift)
+}
+
+/// [`nibbles8`] for 4 entries.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn nibbles4(base: *const i32, entry: __m128i) -> __m128i {
+    let words = _mm_i32gather_epi32::<4>(base, _mm_srli_epi32::<3>(entry));
+    let shift = _mm_slli_epi32::<2>(_mm_and_si128(entry, _mm_set1_epi32(7)));
+    _mm_srlv_epi32(words, shift)
 }
 
 /// Prefetches the lines of the corners with dx = 0 (3D) or di = 0 (2D): the corner one step
@@ -227,17 +282,49 @@ unsafe fn interpolate_avx2(
     v: [u32; 3],
     out: &mut [i16],
 ) {
+    let bases = tensors.map(|t| t.as_ptr().cast::<i32>());
+    let tops = tensors.map(|t| last_entry(t));
+    interpolate_from::<false>(layout, bases, tops, v, out);
+}
+
+#[target_feature(enable = "avx2")]
+unsafe fn interpolate_signs_avx2(
+    layout: &GridLayout,
+    signs: &GridSigns,
+    v: [u32; 3],
+    out: &mut [i16],
+) {
+    let bases = [0, 1, 2, 3].map(|t| signs.words[t].as_ptr().cast::<i32>());
+    let tops = signs.entries.map(|e| e as i32 - 1);
+    interpolate_from::<true>(layout, bases, tops, v, out);
+}
+
+/// §5.1 for the tensors at `bases` (3D, xy, xz, yz), entries clamped to `tops`: an entry's 4
+/// values as one i32 each (`SIGNS` false), or its 4 sign bits in a word of 8 entries
+/// ([`GridSigns`], `SIGNS` true).
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn interpolate_from<const SIGNS: bool>(
+    layout: &GridLayout,
+    bases: [*const i32; 4],
+    tops: [i32; 4],
+    v: [u32; 3],
+    out: &mut [i16],
+) {
     let one = 1i32 << WEIGHT_BITS;
     let bits = layout.coord_bits;
     let mut at = 0;
-    let base = tensors[0].as_ptr().cast::<i32>();
-    let top = _mm256_set1_epi32(last_entry(tensors[0]));
+    let top = _mm256_set1_epi32(tops[0]);
     for l in &layout.l3 {
         let (cx, wx) = axis(v[0], l.res, bits);
         let (cy, wy) = axis(v[1], l.res, bits);
         let (cz, wz) = axis(v[2], l.res, bits);
         let entry = entries3(l, cx, cy, cz, top);
-        let values = _mm256_i32gather_epi32::<4>(base, entry);
+        let values = if SIGNS {
+            nibbles8(bases[0], entry)
+        } else {
+            _mm256_i32gather_epi32::<4>(bases[0], entry)
+        };
         let w = _mm256_mullo_epi32(
             _mm256_mullo_epi32(
                 _mm256_blend_epi32::<0b1010_1010>(
@@ -254,21 +341,24 @@ unsafe fn interpolate_avx2(
                 _mm256_set1_epi32(wz as i32),
             ),
         );
-        let negative = negative_sums8(w, values);
+        let negative = negative_sums8::<SIGNS>(w, values);
         // §5.1 step 3: A = 2^30 − 2 S, rounded to units of 2^-8 (shift 3 · 10 − 8 = 22).
         let a = _mm_sub_epi32(_mm_set1_epi32(1 << 30), _mm_slli_epi32::<1>(negative));
         let q = _mm_srai_epi32::<22>(_mm_add_epi32(a, _mm_set1_epi32(1 << 21)));
         store4(out, at, q);
         at += CHANNELS;
     }
-    for (&(pa, pb), tensor) in PLANES.iter().zip(&tensors[1..]) {
-        let base = tensor.as_ptr().cast::<i32>();
-        let top = _mm_set1_epi32(last_entry(tensor));
+    for (p, &(pa, pb)) in PLANES.iter().enumerate() {
+        let (base, top) = (bases[p + 1], _mm_set1_epi32(tops[p + 1]));
         for l in &layout.l2 {
             let (ci, wi) = axis(v[pa], l.res, bits);
             let (cj, wj) = axis(v[pb], l.res, bits);
             let entry = entries2(l, ci, cj, top);
-            let values = _mm_i32gather_epi32::<4>(base, entry);
+            let values = if SIGNS {
+                nibbles4(base, entry)
+            } else {
+                _mm_i32gather_epi32::<4>(base, entry)
+            };
             let w = _mm_mullo_epi32(
                 _mm_blend_epi32::<0b1010>(
                     _mm_set1_epi32(one - wi as i32),
@@ -279,7 +369,7 @@ unsafe fn interpolate_avx2(
                     _mm_set1_epi32(wj as i32),
                 ),
             );
-            let negative = negative_sums4(w, values);
+            let negative = negative_sums4::<SIGNS>(w, values);
             // A = 2^20 − 2 S, rounded to units of 2^-8 (shift 2 · 10 − 8 = 12).
             let a = _mm_sub_epi32(_mm_set1_epi32(1 << 20), _mm_slli_epi32::<1>(negative));
             let q = _mm_srai_epi32::<12>(_mm_add_epi32(a, _mm_set1_epi32(1 << 11)));
@@ -319,16 +409,29 @@ unsafe fn mark_avx2(layout: &GridLayout, voxels: &[[u32; 3]], flags: &mut [Vec<b
     }
 }
 
-/// For each channel c (byte c of each lane's entry), the sum of the 8 lanes' weights whose
-/// value is negative: `[S0, S1, S2, S3]`.
+/// For each channel c, the sum of the 8 lanes' weights whose value is negative:
+/// `[S0, S1, S2, S3]`. A lane holds its entry's 4 values as bytes (`SIGNS` false: channel
+/// c's sign at bit 8c + 7) or as sign bits (`SIGNS` true: at bit c).
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn negative_sums8(w: __m256i, values: __m256i) -> __m128i {
-    // A channel's byte moved to the top, then its sign spread over the lane.
-    let m0 = _mm256_srai_epi32::<31>(_mm256_slli_epi32::<24>(values));
-    let m1 = _mm256_srai_epi32::<31>(_mm256_slli_epi32::<16>(values));
-    let m2 = _mm256_srai_epi32::<31>(_mm256_slli_epi32::<8>(values));
-    let m3 = _mm256_srai_epi32::<31>(values);
+unsafe fn negative_sums8<const SIGNS: bool>(w: __m256i, values: __m256i) -> __m128i {
+    // A channel's sign bit moved to the top, then spread over the lane.
+    let [m0, m1, m2, m3] = if SIGNS {
+        [
+            _mm256_slli_epi32::<31>(values),
+            _mm256_slli_epi32::<30>(values),
+            _mm256_slli_epi32::<29>(values),
+            _mm256_slli_epi32::<28>(values),
+        ]
+    } else {
+        [
+            _mm256_slli_epi32::<24>(values),
+            _mm256_slli_epi32::<16>(values),
+            _mm256_slli_epi32::<8>(values),
+            values,
+        ]
+    }
+    .map(|x| _mm256_srai_epi32::<31>(x));
     let s01 = _mm256_hadd_epi32(_mm256_and_si256(w, m0), _mm256_and_si256(w, m1));
     let s23 = _mm256_hadd_epi32(_mm256_and_si256(w, m2), _mm256_and_si256(w, m3));
     // Each 128-bit half now holds the channels' sums over its 4 lanes.
@@ -339,11 +442,23 @@ unsafe fn negative_sums8(w: __m256i, values: __m256i) -> __m128i {
 /// [`negative_sums8`] over 4 lanes.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn negative_sums4(w: __m128i, values: __m128i) -> __m128i {
-    let m0 = _mm_srai_epi32::<31>(_mm_slli_epi32::<24>(values));
-    let m1 = _mm_srai_epi32::<31>(_mm_slli_epi32::<16>(values));
-    let m2 = _mm_srai_epi32::<31>(_mm_slli_epi32::<8>(values));
-    let m3 = _mm_srai_epi32::<31>(values);
+unsafe fn negative_sums4<const SIGNS: bool>(w: __m128i, values: __m128i) -> __m128i {
+    let [m0, m1, m2, m3] = if SIGNS {
+        [
+            _mm_slli_epi32::<31>(values),
+            _mm_slli_epi32::<30>(values),
+            _mm_slli_epi32::<29>(values),
+            _mm_slli_epi32::<28>(values),
+        ]
+    } else {
+        [
+            _mm_slli_epi32::<24>(values),
+            _mm_slli_epi32::<16>(values),
+            _mm_slli_epi32::<8>(values),
+            values,
+        ]
+    }
+    .map(|x| _mm_srai_epi32::<31>(x));
     let s01 = _mm_hadd_epi32(_mm_and_si128(w, m0), _mm_and_si128(w, m1));
     let s23 = _mm_hadd_epi32(_mm_and_si128(w, m2), _mm_and_si128(w, m3));
     _mm_hadd_epi32(s01, s23)
@@ -382,8 +497,9 @@ mod tests {
             .collect()
     }
 
-    /// The kernel against the scalar loop on random ±1 grids, voxels over the whole range
-    /// (both ends included), hashed and dense levels, 2D and 3D.
+    /// The kernel, from the values and from their signs, against the scalar loop on random
+    /// ±1 grids, voxels over the whole range (both ends included), hashed and dense levels,
+    /// 2D and 3D.
     #[test]
     fn matches_the_scalar_interpolation() {
         if !super::super::avx2_or_skip(
@@ -407,12 +523,18 @@ mod tests {
                 }
             }
             let grid = random_grid(&mut rng, &d);
-            let (mut want, mut got) =
-                (vec![0i16; layout.features()], vec![0i16; layout.features()]);
+            let signs = GridSigns::new(&grid, 4).expect("4 channels");
+            let mut want = vec![0i16; layout.features()];
+            let (mut got, mut from_signs) = (want.clone(), want.clone());
             for v in voxels(&mut rng, coord_bits, 400) {
                 layout.interpolate(&grid, v, &mut want);
                 k.interpolate(&layout, &grid, v, &mut got);
                 assert_eq!(got, want, "voxel {v:?}, coord_bits {coord_bits}");
+                k.interpolate_signs(&layout, &grid, &signs, v, &mut from_signs);
+                assert_eq!(
+                    from_signs, want,
+                    "signs: voxel {v:?}, coord_bits {coord_bits}"
+                );
             }
         }
         assert!(

@@ -140,6 +140,16 @@ impl NoGrid {
     pub fn prefetch(&self, _: &super::grid::GridLayout, _: &crate::model::HashGrid, _: [u32; 3]) {
         match *self {}
     }
+    pub fn interpolate_signs(
+        &self,
+        _: &super::grid::GridLayout,
+        _: &crate::model::HashGrid,
+        _: &super::grid::GridSigns,
+        _: [u32; 3],
+        _: &mut [i16],
+    ) {
+        match *self {}
+    }
 }
 
 /// Asks the CPU to bring the cache line of `data[index]` into its caches, where the index is
