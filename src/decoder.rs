@@ -480,10 +480,7 @@ fn assemble(
     }
     // The grid's signs for the interpolation kernel, made once for every tile.
     let signs = prior.grid_signs(&grid);
-    let grid_ref = GridRef {
-        values: &grid,
-        signs: signs.as_ref(),
-    };
+    let grid_ref = GridRef::new(&grid, signs.as_ref());
     let size = |j: usize| tiles.range(chosen[j]).len();
     let decoded = map_largest_first(rows, size, |j, out| {
         let (t, m0) = (chosen[j], mask_at[j]);

@@ -306,12 +306,16 @@ pub struct GridRef<'a> {
     pub signs: Option<&'a GridSigns>,
 }
 
+impl<'a> GridRef<'a> {
+    /// `values`, read through `signs` where there are some.
+    pub fn new(values: &'a HashGrid, signs: Option<&'a GridSigns>) -> GridRef<'a> {
+        GridRef { values, signs }
+    }
+}
+
 impl<'a> From<&'a HashGrid> for GridRef<'a> {
     fn from(values: &'a HashGrid) -> GridRef<'a> {
-        GridRef {
-            values,
-            signs: None,
-        }
+        GridRef::new(values, None)
     }
 }
 

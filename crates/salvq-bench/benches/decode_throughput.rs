@@ -106,10 +106,7 @@ fn main() {
     // The grid as the decoder reads it: with its values' signs where this target's kernel
     // reads those.
     let signs = prior.grid_signs(&expected.grid);
-    let grid = GridRef {
-        values: &expected.grid,
-        signs: signs.as_ref(),
-    };
+    let grid = GridRef::new(&expected.grid, signs.as_ref());
     let t_grid = median_secs(runs, || {
         let mut x = vec![0i16; prior.layout.features()];
         for &v in &expected.anchors.voxel {
