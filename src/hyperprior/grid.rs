@@ -229,6 +229,56 @@ impl GridLayout {
         }
     }
 
+    /// [`GridLayout::interpolate`] of a grid of ±1 values read through their signs (§5.1
+    /// for `C` = [`SIGN_CHANNELS`]), for targets without an interpolation kernel (WebAssembly,
+    /// aarch64). A level's weights sum to one (2^30 or 2^20), so a channel's sum is that one
+    /// less twice the weights of its corners whose value is −1. Why: the signs take an
+    /// eighth of the bytes' memory, and the corners are scattered over all of it. A layout
+    /// whose entries lie outside `signs` reads those as +1 (the grids the decoder builds
+    /// `signs` from have every entry).
+    pub fn interpolate_signs(&self, signs: &GridSigns, v: [u32; 3], out: &mut [i16]) {
+        const C: usize = SIGN_CHANNELS;
+        let one = 1i32 << WEIGHT_BITS;
+        let s3 = 3 * WEIGHT_BITS - INPUT_FRAC_BITS;
+        let s2 = 2 * WEIGHT_BITS - INPUT_FRAC_BITS;
+        let mut at = 0;
+        for l in &self.l3 {
+            let (cx, wx) = axis(v[0], l.res, self.coord_bits);
+            let (cy, wy) = axis(v[1], l.res, self.coord_bits);
+            let (cz, wz) = axis(v[2], l.res, self.coord_bits);
+            let (ax, ay, az) = (
+                [one - wx as i32, wx as i32],
+                [one - wy as i32, wy as i32],
+                [one - wz as i32, wz as i32],
+            );
+            let mut negative = [0i32; C];
+            for corner in 0..8u32 {
+                let (dx, dy, dz) = (corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+                let e = index3(l, cx + dx, cy + dy, cz + dz) as usize;
+                let w = ax[dx as usize] * ay[dy as usize] * az[dz as usize];
+                add_negative(&mut negative, nibble(&signs.words[0], e), w);
+            }
+            write_features(&mut out[at..at + C], negative, 1 << (3 * WEIGHT_BITS), s3);
+            at += C;
+        }
+        for (t, &(pa, pb)) in PLANES.iter().enumerate() {
+            for l in &self.l2 {
+                let (ci, wi) = axis(v[pa], l.res, self.coord_bits);
+                let (cj, wj) = axis(v[pb], l.res, self.coord_bits);
+                let (ai, aj) = ([one - wi as i32, wi as i32], [one - wj as i32, wj as i32]);
+                let mut negative = [0i32; C];
+                for corner in 0..4u32 {
+                    let (di, dj) = (corner & 1, corner >> 1);
+                    let e = index2(l, ci + di, cj + dj) as usize;
+                    let w = ai[di as usize] * aj[dj as usize];
+                    add_negative(&mut negative, nibble(&signs.words[t + 1], e), w);
+                }
+                write_features(&mut out[at..at + C], negative, 1 << (2 * WEIGHT_BITS), s2);
+                at += C;
+            }
+        }
+    }
+
     /// §5.2: marks in `flags` (the 3D, xy, xz and yz tensors' entries) every entry a corner
     /// of some voxel in `voxels` has.
     pub fn mark_touched(&self, voxels: &[[u32; 3]], flags: &mut [Vec<bool>; 4]) {
@@ -298,6 +348,47 @@ fn pack_signs(values: &[i8]) -> Vec<u32> {
         .collect()
 }
 
+/// Entry `e`'s sign bits (channel `c` at bit `c`), +1 values where `words` has no word for it.
+#[inline(always)]
+fn nibble(words: &[u32], e: usize) -> u32 {
+    words.get(e / 8).map_or(0, |w| w >> (4 * (e % 8)) & 0xf)
+}
+
+/// For each nibble, the mask of each channel whose bit it sets (all ones) or not (zero).
+const NIBBLE_MASKS: [[i32; SIGN_CHANNELS]; 16] = {
+    let mut masks = [[0; SIGN_CHANNELS]; 16];
+    let mut n = 0;
+    while n < 16 {
+        let mut c = 0;
+        while c < SIGN_CHANNELS {
+            masks[n][c] = -((n >> c & 1) as i32);
+            c += 1;
+        }
+        n += 1;
+    }
+    masks
+};
+
+/// Adds corner weight `w` to the channels whose bit in `bits` (a nibble) is set: one
+/// table row and four lanes, which the compiler makes one vector `and` and `add`.
+#[inline(always)]
+fn add_negative(negative: &mut [i32; SIGN_CHANNELS], bits: u32, w: i32) {
+    let mask = &NIBBLE_MASKS[(bits & 0xf) as usize];
+    for (n, &m) in negative.iter_mut().zip(mask) {
+        *n += w & m;
+    }
+}
+
+/// §5.1 step 3 for one level: each channel's sum `one − 2 · negative` (no overflow: both
+/// parts lie in 0 … `one`), rounded to units of 2^−8.
+#[inline(always)]
+fn write_features(out: &mut [i16], negative: [i32; SIGN_CHANNELS], one: i32, shift: u32) {
+    for (o, n) in out.iter_mut().zip(negative) {
+        let sum = one - n - n;
+        *o = ((sum + (1 << (shift - 1))) >> shift) as i16;
+    }
+}
+
 /// The grid a prior reads: its values, and their signs where the caller made them (the
 /// kernel then reads those).
 #[derive(Debug, Clone, Copy)]
@@ -348,6 +439,41 @@ mod tests {
             }
         }
         assert_eq!(GridSigns::new(&grid, 2), None);
+    }
+
+    /// The scalar loop through the signs gives the bytes' features, voxel by voxel, on
+    /// HAC-shaped random ±1 grids (C = 4): hashed and dense levels, 2D and 3D, voxels at
+    /// both ends of the range and between.
+    #[test]
+    fn signs_give_the_bytes_features() {
+        use crate::hyperprior::test_scene::{dims, random_grid, Rng};
+        let mut rng = Rng::new(0x5851_f42d_4c95_7f2d);
+        let res_3d = vec![18, 24, 33, 44, 59, 80, 108, 148, 201, 275, 376, 514];
+        for (coord_bits, log2_3d, log2_2d) in [(9u8, 13u8, 15u8), (1, 4, 4), (21, 19, 19)] {
+            let d = dims(
+                1,
+                4,
+                res_3d.clone(),
+                vec![130, 258, 514, 1026],
+                (log2_3d, log2_2d),
+            );
+            let layout = GridLayout::new(&d, coord_bits);
+            let grid = random_grid(&mut rng, &d);
+            let signs = GridSigns::new(&grid, layout.channels).expect("C = 4");
+            let mut bytes = vec![0i16; layout.features()];
+            let mut through_signs = bytes.clone();
+            let top = (1u64 << coord_bits) - 1;
+            for i in 0..300 {
+                let v = match i % 4 {
+                    0 => [0; 3],
+                    1 => [top as u32; 3],
+                    _ => [0; 3].map(|_| (rng.next() % (top + 1)) as u32),
+                };
+                layout.interpolate(&grid, v, &mut bytes);
+                layout.interpolate_signs(&signs, v, &mut through_signs);
+                assert_eq!(bytes, through_signs, "voxel {v:?}, coord_bits {coord_bits}");
+            }
+        }
     }
 
     #[test]

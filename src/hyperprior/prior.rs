@@ -176,16 +176,16 @@ impl Prior {
             // The signs fit this machine's L2 cache beside the rest of a decode: requesting
             // their words ahead cost more than waiting for them (docs/speed, twenty-fifth
             // session).
-            (Some(_), Some(_)) => {}
+            (_, Some(_)) => {}
             (Some(k), None) => k.prefetch(&self.layout, grid.values, v),
-            (None, _) => self.layout.prefetch(grid.values, v),
+            (None, None) => self.layout.prefetch(grid.values, v),
         }
     }
 
-    /// The signs of `grid`'s values ([`GridSigns`]) where this target's kernel reads them
-    /// (`None` otherwise: nothing would read them).
+    /// The signs of `grid`'s values ([`GridSigns`]) where its entries have
+    /// [`super::grid::SIGN_CHANNELS`] values (`None` otherwise): this target's kernel reads them, or the
+    /// scalar loop where it has none ([`GridLayout::interpolate_signs`]).
     pub fn grid_signs(&self, grid: &HashGrid) -> Option<GridSigns> {
-        self.fast_grid.as_ref()?;
         GridSigns::new(grid, self.layout.channels)
     }
 
@@ -197,7 +197,8 @@ impl Prior {
         match (&self.fast_grid, grid.signs) {
             (Some(k), Some(signs)) => k.interpolate_signs(&self.layout, grid.values, signs, v, x),
             (Some(k), None) => k.interpolate(&self.layout, grid.values, v, x),
-            (None, _) => self.layout.interpolate(grid.values, v, x),
+            (None, Some(signs)) => self.layout.interpolate_signs(signs, v, x),
+            (None, None) => self.layout.interpolate(grid.values, v, x),
         }
     }
 
