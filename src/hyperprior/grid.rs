@@ -178,55 +178,27 @@ impl GridLayout {
 
     #[inline(always)]
     fn interpolate_c(&self, c: usize, g: &HashGrid, v: [u32; 3], out: &mut [i16]) {
-        let one = 1i32 << WEIGHT_BITS;
-        // §5.1 step 3: round to units of 2^-8 (add half, arithmetic shift). The sums fit i32:
-        // the corner weights of a level add up to 2^30 (3D) or 2^20 (2D) and values are ±1.
-        let s3 = 3 * WEIGHT_BITS - INPUT_FRAC_BITS;
-        let s2 = 2 * WEIGHT_BITS - INPUT_FRAC_BITS;
+        let tensors = [&g.grid_3d, &g.grid_xy, &g.grid_xz, &g.grid_yz];
         let mut at = 0;
-        for l in &self.l3 {
-            let (cx, wx) = axis(v[0], l.res, self.coord_bits);
-            let (cy, wy) = axis(v[1], l.res, self.coord_bits);
-            let (cz, wz) = axis(v[2], l.res, self.coord_bits);
-            let (ax, ay, az) = (
-                [one - wx as i32, wx as i32],
-                [one - wy as i32, wy as i32],
-                [one - wz as i32, wz as i32],
-            );
-            let mut acc = [0i32; 16];
-            for corner in 0..8u32 {
-                let (dx, dy, dz) = (corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
-                let e = index3(l, cx + dx, cy + dy, cz + dz) as usize * c;
-                let w = ax[dx as usize] * ay[dy as usize] * az[dz as usize];
-                for (a, &s) in acc.iter_mut().zip(&g.grid_3d[e..e + c]) {
+        self.levels_of(
+            v,
+            |acc: &mut [i32; 16], t, e, w| {
+                let e = e * c;
+                for (a, &s) in acc.iter_mut().zip(&tensors[t][e..e + c]) {
                     *a += w * i32::from(s);
                 }
-            }
-            for (o, a) in out[at..at + c].iter_mut().zip(&acc) {
-                *o = ((a + (1 << (s3 - 1))) >> s3) as i16;
-            }
-            at += c;
-        }
-        for (&(pa, pb), tensor) in PLANES.iter().zip([&g.grid_xy, &g.grid_xz, &g.grid_yz]) {
-            for l in &self.l2 {
-                let (ci, wi) = axis(v[pa], l.res, self.coord_bits);
-                let (cj, wj) = axis(v[pb], l.res, self.coord_bits);
-                let (ai, aj) = ([one - wi as i32, wi as i32], [one - wj as i32, wj as i32]);
-                let mut acc = [0i32; 16];
-                for corner in 0..4u32 {
-                    let (di, dj) = (corner & 1, corner >> 1);
-                    let e = index2(l, ci + di, cj + dj) as usize * c;
-                    let w = ai[di as usize] * aj[dj as usize];
-                    for (a, &s) in acc.iter_mut().zip(&tensor[e..e + c]) {
-                        *a += w * i32::from(s);
-                    }
-                }
+            },
+            |acc, dims| {
+                // §5.1 step 3: round to units of 2^-8 (add half, arithmetic shift). The sums
+                // fit i32: a level's corner weights add up to 2^30 (3D) or 2^20 (2D) and
+                // values are ±1.
+                let shift = dims * WEIGHT_BITS - INPUT_FRAC_BITS;
                 for (o, a) in out[at..at + c].iter_mut().zip(&acc) {
-                    *o = ((a + (1 << (s2 - 1))) >> s2) as i16;
+                    *o = ((a + (1 << (shift - 1))) >> shift) as i16;
                 }
                 at += c;
-            }
-        }
+            },
+        );
     }
 
     /// [`GridLayout::interpolate`] of a grid of ±1 values read through their signs (§5.1
@@ -238,43 +210,69 @@ impl GridLayout {
     /// `signs` from have every entry).
     pub fn interpolate_signs(&self, signs: &GridSigns, v: [u32; 3], out: &mut [i16]) {
         const C: usize = SIGN_CHANNELS;
-        let one = 1i32 << WEIGHT_BITS;
-        let s3 = 3 * WEIGHT_BITS - INPUT_FRAC_BITS;
-        let s2 = 2 * WEIGHT_BITS - INPUT_FRAC_BITS;
         let mut at = 0;
+        self.levels_of(
+            v,
+            |negative: &mut [i32; C], t, e, w| {
+                add_negative(negative, nibble(&signs.words[t], e), w);
+            },
+            |negative, dims| {
+                let shift = dims * WEIGHT_BITS - INPUT_FRAC_BITS;
+                write_features(
+                    &mut out[at..at + C],
+                    negative,
+                    1 << (dims * WEIGHT_BITS),
+                    shift,
+                );
+                at += C;
+            },
+        );
+    }
+
+    /// §5.1's corners of voxel `v`, level by level in the features' order (3D levels, then
+    /// the xy, xz and yz planes' levels): `corner(sums, tensor, entry, weight)` for each
+    /// corner of a level (tensor 0 the 3D one, 1 … 3 the planes; the weight in units of
+    /// 2^−10 per axis), then `level(sums, dims)` with the level's sums (from
+    /// `S::default()`) and its dimensions, 3 or 2.
+    #[inline(always)]
+    fn levels_of<S: Default>(
+        &self,
+        v: [u32; 3],
+        mut corner: impl FnMut(&mut S, usize, usize, i32),
+        mut level: impl FnMut(S, u32),
+    ) {
+        let one = 1i32 << WEIGHT_BITS;
+        let weights = |w: u32| [one - w as i32, w as i32];
         for l in &self.l3 {
             let (cx, wx) = axis(v[0], l.res, self.coord_bits);
             let (cy, wy) = axis(v[1], l.res, self.coord_bits);
             let (cz, wz) = axis(v[2], l.res, self.coord_bits);
-            let (ax, ay, az) = (
-                [one - wx as i32, wx as i32],
-                [one - wy as i32, wy as i32],
-                [one - wz as i32, wz as i32],
-            );
-            let mut negative = [0i32; C];
-            for corner in 0..8u32 {
-                let (dx, dy, dz) = (corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+            let (ax, ay, az) = (weights(wx), weights(wy), weights(wz));
+            let mut sums = S::default();
+            for c in 0..8u32 {
+                let (dx, dy, dz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
                 let e = index3(l, cx + dx, cy + dy, cz + dz) as usize;
-                let w = ax[dx as usize] * ay[dy as usize] * az[dz as usize];
-                add_negative(&mut negative, nibble(&signs.words[0], e), w);
+                corner(
+                    &mut sums,
+                    0,
+                    e,
+                    ax[dx as usize] * ay[dy as usize] * az[dz as usize],
+                );
             }
-            write_features(&mut out[at..at + C], negative, 1 << (3 * WEIGHT_BITS), s3);
-            at += C;
+            level(sums, 3);
         }
-        for (t, &(pa, pb)) in PLANES.iter().enumerate() {
+        for (p, &(pa, pb)) in PLANES.iter().enumerate() {
             for l in &self.l2 {
                 let (ci, wi) = axis(v[pa], l.res, self.coord_bits);
                 let (cj, wj) = axis(v[pb], l.res, self.coord_bits);
-                let (ai, aj) = ([one - wi as i32, wi as i32], [one - wj as i32, wj as i32]);
-                let mut negative = [0i32; C];
-                for corner in 0..4u32 {
-                    let (di, dj) = (corner & 1, corner >> 1);
+                let (ai, aj) = (weights(wi), weights(wj));
+                let mut sums = S::default();
+                for c in 0..4u32 {
+                    let (di, dj) = (c & 1, c >> 1);
                     let e = index2(l, ci + di, cj + dj) as usize;
-                    let w = ai[di as usize] * aj[dj as usize];
-                    add_negative(&mut negative, nibble(&signs.words[t + 1], e), w);
+                    corner(&mut sums, p + 1, e, ai[di as usize] * aj[dj as usize]);
                 }
-                write_features(&mut out[at..at + C], negative, 1 << (2 * WEIGHT_BITS), s2);
-                at += C;
+                level(sums, 2);
             }
         }
     }
