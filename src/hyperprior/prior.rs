@@ -183,8 +183,8 @@ impl Prior {
     }
 
     /// The signs of `grid`'s values ([`GridSigns`]) where its entries have
-    /// [`super::grid::SIGN_CHANNELS`] values (`None` otherwise): this target's kernel reads them, or the
-    /// scalar loop where it has none ([`GridLayout::interpolate_signs`]).
+    /// [`super::grid::SIGN_CHANNELS`] values (`None` otherwise): this target's kernel reads
+    /// them, or the scalar loop where it has none ([`GridLayout::interpolate_signs`]).
     pub fn grid_signs(&self, grid: &HashGrid) -> Option<GridSigns> {
         GridSigns::new(grid, self.layout.channels)
     }
