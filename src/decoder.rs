@@ -478,7 +478,7 @@ fn assemble(
             });
         }
     }
-    // The grid's signs for the interpolation kernel, made once for every tile.
+    // The grid's signs for the interpolation (kernel or scalar loop), made once for every tile.
     let signs = prior.grid_signs(&grid);
     let grid_ref = GridRef::new(&grid, signs.as_ref());
     let size = |j: usize| tiles.range(chosen[j]).len();

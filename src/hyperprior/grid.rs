@@ -108,45 +108,6 @@ impl GridLayout {
         self.channels * (self.l3.len() + 3 * self.l2.len())
     }
 
-    /// Calls `f(entry, weight)` for the 8 corners of every 3D level; weights are in units of
-    /// 2^-30 and sum to 2^30 per level.
-    fn corners3(&self, v: [u32; 3], mut f: impl FnMut(usize, u64, i64)) {
-        for (li, l) in self.l3.iter().enumerate() {
-            let (cx, wx) = axis(v[0], l.res, self.coord_bits);
-            let (cy, wy) = axis(v[1], l.res, self.coord_bits);
-            let (cz, wz) = axis(v[2], l.res, self.coord_bits);
-            let one = 1i64 << WEIGHT_BITS;
-            let ws = |w: u32| [one - i64::from(w), i64::from(w)];
-            let (ax, ay, az) = (ws(wx), ws(wy), ws(wz));
-            for corner in 0..8u32 {
-                let (dx, dy, dz) = (corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
-                let e = index3(l, cx + dx, cy + dy, cz + dz);
-                f(li, e, ax[dx as usize] * ay[dy as usize] * az[dz as usize]);
-            }
-        }
-    }
-
-    /// Calls `f(plane, level, entry, weight)` for the 4 corners of every 2D level of every
-    /// plane; weights in units of 2^-20.
-    fn corners2(&self, v: [u32; 3], mut f: impl FnMut(usize, usize, u64, i64)) {
-        for (pi, &(a, b)) in PLANES.iter().enumerate() {
-            for (li, l) in self.l2.iter().enumerate() {
-                let (ci, wi) = axis(v[a], l.res, self.coord_bits);
-                let (cj, wj) = axis(v[b], l.res, self.coord_bits);
-                let one = 1i64 << WEIGHT_BITS;
-                let (ai, aj) = (
-                    [one - i64::from(wi), i64::from(wi)],
-                    [one - i64::from(wj), i64::from(wj)],
-                );
-                for corner in 0..4u32 {
-                    let (di, dj) = (corner & 1, corner >> 1);
-                    let e = index2(l, ci + di, cj + dj);
-                    f(pi, li, e, ai[di as usize] * aj[dj as usize]);
-                }
-            }
-        }
-    }
-
     /// Starts loading the grid entries [`GridLayout::interpolate`] will read for voxel `v`
     /// (a hint: it changes no result). Called for the next anchor while this one is
     /// computed, it overlaps the waits for scattered table entries with work.
@@ -154,9 +115,12 @@ impl GridLayout {
     pub fn prefetch(&self, g: &HashGrid, v: [u32; 3]) {
         use crate::hyperprior::simd::prefetch;
         let c = self.channels;
-        self.corners3(v, |_, e, _| prefetch(&g.grid_3d, e as usize * c));
-        let planes = [&g.grid_xy, &g.grid_xz, &g.grid_yz];
-        self.corners2(v, |pi, _, e, _| prefetch(planes[pi], e as usize * c));
+        let tensors = [&g.grid_3d, &g.grid_xy, &g.grid_xz, &g.grid_yz];
+        self.levels_of(
+            v,
+            |_: &mut (), t, e, _| prefetch(tensors[t], e * c),
+            |_, _| {},
+        );
     }
 
     /// Without the `simd` feature there is no prefetch hint: nothing to do.
@@ -281,8 +245,7 @@ impl GridLayout {
     /// of some voxel in `voxels` has.
     pub fn mark_touched(&self, voxels: &[[u32; 3]], flags: &mut [Vec<bool>; 4]) {
         for &v in voxels {
-            self.corners3(v, |_, e, _| flags[0][e as usize] = true);
-            self.corners2(v, |pi, _, e, _| flags[pi + 1][e as usize] = true);
+            self.levels_of(v, |_: &mut (), t, e, _| flags[t][e] = true, |_, _| {});
         }
     }
 }
@@ -491,9 +454,16 @@ mod tests {
         let layout = GridLayout::new(&scene.dims, scene.coord_bits);
         let mut out = vec![0i16; layout.features()];
         for &v in &scene.voxels {
-            let mut sums = vec![0i64; layout.l3.len()];
-            layout.corners3(v, |li, _, w| sums[li] += w);
-            assert!(sums.iter().all(|&s| s == 1 << 30));
+            let mut levels = 0;
+            layout.levels_of(
+                v,
+                |sum: &mut i64, _, _, w| *sum += i64::from(w),
+                |sum, dims| {
+                    assert_eq!(sum, 1 << (dims * WEIGHT_BITS), "voxel {v:?}");
+                    levels += 1;
+                },
+            );
+            assert_eq!(levels, layout.l3.len() + 3 * layout.l2.len());
             layout.interpolate(&scene.grid, v, &mut out);
             assert!(out.iter().all(|&x| (-256..=256).contains(&x)));
         }

@@ -103,8 +103,7 @@ fn main() {
         usize::from(d.offsets),
     );
     let mut ctx = prior.context();
-    // The grid as the decoder reads it: with its values' signs where this target's kernel
-    // reads those.
+    // The grid as the decoder reads it: with its values' signs where it has 4 channels.
     let signs = prior.grid_signs(&expected.grid);
     let grid = GridRef::new(&expected.grid, signs.as_ref());
     let t_grid = median_secs(runs, || {
