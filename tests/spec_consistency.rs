@@ -352,8 +352,13 @@ fn every_tool_error() -> Vec<salvq_encoder::Error> {
     let files = |e: R| salvq_encoder::Error::from(e);
     vec![
         salvq_encoder::Error::UnsupportedInput {
-            found: "x",
+            found: "x".into(),
             hint: "y",
+        },
+        salvq_encoder::Error::TargetUnreachable {
+            rate: 0,
+            target_db: 200.0,
+            ceiling_db: 90.0,
         },
         salvq_encoder::Error::OptionUnsupported {
             option: "x",
@@ -398,6 +403,16 @@ fn every_tool_error() -> Vec<salvq_encoder::Error> {
             line: 3,
             field: "MODEL",
             problem: "x".into(),
+        }),
+        files(R::OutputExists { path: "x".into() }),
+        files(R::OutputIsInput {
+            path: "x".into(),
+            input: "y".into(),
+        }),
+        files(R::OutputExtension {
+            path: "x".into(),
+            what: "y",
+            extensions: "z",
         }),
         salvq_encoder::Error::io(
             IoOp::Read,

@@ -28,11 +28,12 @@ for case in usq salvq; do
   for name in opt0 opt3 native; do
     bin=${bins[$name]}
     if [ "$case" = usq ]; then
-      "$bin" encode "$work/model.safetensors" -o "$work/$name.salvq" > /dev/null
-      "$bin" decode "$work/$name.salvq" -o "$work/$name.decoded.safetensors" > /dev/null
+      "$bin" encode "$work/model.safetensors" -o "$work/$name.salvq" -q
+      "$bin" decode "$work/$name.salvq" -o "$work/$name.decoded.safetensors" -q
     else
-      "$bin" encode "$work/salvq.safetensors" --rates 0,2 -o "$work/$name.salvq" > /dev/null
-      "$bin" decode "$work/$name.salvq" --rate 2 -o "$work/$name.decoded.safetensors" > /dev/null
+      # The second case replaces the first one's files (--force).
+      "$bin" encode "$work/salvq.safetensors" --rates 0,2 -o "$work/$name.salvq" -q -f
+      "$bin" decode "$work/$name.salvq" --rate 2 -o "$work/$name.decoded.safetensors" -q -f
     fi
     line="$(sha256sum < "$work/$name.salvq" | cut -c1-16) $(sha256sum < "$work/$name.decoded.safetensors" | cut -c1-16)"
     echo "$case $name: stream+decoded sha256 prefixes $line"

@@ -251,7 +251,7 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
                 &RateControl::Psnr(o.targets.clone()),
                 variant,
                 klt.as_deref(),
-                &|m| progress(&format!("{scene}: {m}")),
+                &|m| progress(&format!("{scene}: {}", m.step)),
             )?;
             let options = ExplicitOptions {
                 rates: RateControl::Plans(plans.clone()),

@@ -13,11 +13,11 @@ use salvq_render::Gaussians;
 
 use super::render::load;
 
-/// The ring's image size when none is given.
-const RING_WIDTH: u32 = 512;
-const RING_HEIGHT: u32 = 384;
-/// The ring's views when none are given.
-const RING_VIEWS: u32 = 8;
+/// The ring's image size and views when none are given: the yardstick the encoder fits its
+/// rates at (Annex A.8.2), so that compare measures what the encoder reports.
+use salvq_encoder::explicit::ratios::{
+    QUALITY_HEIGHT as RING_HEIGHT, QUALITY_VIEWS as RING_VIEWS, QUALITY_WIDTH as RING_WIDTH,
+};
 
 /// Arguments of `salvq compare`.
 #[derive(clap::Args)]

@@ -1,23 +1,27 @@
-//! `salvq decode`: a stream of either profile into a model file, a PLY file or the canonical
-//! form (spec §1.5, §3, §10.3.1, §11.1).
+//! `salvq decode`: a stream of either profile into a PLY file (explicit Gaussians), a model
+//! file (anchors) or the canonical form (spec §1.5, §3, §10.3.1, §11.1). The output's
+//! extension must name the format the stream decodes to; its default name is the input's
+//! with that extension.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use salvq_encoder::Error;
 
+use super::files::{self, Ctx, Output};
 use super::tools::parse_fault;
-use super::{decode_explicit, secs, write_model};
+use super::{decode_explicit, secs};
 
 /// `salvq decode`'s arguments.
 #[derive(clap::Args)]
 pub(crate) struct DecodeArgs {
-    /// Input stream.
+    /// Input stream (`-`: standard input).
     pub(crate) input: PathBuf,
-    /// Output model (safetensors).
+    /// Output: a 3DGS PLY (`.ply`) for a scene (explicit profile), a model (`.safetensors`)
+    /// for anchors; `-` for standard output. Default: the input's name with that extension.
     #[arg(short, long)]
-    pub(crate) output: PathBuf,
-    /// The rate to decode (default: the lowest rate the stream carries).
+    pub(crate) output: Option<PathBuf>,
+    /// The rate to decode (rate 0 is the finest; default: the finest the stream carries).
     #[arg(long)]
     pub(crate) rate: Option<u8>,
     /// Decode tiles on N threads (spec §10.3; the output is the same for every N).
@@ -39,6 +43,53 @@ pub(crate) struct DecodeArgs {
     /// table), to show that the conformance vectors catch it (spec §11).
     #[arg(long, hide = true, value_parser = parse_fault)]
     pub(crate) inject_fault: Option<salvq::decoder::Fault>,
+    /// Print what was decoded as JSON on standard output.
+    #[arg(long)]
+    pub(crate) json: bool,
+}
+
+/// What `--json` prints.
+#[derive(serde::Serialize)]
+pub(crate) struct Decoded {
+    pub(crate) output: String,
+    pub(crate) profile: &'static str,
+    /// Gaussians (explicit profile) or anchors.
+    pub(crate) count: u64,
+    pub(crate) rate: Option<u8>,
+    pub(crate) rates: u8,
+    pub(crate) seconds: f64,
+}
+
+/// The output of a decode, checked before the work, with the extension the profile needs.
+fn output_for(args: &DecodeArgs, ctx: Ctx, explicit: bool) -> Result<Output, Error> {
+    let (default, allowed, what, extensions): (&str, &[&str], _, _) =
+        match (args.canonical, explicit) {
+            (true, _) => ("canonical.safetensors", &[], "", ""),
+            (false, true) => (
+                "ply",
+                &["ply"],
+                "a scene stream (explicit profile) decodes to a 3DGS PLY",
+                ".ply",
+            ),
+            (false, false) => (
+                "safetensors",
+                &["safetensors"],
+                "an anchor stream decodes to a model file",
+                ".safetensors; `salvq export-ply` makes a 3DGS PLY of it",
+            ),
+        };
+    let output = ctx.output(args.output.as_deref(), &args.input, default, &[&args.input])?;
+    let ext = output.extension();
+    if !allowed.is_empty() && !ext.is_empty() && !allowed.contains(&ext.as_str()) {
+        return Err(salvq_render::Error::OutputExtension {
+            path: output.path.clone(),
+            what,
+            extensions,
+        }
+        .into());
+    }
+    files::json_beside(args.json, &output)?;
+    Ok(output)
 }
 
 /// `xmin,ymin,zmin,xmax,ymax,zmax`: six numbers (`inf` allowed), each min ≤ its max (§10.3.1).
@@ -54,64 +105,90 @@ fn parse_box(s: &str) -> Result<salvq::RegionBox, String> {
 }
 
 /// Decodes `args.input` as asked.
-pub(crate) fn run(args: DecodeArgs) -> Result<(), Error> {
+pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
+    let t = Instant::now();
+    let stream = files::read_input(&args.input)?;
+    let explicit = salvq::decoder::is_explicit(&stream);
+    let output = if args.measure {
+        None
+    } else {
+        Some(output_for(&args, ctx, explicit)?)
+    };
     let DecodeArgs {
-        input,
-        output,
         rate,
         threads,
         region,
-        measure,
         canonical,
         inject_fault,
+        json,
+        ..
     } = args;
-    let t = Instant::now();
-    let stream = salvq_render::io::read_file(&input)?;
     let options = salvq::DecodeOptions::default()
         .with_rate(rate)
         .with_threads(threads.map(|n| n as usize))
         .with_region(region)
         .with_fault(inject_fault);
-    if salvq::decoder::is_explicit(&stream) {
+    if explicit {
         // The canonical form holds the symbols (§11.6); a PLY file only the Gaussians.
         let options = options.with_gaussians_only(!canonical);
-        return decode_explicit::run(&stream, &options, &output, canonical, measure, t);
+        let how = decode_explicit::How {
+            canonical,
+            json,
+            ctx,
+        };
+        return decode_explicit::run(&stream, &options, output.as_ref(), how, t);
     }
+    let Some(output) = output else {
+        return measure_anchors(&stream, &options, t);
+    };
     if canonical {
         let (model, symbols) = salvq::decoder::decode_with_symbols(&stream, &options)?;
         let tensors = salvq_conformance::canonical::canonical_tensors(&model, &symbols);
         let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
-        salvq_render::io::write_bytes_atomic(&output, &bytes)?;
-        return Ok(());
+        return output.write_bytes(&bytes);
     }
     let model = salvq::decode_with_options(&stream, &options)?;
-    if measure {
-        out!(
-            "measure decode_secs={} peak_rss_bytes={} anchors={} decoded_bytes={}",
-            secs(t),
-            salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
-            model.dims.anchors,
-            salvq::model::decoded_bytes(&model.dims)
-        );
-        return Ok(());
-    }
     if model.dims.anchors == 0 {
-        eprintln!("salvq: the region intersects no tile; nothing written");
+        ctx.say("salvq: the region intersects no tile; nothing written");
         return Ok(());
     }
-    write_model(&model, &output)?;
+    output.write(|w| salvq_render::interchange::write_safetensors(&model, w))?;
     // Which rate was decoded (§7.4): the one asked for, else the lowest coded.
     let decoded_rate = match salvq::Decoder::builder().build().read_header(&stream) {
         Ok(salvq::Header::Anchors(p)) => rate.or(p.coded_rates().first().copied()),
         _ => rate,
     };
-    out!(
+    let decoded = Decoded {
+        output: output.shown(),
+        profile: "anchors",
+        count: model.dims.anchors.into(),
+        rate: decoded_rate,
+        rates: model.dims.rates,
+        seconds: secs(t),
+    };
+    if json {
+        files::print_json(&decoded);
+    }
+    ctx.say(&format!(
         "decoded {} anchors (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
-        model.dims.anchors,
+        decoded.count,
         decoded_rate.map_or("?".into(), |r| r.to_string()),
-        model.dims.rates,
-        output.display(),
-        secs(t)
+        decoded.rates,
+        decoded.output,
+        decoded.seconds
+    ));
+    Ok(())
+}
+
+/// `decode --measure` of an anchors stream: the time and peak memory, nothing written.
+fn measure_anchors(stream: &[u8], options: &salvq::DecodeOptions, t: Instant) -> Result<(), Error> {
+    let model = salvq::decode_with_options(stream, options)?;
+    out!(
+        "measure decode_secs={} peak_rss_bytes={} anchors={} decoded_bytes={}",
+        secs(t),
+        salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
+        model.dims.anchors,
+        salvq::model::decoded_bytes(&model.dims)
     );
     Ok(())
 }

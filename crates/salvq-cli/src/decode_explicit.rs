@@ -4,29 +4,36 @@ use std::time::Instant;
 
 use salvq_encoder::Error;
 
+use super::decode::Decoded;
+use super::files::{self, Ctx, Output};
 use super::secs;
 
+/// How the decode is written and reported.
+pub(crate) struct How {
+    /// The canonical form (§11.6) instead of a PLY file.
+    pub(crate) canonical: bool,
+    /// `--json` on standard output.
+    pub(crate) json: bool,
+    /// Messages.
+    pub(crate) ctx: Ctx,
+}
+
 /// `salvq decode` of an explicit-profile stream (spec §3): the Gaussians as a standard 3DGS
-/// PLY file, or the canonical form (§11.6).
+/// PLY file, or the canonical form (§11.6); with no output (`--measure`), the decode's time
+/// and peak memory.
 pub(crate) fn run(
     stream: &[u8],
     options: &salvq::DecodeOptions,
-    output: &std::path::Path,
-    canonical: bool,
-    measure: bool,
+    output: Option<&Output>,
+    how: How,
     t: Instant,
 ) -> Result<(), Error> {
     let decoded = match salvq::decoder::decode_any(stream, options)? {
         salvq::decoder::Decoded::Gaussians(d) => d,
         salvq::decoder::Decoded::Anchors(_) => unreachable!("is_explicit chose the profile"),
     };
-    if canonical {
-        let tensors = salvq_conformance::canonical::explicit_canonical_tensors(&decoded);
-        let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
-        return Ok(salvq_render::io::write_bytes_atomic(output, &bytes)?);
-    }
     let n = decoded.gaussians.len();
-    if measure {
+    let Some(output) = output else {
         out!(
             "measure decode_secs={} peak_rss_bytes={} gaussians={n} decoded_bytes={}",
             secs(t),
@@ -34,18 +41,32 @@ pub(crate) fn run(
             decoded.header.decoded_bytes()
         );
         return Ok(());
+    };
+    if how.canonical {
+        let tensors = salvq_conformance::canonical::explicit_canonical_tensors(&decoded);
+        let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
+        return output.write_bytes(&bytes);
     }
     if n == 0 {
-        eprintln!("salvq: the region intersects no tile; nothing written");
+        how.ctx
+            .say("salvq: the region intersects no tile; nothing written");
         return Ok(());
     }
-    salvq_render::ply::write_ply_file(&decoded.gaussians, output)?;
-    out!(
+    output.write(|w| salvq_render::ply::write_ply(&decoded.gaussians, w))?;
+    let report = Decoded {
+        output: output.shown(),
+        profile: "explicit",
+        count: n as u64,
+        rate: Some(decoded.rate),
+        rates: decoded.header.rate_count,
+        seconds: secs(t),
+    };
+    if how.json {
+        files::print_json(&report);
+    }
+    how.ctx.say(&format!(
         "decoded {n} Gaussians (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
-        decoded.rate,
-        decoded.header.rate_count,
-        output.display(),
-        secs(t)
-    );
+        decoded.rate, report.rates, report.output, report.seconds
+    ));
     Ok(())
 }

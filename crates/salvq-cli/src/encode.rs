@@ -11,8 +11,9 @@ use salvq_encoder::auto::{self, AutoChoice};
 use salvq_encoder::parsimony::LevelTrial;
 use salvq_encoder::precision::{PrecisionChoice, PrecisionRule};
 use salvq_encoder::Error;
-use salvq_render::interchange::read_model;
+use salvq_render::interchange::model_from_safetensors;
 
+use super::files::{self, Output};
 use super::progress::Progress;
 use super::secs;
 
@@ -21,9 +22,9 @@ pub struct EncodeArgs {
     /// Input: a model (safetensors, spec Annex A) or a trained 3DGS scene (standard Inria
     /// PLY: the explicit-Gaussians profile, spec §3).
     pub(crate) input: PathBuf,
-    /// Output stream.
+    /// Output stream (default: the input's name with `.salvq`; `-`: standard output).
     #[arg(short, long)]
-    pub(crate) output: PathBuf,
+    pub(crate) output: Option<PathBuf>,
     /// Text for an `encd` ancillary chunk (encoder identification).
     #[arg(long)]
     pub(crate) note: Option<String>,
@@ -31,12 +32,13 @@ pub struct EncodeArgs {
     /// model's gains (default 0), or into `--psnr`'s targets for a PLY (default: all).
     #[arg(long, value_delimiter = ',')]
     pub(crate) rates: Option<Vec<u8>>,
-    /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views;
-    /// rate 0 first and finest), e.g. `62,56,50,45,40,35` (the default).
+    /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views
+    /// at 512x384, as `salvq compare` measures), e.g. `62,56,50,45,40,35` (the default); sorted
+    /// so that rate 0 is the finest.
     #[arg(long, value_delimiter = ',')]
     pub(crate) psnr: Option<Vec<f64>>,
-    /// PLY input: drop (and count) Gaussians with a NaN or infinite value instead of
-    /// failing on the first (spec Annex A.8.1).
+    /// PLY input: drop (and count, by property) Gaussians with a NaN, or an infinite value
+    /// other than an opacity logit, instead of failing on the first (spec Annex A.8.1).
     #[arg(long)]
     pub(crate) drop_invalid: bool,
     /// Feature quantizer: `model` (the model's own), `usq` (identity), `dn` (D_n),
@@ -91,13 +93,10 @@ pub struct EncodeArgs {
     /// it saves, spec Annex A.5.4), `i16`, `i8`.
     #[arg(long, default_value = "auto", value_parser = ["auto", "i16", "i8"])]
     context_precision: String,
-    /// Print the summary as JSON on stdout (choices, per-rate reports); nothing else goes to
-    /// stdout.
+    /// Print the summary as JSON on standard output (choices, per-rate reports); messages
+    /// stay on standard error.
     #[arg(long)]
     pub(crate) json: bool,
-    /// Print nothing but errors (no progress, choices or summary).
-    #[arg(long, short, conflicts_with = "json")]
-    pub(crate) quiet: bool,
 }
 
 /// The `--json` summary.
@@ -130,18 +129,19 @@ struct PrunedLevel {
 /// when the command started.
 pub fn run_model(
     a: EncodeArgs,
+    output: &Output,
     bytes: Vec<u8>,
     t: Instant,
     progress: &Progress,
 ) -> Result<(), Error> {
     if a.psnr.is_some() {
         return Err(Error::UnsupportedInput {
-            found: "a model file with --psnr",
+            found: "a model file with --psnr".into(),
             hint: "--psnr sets the rates of a PLY input (spec Annex A.8); a model's rates are its gains (--rates)",
         });
     }
+    let mut model = model_from_safetensors(&bytes)?;
     drop(bytes);
-    let mut model = read_model(&a.input)?;
     let feat_lattice = match a.quantizer.as_str() {
         "usq" => Some(salvq::LatticeKind::Identity),
         "dn" => Some(salvq::LatticeKind::Dn),
@@ -209,7 +209,7 @@ pub fn run_model(
         options = o;
         auto_choice = Some(choice);
     }
-    progress.stage(format!("encoding {} anchors", model.n()));
+    progress.stage(&format!("encoding {} anchors", model.n()));
     let encoded = salvq_encoder::encode_full(&model, &options)?;
     progress.say(&scaffold_line(&encoded.scaffold));
     let cc = &encoded.context;
@@ -232,16 +232,16 @@ pub fn run_model(
     } else {
         format!("context MLP weights stored as {:?}", cc.precision)
     });
-    progress.stage(format!("writing {}", a.output.display()));
+    progress.stage(&format!("writing {}", output.shown()));
     let stream = &encoded.stream;
-    salvq_render::io::write_bytes_atomic(&a.output, stream)?;
+    output.write_bytes(stream)?;
     progress.done();
     let reports: Vec<_> = encoded.layers.iter().map(|l| &l.report).collect();
     let anchors = model.dims.anchors;
     let bits_per_anchor = stream.len() as f64 * 8.0 / f64::from(anchors.max(1));
     if a.json {
         let summary = Summary {
-            output: a.output.display().to_string(),
+            output: output.shown(),
             anchors,
             bytes: stream.len() as u64,
             bits_per_anchor,
@@ -252,21 +252,18 @@ pub fn run_model(
             pruned_levels,
             layers: reports,
         };
-        out!(
-            "{}",
-            serde_json::to_string_pretty(&summary).unwrap_or_default()
-        );
-    } else if !a.quiet {
+        files::print_json(&summary);
+    } else {
         let rates: Vec<u8> = reports.iter().map(|r| r.rate).collect();
-        out!(
+        progress.say(&format!(
             "encoded {anchors} anchors at rates {rates:?} into {} ({} bytes, {bits_per_anchor:.2} bits/anchor) in {:.2} s",
-            a.output.display(),
+            output.shown(),
             stream.len(),
             secs(t)
-        );
+        ));
         for r in reports {
-            out!("rate {}:", r.rate);
-            crate::print_text(&salvq_encoder::info::groups_text(r));
+            progress.say(&format!("rate {}:", r.rate));
+            progress.say(salvq_encoder::info::groups_text(r).trim_end());
         }
     }
     Ok(())

@@ -1,29 +1,40 @@
 //! `salvq encode scene.ply`: the explicit-Gaussians profile (spec §3, Annex A.8). Reads a
-//! standard 3DGS PLY, fits the steps of each rate to its render-PSNR target, codes every
-//! rate's layer, and reports bytes per Gaussian per group and rate.
+//! standard 3DGS PLY, says what it changes on input, fits the steps of each rate to its
+//! render-PSNR target, codes every rate's layer, and reports per rate what `salvq compare`
+//! would measure, with bytes per Gaussian per group.
 
-use std::path::Path;
 use std::time::Instant;
 
 use serde::Serialize;
 
 use salvq::explicit::Gaussians;
-use salvq_encoder::explicit::ratios::{FIT_HEIGHT, FIT_VIEWS, FIT_WIDTH};
+use salvq_encoder::explicit::prepare::{drop_invalid, value_changes, Dropped, ValueChange};
+use salvq_encoder::explicit::ratios::{QUALITY_HEIGHT, QUALITY_VIEWS, QUALITY_WIDTH};
 use salvq_encoder::explicit::{self, ExplicitOptions, RateControl};
 use salvq_encoder::Error;
 use salvq_render::compare::RingTarget;
 
 use super::encode::EncodeArgs;
+use super::files::{self, Output};
 use super::progress::Progress;
 use super::secs;
+
+/// A rate lands on its target when its PSNR is at most this far below it (dB): the rate
+/// control stops within 0.15 dB when it can.
+pub const TARGET_TOLERANCE_DB: f64 = 0.25;
 
 /// One layer of the `--json` summary and the text report.
 #[derive(Serialize)]
 pub struct LayerLine {
     pub rate: u8,
     pub target_db: Option<f64>,
-    /// Render PSNR of the layer against the input (Annex A.8.2's fit renders).
+    /// Render PSNR of the layer against the input: the PSNR of the mean MSE over the
+    /// yardstick's ring views, as `salvq compare` measures it.
     pub psnr_db: f64,
+    /// Mean SSIM over the same views.
+    pub ssim: f64,
+    /// Whether the rate reached its target (within [`TARGET_TOLERANCE_DB`]).
+    pub target_met: Option<bool>,
     /// Bytes of the single-rate stream (`salvq extract`).
     pub bytes: u64,
     pub bytes_per_gaussian: f64,
@@ -34,30 +45,104 @@ pub struct LayerLine {
     pub refine: [u8; 4],
 }
 
+/// How `--json` and the summary state the yardstick.
+#[derive(Serialize)]
+struct Yardstick {
+    views: u32,
+    width: u32,
+    height: u32,
+}
+
 #[derive(Serialize)]
 struct Summary {
     output: String,
     gaussians: u64,
     sh_degree: u8,
     bytes: u64,
+    input_bytes: u64,
     seconds: f64,
+    psnr_measured_at: Yardstick,
+    /// Values changed on input (opacity logits clamped).
+    input_changes: Vec<ValueChange>,
+    /// With `--drop-invalid`: what was dropped.
+    dropped: Option<Dropped>,
+    /// Targets as given, when they were sorted to put the finest first.
+    targets_given: Option<Vec<f64>>,
     klt: Vec<(String, bool)>,
     layers: Vec<LayerLine>,
 }
 
-/// Encodes the PLY file `input` (whose bytes are `bytes`) as `a` asks.
-pub fn run(a: EncodeArgs, bytes: &[u8], t: Instant, progress: &Progress) -> Result<(), Error> {
-    let g = if a.drop_invalid {
-        let g = salvq_render::ply::read_ply_lenient(bytes)?;
-        let (kept, dropped) = explicit::prepare::drop_invalid(&g);
-        progress.say(&format!(
-            "--drop-invalid: dropped {dropped} of {} Gaussians with a NaN or infinite value",
-            g.len()
-        ));
-        kept
+/// The targets, finest first; refused when two are equal, or when `--rates` picks among
+/// targets given in another order (its indices would change meaning).
+fn sorted_targets(a: &EncodeArgs) -> Result<(Vec<f64>, Option<Vec<f64>>), Error> {
+    let given = a
+        .psnr
+        .clone()
+        .unwrap_or_else(|| explicit::DEFAULT_PSNR_TARGETS.to_vec());
+    let mut sorted = given.clone();
+    sorted.sort_by(|x, y| y.total_cmp(x));
+    if sorted.windows(2).any(|w| w[0] == w[1]) {
+        return Err(Error::OptionUnsupported {
+            option: "--psnr",
+            reason: "two rates have the same target",
+            hint: "give each rate its own target",
+        });
+    }
+    if sorted == given {
+        return Ok((sorted, None));
+    }
+    if a.rates.is_some() {
+        return Err(Error::OptionUnsupported {
+            option: "--psnr",
+            reason: "its targets are not finest first, and --rates picks rates by position",
+            hint: "list the targets from the highest PSNR (rate 0) to the lowest",
+        });
+    }
+    Ok((sorted, Some(given)))
+}
+
+/// Reads the PLY: strictly, or dropping what the format cannot hold (`--drop-invalid`).
+fn read(
+    a: &EncodeArgs,
+    bytes: &[u8],
+    progress: &Progress,
+) -> Result<(Gaussians, Option<Dropped>), Error> {
+    if !a.drop_invalid {
+        return Ok((salvq_render::ply::read_ply(bytes)?, None));
+    }
+    let g = salvq_render::ply::read_ply_lenient(bytes)?;
+    let (kept, dropped) = drop_invalid(&g);
+    let why = if dropped.dropped == 0 {
+        "none has a NaN, or an infinite value other than an opacity logit".to_string()
     } else {
-        salvq_render::ply::read_ply(bytes)?
+        format!(
+            "by the first value each cannot hold: {}",
+            super::info::by_property(&dropped)
+        )
     };
+    progress.say(&format!(
+        "--drop-invalid: dropped {} of {} Gaussians ({why})",
+        dropped.dropped, dropped.read
+    ));
+    Ok((kept, Some(dropped)))
+}
+
+/// Encodes the PLY file `a.input` (whose bytes are `bytes`) into `output`.
+pub fn run(
+    a: EncodeArgs,
+    output: &Output,
+    bytes: &[u8],
+    t: Instant,
+    progress: &Progress,
+) -> Result<(), Error> {
+    let (targets, targets_given) = sorted_targets(&a)?;
+    let (g, dropped) = read(&a, bytes, progress)?;
+    if g.is_empty() {
+        return Err(Error::UnsupportedInput {
+            found: "a PLY with no Gaussian (element vertex 0)".into(),
+            hint: "a scene needs at least one Gaussian to encode",
+        });
+    }
     progress.say(&format!(
         "read {} Gaussians (SH degree {}) from {}",
         g.len(),
@@ -71,10 +156,20 @@ pub fn run(a: EncodeArgs, bytes: &[u8], t: Instant, progress: &Progress) -> Resu
             ignored.join(", ")
         ));
     }
-    let targets = a
-        .psnr
-        .clone()
-        .unwrap_or_else(|| explicit::DEFAULT_PSNR_TARGETS.to_vec());
+    let changes = value_changes(&g);
+    for c in &changes {
+        progress.say(&format!(
+            "changed on input: {} {} values of {} became {} (Annex A.8.1)",
+            c.count, c.property, c.was, c.became
+        ));
+    }
+    if let Some(given) = &targets_given {
+        progress.say(&format!(
+            "--psnr {}: sorted finest first, so rate 0 is the finest: {}",
+            list(given),
+            list(&targets)
+        ));
+    }
     let options = ExplicitOptions {
         rates: RateControl::Psnr(targets.clone()),
         coded: a.rates.clone(),
@@ -83,23 +178,62 @@ pub fn run(a: EncodeArgs, bytes: &[u8], t: Instant, progress: &Progress) -> Resu
         note: a.note.clone(),
         variant: Default::default(),
     };
-    let encoded = explicit::encode_gaussians(&g, &options, &|m| progress.stage(m.to_string()))?;
-    progress.stage(format!("writing {}", a.output.display()));
-    salvq_render::io::write_bytes_atomic(&a.output, &encoded.stream)?;
-    progress.stage("rendering each rate against the input");
+    let encoded = explicit::encode_gaussians(&g, &options, &|p| {
+        progress.step(p.step, Some((p.done, p.total)))
+    })?;
+    progress.stage(&format!("writing {}", output.shown()));
+    output.write_bytes(&encoded.stream)?;
+    progress.stage(&format!(
+        "measuring each rate as `salvq compare` does ({QUALITY_VIEWS} views at {QUALITY_WIDTH}x{QUALITY_HEIGHT})"
+    ));
     let lines = layer_lines(&g, &encoded, Some(&targets))?;
     progress.done();
-    report(&a.output, &g, &encoded, lines, a.json, a.quiet, secs(t));
+    let summary = Summary {
+        output: output.shown(),
+        gaussians: g.len() as u64,
+        sh_degree: g.sh_degree,
+        bytes: encoded.stream.len() as u64,
+        input_bytes: bytes.len() as u64,
+        seconds: secs(t),
+        psnr_measured_at: Yardstick {
+            views: QUALITY_VIEWS,
+            width: QUALITY_WIDTH,
+            height: QUALITY_HEIGHT,
+        },
+        input_changes: changes,
+        dropped,
+        targets_given,
+        klt: encoded
+            .groups
+            .iter()
+            .map(|gr| (gr.kind.name().to_string(), gr.basis.is_some()))
+            .collect(),
+        layers: lines,
+    };
+    if a.json {
+        files::print_json(&summary);
+    }
+    let names: Vec<&str> = encoded.groups.iter().map(|gr| gr.kind.name()).collect();
+    progress.say(report(&summary, &names).trim_end());
     Ok(())
 }
 
-/// Per coded layer: bytes, bits per group, and render PSNR against `g`.
+/// `62, 56, 50` for a list of targets.
+fn list(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// Per coded layer: bytes, bits per group, and render PSNR and SSIM against `g` at the
+/// yardstick.
 pub fn layer_lines(
     g: &Gaussians,
     e: &explicit::EncodedGaussians,
     targets: Option<&[f64]>,
 ) -> Result<Vec<LayerLine>, Error> {
-    let target = RingTarget::new(g, FIT_VIEWS, FIT_WIDTH, FIT_HEIGHT)?;
+    let target = RingTarget::new(g, QUALITY_VIEWS, QUALITY_WIDTH, QUALITY_HEIGHT)?;
     let n = g.len().max(1) as f64;
     e.layers
         .iter()
@@ -107,10 +241,14 @@ pub fn layer_lines(
             let bytes =
                 (salvq::container::signature::SIGNATURE_LEN + e.shared_bytes + layer_bytes + 12)
                     as u64;
+            let target_db = targets.and_then(|t| t.get(usize::from(rep.rate)).copied());
+            let (psnr_db, ssim) = target.psnr_ssim(expected)?;
             Ok(LayerLine {
                 rate: rep.rate,
-                target_db: targets.and_then(|t| t.get(usize::from(rep.rate)).copied()),
-                psnr_db: target.psnr(expected)?,
+                target_db,
+                psnr_db,
+                ssim,
+                target_met: target_db.map(|t| psnr_db >= t - TARGET_TOLERANCE_DB),
                 bytes,
                 bytes_per_gaussian: bytes as f64 / n,
                 position_bits: (rep.apos_bytes as f64 * 8.0 + rep.refine_bits) / n,
@@ -127,69 +265,138 @@ pub fn layer_lines(
         .collect()
 }
 
-fn report(
-    output: &Path,
-    g: &Gaussians,
-    e: &explicit::EncodedGaussians,
-    layers: Vec<LayerLine>,
-    json: bool,
-    quiet: bool,
-    seconds: f64,
-) {
-    let klt: Vec<(String, bool)> = e
-        .groups
-        .iter()
-        .map(|gr| (gr.kind.name().to_string(), gr.basis.is_some()))
-        .collect();
-    if json {
-        let s = Summary {
-            output: output.display().to_string(),
-            gaussians: g.len() as u64,
-            sh_degree: g.sh_degree,
-            bytes: e.stream.len() as u64,
-            seconds,
-            klt,
-            layers,
-        };
-        out!("{}", serde_json::to_string_pretty(&s).unwrap_or_default());
-        return;
-    }
-    if quiet {
-        return;
-    }
-    out!(
-        "encoded {} Gaussians (SH degree {}) at {} rates into {} ({} bytes) in {seconds:.2} s",
-        g.len(),
-        g.sh_degree,
-        layers.len(),
-        output.display(),
-        e.stream.len()
+/// The summary as text.
+fn report(s: &Summary, names: &[&str]) -> String {
+    let rates = s.layers.len();
+    let mut t = format!(
+        "encoded {} Gaussians (SH degree {}) at {rates} rate{} into {} ({} bytes, {:.1} % of the \
+         input's {}) in {:.2} s\n",
+        s.gaussians,
+        s.sh_degree,
+        if rates == 1 { "" } else { "s" },
+        s.output,
+        s.bytes,
+        100.0 * s.bytes as f64 / s.input_bytes.max(1) as f64,
+        s.input_bytes,
+        s.seconds
     );
-    let fitted: Vec<&str> = klt.iter().filter(|k| k.1).map(|k| k.0.as_str()).collect();
+    let fitted: Vec<&str> = s.klt.iter().filter(|k| k.1).map(|k| k.0.as_str()).collect();
     if !fitted.is_empty() {
-        out!("KLT basis fitted for: {}", fitted.join(", "));
+        t.push_str(&format!("KLT basis fitted for: {}\n", fitted.join(", ")));
     }
-    let names: Vec<&str> = e.groups.iter().map(|gr| gr.kind.name()).collect();
-    out!(
-        "rate  target dB  PSNR dB  bytes (alone)  B/Gaussian  bits/Gaussian: position {}",
+    t.push_str(&format!(
+        "rate  target dB  PSNR dB     SSIM  bytes (alone)  B/Gaussian  bits/Gaussian: position {}\n",
         names.join(" ")
-    );
-    for l in &layers {
+    ));
+    for l in &s.layers {
         let groups: Vec<String> = l
             .group_bits
             .iter()
             .map(|(_, b)| format!("{b:.2}"))
             .collect();
-        out!(
-            "{:>4}  {:>9}  {:>7.2}  {:>13}  {:>10.3}  {:.2} {}",
+        let flag = match (l.target_met, l.target_db) {
+            (Some(false), Some(target)) => format!("  MISSED by {:.2} dB", target - l.psnr_db),
+            _ => String::new(),
+        };
+        t.push_str(&format!(
+            "{:>4}  {:>9}  {:>7.2}  {:>7.5}  {:>13}  {:>10.3}  {:.2} {}{flag}\n",
             l.rate,
             l.target_db.map(|t| format!("{t:.1}")).unwrap_or_default(),
             l.psnr_db,
+            l.ssim,
             l.bytes,
             l.bytes_per_gaussian,
             l.position_bits,
             groups.join(" ")
-        );
+        ));
     }
-    out!("(rate 0 is the finest; `salvq extract --rate I` writes one rate alone; PSNR from {FIT_VIEWS} ring views at {FIT_WIDTH}x{FIT_HEIGHT})");
+    let missed = s
+        .layers
+        .iter()
+        .filter(|l| l.target_met == Some(false))
+        .count();
+    if missed > 0 {
+        t.push_str(&format!(
+            "{missed} of {rates} rates missed their target by more than {TARGET_TOLERANCE_DB} dB\n"
+        ));
+    }
+    t.push_str(&format!(
+        "(rate 0 is the finest; `salvq extract --rate I` writes one rate alone; PSNR and SSIM \
+         against the input from {QUALITY_VIEWS} ring views at {QUALITY_WIDTH}x{QUALITY_HEIGHT}, \
+         what `salvq compare INPUT STREAM --rate-b I` prints)\n"
+    ));
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(rate: u8, target: f64, psnr: f64) -> LayerLine {
+        LayerLine {
+            rate,
+            target_db: Some(target),
+            psnr_db: psnr,
+            ssim: 0.99,
+            target_met: Some(psnr >= target - TARGET_TOLERANCE_DB),
+            bytes: 1000,
+            bytes_per_gaussian: 1.0,
+            position_bits: 1.0,
+            group_bits: vec![("scale".into(), 1.0)],
+            coord_bits: 10,
+            refine: [0; 4],
+        }
+    }
+
+    #[test]
+    fn a_missed_target_is_flagged_in_the_summary() {
+        let s = Summary {
+            output: "x.salvq".into(),
+            gaussians: 10,
+            sh_degree: 0,
+            bytes: 100,
+            input_bytes: 1000,
+            seconds: 1.0,
+            psnr_measured_at: Yardstick {
+                views: QUALITY_VIEWS,
+                width: QUALITY_WIDTH,
+                height: QUALITY_HEIGHT,
+            },
+            input_changes: Vec::new(),
+            dropped: None,
+            targets_given: None,
+            klt: Vec::new(),
+            layers: vec![line(0, 45.0, 44.9), line(1, 35.0, 34.57)],
+        };
+        let t = report(&s, &["scale"]);
+        let rows: Vec<&str> = t.lines().filter(|l| l.starts_with("   ")).collect();
+        assert!(!rows[0].contains("MISSED"), "{t}");
+        assert!(rows[1].ends_with("MISSED by 0.43 dB"), "{t}");
+        assert!(t.contains("1 of 2 rates missed their target"), "{t}");
+        assert!(t.contains("at 2 rates into"), "{t}");
+    }
+
+    fn args(psnr: &[f64], rates: Option<Vec<u8>>) -> EncodeArgs {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Wrap {
+            #[command(flatten)]
+            a: EncodeArgs,
+        }
+        let mut w = Wrap::parse_from(["salvq", "scene.ply"]);
+        w.a.psnr = Some(psnr.to_vec());
+        w.a.rates = rates;
+        w.a
+    }
+
+    #[test]
+    fn targets_are_sorted_finest_first_or_refused() {
+        let (t, given) = sorted_targets(&args(&[30.0, 40.0], None)).unwrap();
+        assert_eq!(t, [40.0, 30.0]);
+        assert_eq!(given, Some(vec![30.0, 40.0]));
+        let (t, given) = sorted_targets(&args(&[50.0, 40.0], None)).unwrap();
+        assert_eq!((t, given), (vec![50.0, 40.0], None));
+        assert!(sorted_targets(&args(&[40.0, 40.0], None)).is_err());
+        assert!(sorted_targets(&args(&[30.0, 40.0], Some(vec![0]))).is_err());
+    }
 }

@@ -1,44 +1,100 @@
-//! What `encode` tells a person while it works.
+//! What a long command tells a person while it works, on standard error: on a terminal a
+//! bar with the step, the share done and the time left; elsewhere (a log, CI) one line per
+//! step with the time since the start, so a reader of the log sees it move too.
 
-use std::time::Duration;
+use std::io::IsTerminal;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-/// Human messages: to stderr, through the progress bar so they do not tear it; nothing with
-/// `--quiet`.
+/// How the progress is shown.
+enum Shown {
+    /// `--quiet`: nothing.
+    Nothing,
+    /// A terminal: the bar.
+    Bar(ProgressBar),
+    /// Not a terminal: a line per new step, after the last step's text.
+    Lines { last: Mutex<String> },
+}
+
+/// Progress and messages of one command.
 pub(crate) struct Progress {
-    bar: ProgressBar,
-    quiet: bool,
+    shown: Shown,
+    start: Instant,
 }
 
 impl Progress {
+    /// Progress on standard error: a bar on a terminal, lines elsewhere, nothing if `quiet`.
     pub(crate) fn new(quiet: bool) -> Self {
-        // indicatif draws only on a terminal; in pipes and CI the bar is hidden and only the
-        // messages below are printed.
-        let bar = if quiet {
-            ProgressBar::hidden()
+        let shown = if quiet {
+            Shown::Nothing
+        } else if std::io::stderr().is_terminal() {
+            let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{spinner} [{elapsed_precise}] {msg}\n  {bar:40} {percent:>3} %  ETA {eta}",
+                )
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            bar.enable_steady_tick(Duration::from_millis(120));
+            Shown::Bar(bar)
         } else {
-            ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr())
+            Shown::Lines {
+                last: Mutex::new(String::new()),
+            }
         };
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} [{elapsed}] {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-        );
-        bar.enable_steady_tick(Duration::from_millis(120));
-        Progress { bar, quiet }
-    }
-
-    pub(crate) fn stage(&self, msg: impl Into<std::borrow::Cow<'static, str>>) {
-        self.bar.set_message(msg);
-    }
-
-    pub(crate) fn say(&self, line: &str) {
-        if !self.quiet {
-            self.bar.suspend(|| eprintln!("{line}"));
+        Progress {
+            shown,
+            start: Instant::now(),
         }
     }
 
+    /// A step without a measure of how far it is.
+    pub(crate) fn stage(&self, step: &str) {
+        self.step(step, None);
+    }
+
+    /// A step, and `(done, total)` of the whole command's work when known.
+    pub(crate) fn step(&self, step: &str, work: Option<(u64, u64)>) {
+        match &self.shown {
+            Shown::Nothing => {}
+            Shown::Bar(bar) => {
+                if let Some((done, total)) = work {
+                    bar.set_length(total.max(1));
+                    bar.set_position(done.min(total));
+                }
+                bar.set_message(step.to_string());
+            }
+            Shown::Lines { last } => {
+                let mut last = last.lock().unwrap_or_else(|e| e.into_inner());
+                if *last != step {
+                    let share = work
+                        .map(|(d, t)| format!("{:>3} %  ", 100 * d.min(t) / t.max(1)))
+                        .unwrap_or_default();
+                    eprintln!(
+                        "[{:>7.1} s] {share}{step}",
+                        self.start.elapsed().as_secs_f64()
+                    );
+                    step.clone_into(&mut last);
+                }
+            }
+        }
+    }
+
+    /// A message line (not a step): printed above the bar, or as it is.
+    pub(crate) fn say(&self, line: &str) {
+        match &self.shown {
+            Shown::Nothing => {}
+            Shown::Bar(bar) => bar.suspend(|| eprintln!("{line}")),
+            Shown::Lines { .. } => eprintln!("{line}"),
+        }
+    }
+
+    /// The work is over: the bar goes.
     pub(crate) fn done(&self) {
-        self.bar.finish_and_clear();
+        if let Shown::Bar(bar) = &self.shown {
+            bar.finish_and_clear();
+        }
     }
 }

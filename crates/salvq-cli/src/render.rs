@@ -10,6 +10,7 @@ use salvq_render::camera::{Axis, Ring};
 use salvq_render::scene::Scene;
 use salvq_render::{ply, raster};
 
+use super::files::{self, Ctx};
 use super::secs;
 
 /// The camera ring's settings (spec Annex C.2).
@@ -20,7 +21,7 @@ pub(crate) struct RingArgs {
     #[arg(long, default_value_t = 0)]
     view: u32,
     /// N: cameras on the ring, evenly spaced.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = salvq_encoder::explicit::ratios::QUALITY_VIEWS)]
     views: u32,
     /// Elevation of the ring above the scene's centre, degrees.
     #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
@@ -47,21 +48,23 @@ impl RingArgs {
 /// Arguments of `salvq render`.
 #[derive(clap::Args)]
 pub(crate) struct RenderArgs {
-    /// Input: a SALVQ stream, a safetensors model (spec Annex A) or a 3DGS PLY file.
+    /// Input: a SALVQ stream, a safetensors model (spec Annex A) or a 3DGS PLY file (`-`:
+    /// standard input).
     input: PathBuf,
-    /// Output image (PNG, 8-bit RGB).
+    /// Output image (PNG, 8-bit RGB; default: the input's name with `.view<I>.png`; `-`:
+    /// standard output).
     #[arg(short, long)]
-    pub(crate) output: PathBuf,
+    pub(crate) output: Option<PathBuf>,
     /// The rate to decode a stream at (default: the lowest rate it carries).
     #[arg(long)]
     rate: Option<u8>,
     #[command(flatten)]
     ring: RingArgs,
     /// Image width in pixels.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = salvq_encoder::explicit::ratios::QUALITY_WIDTH)]
     width: u32,
     /// Image height in pixels.
-    #[arg(long, default_value_t = 384)]
+    #[arg(long, default_value_t = salvq_encoder::explicit::ratios::QUALITY_HEIGHT)]
     height: u32,
     /// Background colour `r,g,b`, each in [0, 1].
     #[arg(long, default_value = "0,0,0", value_parser = parse_rgb)]
@@ -69,22 +72,43 @@ pub(crate) struct RenderArgs {
     /// Render on N threads (default: all cores; the image is the same for every N).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     threads: Option<u32>,
+    /// Print what was rendered as JSON on standard output.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Arguments of `salvq export-ply`.
 #[derive(clap::Args)]
 pub(crate) struct ExportPlyArgs {
-    /// Input: a SALVQ stream or a safetensors model (spec Annex A).
+    /// Input: a SALVQ stream or a safetensors model (spec Annex A; `-`: standard input).
     input: PathBuf,
-    /// Output PLY file (Inria 3DGS layout, spec Annex C.3).
+    /// Output PLY file (Inria 3DGS layout, spec Annex C.3; default: the input's name with
+    /// `.ply`; `-`: standard output).
     #[arg(short, long)]
-    pub(crate) output: PathBuf,
+    pub(crate) output: Option<PathBuf>,
     /// The rate to decode a stream at (default: the lowest rate it carries).
     #[arg(long)]
     rate: Option<u8>,
     /// The ring camera that the view-dependent MLPs are evaluated from (spec Annex C.1, C.2).
     #[command(flatten)]
     ring: RingArgs,
+    /// Print what was exported as JSON on standard output.
+    #[arg(long)]
+    json: bool,
+}
+
+/// What `--json` prints of `render` and `export-ply`.
+#[derive(serde::Serialize)]
+struct Written {
+    output: String,
+    view: u32,
+    views: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    width: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    height: Option<u32>,
+    gaussians: u64,
+    seconds: f64,
 }
 
 fn parse_axis(s: &str) -> Result<Axis, String> {
@@ -121,15 +145,15 @@ fn with_threads<T: Send>(threads: Option<u32>, f: impl FnOnce() -> T + Send) -> 
 
 /// The scene in a stream, model or PLY file (`rate`: a stream's rate to decode).
 pub(crate) fn load(input: &std::path::Path, rate: Option<u8>) -> Result<Scene, Error> {
-    Ok(Scene::from_bytes(
-        &salvq_render::io::read_file(input)?,
-        rate,
-    )?)
+    Ok(Scene::from_bytes(&files::read_input(input)?, rate)?)
 }
 
 /// `salvq render`.
-pub(crate) fn render(a: RenderArgs) -> Result<(), Error> {
+pub(crate) fn render(a: RenderArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
+    let extension = format!("view{}.png", a.ring.view);
+    let output = ctx.output(a.output.as_deref(), &a.input, &extension, &[&a.input])?;
+    files::json_beside(a.json, &output)?;
     let scene = load(&a.input, a.rate)?;
     let load_secs = secs(t);
     let camera = a
@@ -144,7 +168,8 @@ pub(crate) fn render(a: RenderArgs) -> Result<(), Error> {
         let (image, stats) = raster::render_with_stats(&gaussians, &camera, a.background);
         Ok::<_, Error>((image, stats, gen_secs, secs(t)))
     })?;
-    image.write_png(&a.output)?;
+    let png = image.to_png()?;
+    output.write_bytes(&png)?;
     let source = match &scene {
         Scene::Model(m) => format!(
             "{} anchors -> neural Gaussians in {:.1} ms",
@@ -155,40 +180,64 @@ pub(crate) fn render(a: RenderArgs) -> Result<(), Error> {
             format!("{} Gaussians (SH degree {})", g.len(), g.sh_degree)
         }
     };
-    out!(
+    if a.json {
+        files::print_json(&Written {
+            output: output.shown(),
+            view: a.ring.view,
+            views: a.ring.views,
+            width: Some(a.width),
+            height: Some(a.height),
+            gaussians: stats.splats as u64,
+            seconds: secs(t),
+        });
+    }
+    ctx.say(&format!(
         "rendered view {} of {} ({}x{}) into {}: {source}; {} drawn, {} tile entries; \
          read in {:.1} ms, rasterized in {:.1} ms",
         a.ring.view,
         a.ring.views,
         a.width,
         a.height,
-        a.output.display(),
+        output.shown(),
         stats.splats,
         stats.tile_entries,
         load_secs * 1e3,
         raster_secs * 1e3
-    );
+    ));
     Ok(())
 }
 
 /// `salvq export-ply`.
-pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
+pub(crate) fn export_ply(a: ExportPlyArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
-    let scene = load(&a.input, a.rate)?;
+    let output = ctx.output(a.output.as_deref(), &a.input, "ply", &[&a.input])?;
+    files::json_beside(a.json, &output)?;
+    let bytes = files::read_input(&a.input)?;
+    let scene = Scene::from_bytes(&bytes, a.rate)?;
+    let written = |gaussians: usize| Written {
+        output: output.shown(),
+        view: a.ring.view,
+        views: a.ring.views,
+        width: None,
+        height: None,
+        gaussians: gaussians as u64,
+        seconds: secs(t),
+    };
     let model = match &scene {
         Scene::Model(m) => m,
         // An explicit-profile stream (spec §3): its Gaussians are the export.
-        Scene::Gaussians { gaussians: g, .. }
-            if salvq::decoder::is_explicit(&salvq_render::io::read_file(&a.input)?) =>
-        {
-            ply::write_ply_file(g, &a.output)?;
-            out!(
+        Scene::Gaussians { gaussians: g, .. } if salvq::decoder::is_explicit(&bytes) => {
+            output.write(|w| ply::write_ply(g, w))?;
+            if a.json {
+                files::print_json(&written(g.len()));
+            }
+            ctx.say(&format!(
                 "exported {} Gaussians (SH degree {}) into {} in {:.2} s",
                 g.len(),
                 g.sh_degree,
-                a.output.display(),
+                output.shown(),
                 secs(t)
-            );
+            ));
             return Ok(());
         }
         Scene::Gaussians { .. } => {
@@ -205,18 +254,21 @@ pub(crate) fn export_ply(a: ExportPlyArgs) -> Result<(), Error> {
     let camera = a.ring.ring().camera(&bounds, a.ring.view, 512, 384)?;
     let gaussians = salvq_render::neural::neural_gaussians(model, camera.position)?;
     // The anchors' bounds go with the PLY, so that its ring is the model's (Annex C.3).
-    ply::write_ply_file_with(&gaussians, Some(&bounds), &a.output)?;
+    output.write(|w| ply::write_ply_with(&gaussians, Some(&bounds), w))?;
+    if a.json {
+        files::print_json(&written(gaussians.len()));
+    }
     let unmasked = model.anchors.mask.iter().filter(|&&m| m == 1).count();
-    out!(
+    ctx.say(&format!(
         "exported {} Gaussians into {} in {:.2} s: the unmasked offsets ({unmasked}) of {} anchors \
          with opacity > 0 seen from ring camera {} of {} at {:?}",
         gaussians.len(),
-        a.output.display(),
+        output.shown(),
         secs(t),
         model.dims.anchors,
         a.ring.view,
         a.ring.views,
         camera.position,
-    );
+    ));
     Ok(())
 }

@@ -39,7 +39,8 @@ fn gen_encode_decode_info() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("sha256 "));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("sha256 "));
+    assert!(out.stdout.is_empty(), "messages go to stderr");
     let out = salvq(&[
         "encode",
         &p("m.safetensors"),
@@ -215,13 +216,20 @@ fn outputs_get_the_permissions_of_any_new_file_and_symlinks_stay() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let got = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
     assert_eq!(got, want, "{got:o} vs {want:o}");
-    // Replacing a file keeps its permissions; a symbolic link is followed and stays a link.
+    // Replacing a file (--force) keeps its permissions; a symbolic link is followed and
+    // stays a link.
     let real = dir.path().join("real.ply");
     std::fs::write(&real, b"old").unwrap();
     std::fs::set_permissions(&real, std::fs::Permissions::from_mode(0o640)).unwrap();
     let link = dir.path().join("link.ply");
     std::os::unix::fs::symlink(&real, &link).unwrap();
-    let o = salvq(&["decode", &vector(), "-o", &link.to_string_lossy()]);
+    let o = salvq(&[
+        "decode",
+        &vector(),
+        "-o",
+        &link.to_string_lossy(),
+        "--force",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::symlink_metadata(&link)
         .unwrap()
@@ -299,7 +307,7 @@ fn a_reader_that_stops_early_is_not_a_failure() {
 #[test]
 fn a_region_that_is_no_box_is_refused_before_the_stream_is_read() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("x.safetensors");
+    let out = dir.path().join("x.ply");
     let out = out.to_str().unwrap();
     // §10.3.1: min > max on y, and a NaN; the stream is not even opened (it does not exist).
     for (bad, axis) in [("0,2,0,1,1,1", "y axis"), ("0,0,NaN,1,1,1", "z axis")] {

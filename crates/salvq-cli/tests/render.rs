@@ -241,8 +241,11 @@ fn export_ply_writes_one_gaussian_per_kept_offset_and_render_writes_a_png() {
     salvq_render::interchange::write_model(&m, &model_path).unwrap();
     std::fs::write(&stream_path, salvq_encoder::encode(&m).unwrap()).unwrap();
     let decoded = salvq::decode(&std::fs::read(&stream_path).unwrap()).unwrap();
-    for (input, model) in [(&model_path, &m), (&stream_path, &decoded)] {
-        let ply = dir.path().join("out.ply");
+    for (i, (input, model)) in [(&model_path, &m), (&stream_path, &decoded)]
+        .into_iter()
+        .enumerate()
+    {
+        let ply = dir.path().join(format!("out{i}.ply"));
         let status = std::process::Command::new(salvq_bin())
             .args(["export-ply", input.to_str().unwrap(), "-o"])
             .arg(&ply)

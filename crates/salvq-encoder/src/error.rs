@@ -15,7 +15,7 @@ pub enum Error {
     /// An encoder input is a file of a kind the encoder does not read (Annex A.8.1).
     UnsupportedInput {
         /// What the input is.
-        found: &'static str,
+        found: std::borrow::Cow<'static, str>,
         /// How to convert it.
         hint: &'static str,
     },
@@ -36,6 +36,16 @@ pub enum Error {
         anchor: Option<u64>,
         /// Why.
         reason: String,
+    },
+    /// A render-PSNR target is above what the scene renders at with every value at the
+    /// finest step the encoder tries (Annex A.8.2): no allocation meets it.
+    TargetUnreachable {
+        /// The rate.
+        rate: u8,
+        /// Its target, dB.
+        target_db: f64,
+        /// The scene's render PSNR at the finest steps, dB.
+        ceiling_db: f64,
     },
     /// The fit of a basis or of scale rows to the model's anchors (Annex A.5) failed.
     FitFailed {
@@ -59,6 +69,7 @@ impl Error {
             Error::OptionUnsupported { .. } => "OptionUnsupported",
             Error::LatticeSearchFailed { .. } => "LatticeSearchFailed",
             Error::FitFailed { .. } => "FitFailed",
+            Error::TargetUnreachable { .. } => "TargetUnreachable",
         }
     }
 
@@ -71,6 +82,7 @@ impl Error {
             Error::OptionUnsupported { .. } => "Annex A.4",
             Error::LatticeSearchFailed { .. } => "§7.3",
             Error::FitFailed { .. } => "Annex A.5",
+            Error::TargetUnreachable { .. } => "Annex A.8.2",
         }
     }
 
@@ -138,6 +150,17 @@ impl fmt::Display for Error {
                 None => write!(f, "{tensor}: {reason}")?,
             },
             Error::FitFailed { tensor, reason } => write!(f, "{tensor}: fit failed: {reason}")?,
+            Error::TargetUnreachable {
+                rate,
+                target_db,
+                ceiling_db,
+            } => write!(
+                f,
+                "rate {rate}: the target {target_db} dB is above {ceiling_db:.1} dB, what this \
+                 scene renders at with every value at the finest step the encoder tries (8 ring \
+                 views at 512x384); give targets up to {:.0} dB",
+                ceiling_db.floor()
+            )?,
         }
         write!(f, " [{}]", self.spec_section())
     }

@@ -103,6 +103,28 @@ pub enum Error {
         /// What is wrong, with the value found.
         problem: String,
     },
+    /// The output file exists and the command was not allowed to replace it (§9.2).
+    OutputExists {
+        /// The output.
+        path: PathBuf,
+    },
+    /// The output is one of the command's inputs (the same file, by any name): never
+    /// written over (§9.2).
+    OutputIsInput {
+        /// The output as named.
+        path: PathBuf,
+        /// The input it is.
+        input: PathBuf,
+    },
+    /// The output's extension names a format this output is not written in (§9.2).
+    OutputExtension {
+        /// The output.
+        path: PathBuf,
+        /// What the output can be (`a scene stream (explicit profile) decodes to a 3DGS PLY`).
+        what: &'static str,
+        /// The extensions that name it (`.ply`).
+        extensions: &'static str,
+    },
     /// A file operation failed (§9.2: no partial output is left behind).
     Io {
         /// What was being done.
@@ -148,6 +170,9 @@ impl Error {
             Error::NeuralGaussiansUnsupported { .. } => "NeuralGaussiansUnsupported",
             Error::RenderSettingInvalid { .. } => "RenderSettingInvalid",
             Error::CameraFileInvalid { .. } => "CameraFileInvalid",
+            Error::OutputExists { .. } => "OutputExists",
+            Error::OutputIsInput { .. } => "OutputIsInput",
+            Error::OutputExtension { .. } => "OutputExtension",
             Error::Io { .. } => "Io",
         }
     }
@@ -164,7 +189,10 @@ impl Error {
             | Error::PlyShCoefficients { .. }
             | Error::PlyTruncated { .. }
             | Error::PlyValueNotFinite { .. } => "§C.3",
-            Error::Io { .. } => "§9.2",
+            Error::OutputExists { .. }
+            | Error::OutputIsInput { .. }
+            | Error::OutputExtension { .. }
+            | Error::Io { .. } => "§9.2",
         }
     }
 }
@@ -240,6 +268,31 @@ impl fmt::Display for Error {
             } => write!(
                 f,
                 "camera file {}, line {line}, field {field}: {problem}",
+                path.display()
+            )?,
+            Error::OutputExists { path } => write!(
+                f,
+                "{} exists; not replaced (-f / --force replaces it)",
+                path.display()
+            )?,
+            Error::OutputIsInput { path, input } if path == input => write!(
+                f,
+                "{} is this command's input; an input is never written over",
+                path.display()
+            )?,
+            Error::OutputIsInput { path, input } => write!(
+                f,
+                "{} is the same file as the input {}; an input is never written over",
+                path.display(),
+                input.display()
+            )?,
+            Error::OutputExtension {
+                path,
+                what,
+                extensions,
+            } => write!(
+                f,
+                "{}: {what} ({extensions}); the output's extension picks the format",
                 path.display()
             )?,
             Error::Io { op, path, source } => {

@@ -31,6 +31,17 @@ pub fn check_output(path: &Path) -> Result<()> {
     }
 }
 
+/// Whether an output may take the place of a file that exists.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Replace {
+    /// An existing regular file is replaced (what the library functions do).
+    Allowed,
+    /// An existing regular file is an error ([`Error::OutputExists`]), also when it appears
+    /// while the output is being written: the finished file is moved into place only where
+    /// no file is (a device or a FIFO is still written).
+    Never,
+}
+
 /// Writes `path` atomically: `fill` writes into a temporary file beside it, which is renamed
 /// over `path` only when `fill` and the flush succeed; on any error the temporary is removed.
 /// The new file gets the permissions of the file it replaces, or those the umask gives a new
@@ -39,6 +50,15 @@ pub fn check_output(path: &Path) -> Result<()> {
 /// standard output.
 pub fn write_atomic(
     path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<()> {
+    write_atomic_as(path, Replace::Allowed, fill)
+}
+
+/// [`write_atomic`], replacing an existing file only where `replace` allows it.
+pub fn write_atomic_as(
+    path: &Path,
+    replace: Replace,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
     if path == Path::new("-") {
@@ -56,6 +76,11 @@ pub fn write_atomic(
     };
     let existing = std::fs::metadata(&target).ok();
     if let Some(m) = &existing {
+        if m.is_file() && replace == Replace::Never {
+            return Err(Error::OutputExists {
+                path: path.to_path_buf(),
+            });
+        }
         if !m.is_file() {
             // A device or a FIFO: nothing to replace atomically.
             let file = std::fs::OpenOptions::new()
@@ -93,8 +118,17 @@ pub fn write_atomic(
         fill(&mut w).map_err(|e| Error::io(IoOp::Write, path, e))?;
         w.flush().map_err(|e| Error::io(IoOp::Write, path, e))?;
     }
-    tmp.persist(&target)
-        .map_err(|e| Error::io(IoOp::Rename, path, e.error))?;
+    let persisted = match replace {
+        Replace::Allowed => tmp.persist(&target),
+        // A file made while this one was written is not replaced either.
+        Replace::Never => tmp.persist_noclobber(&target),
+    };
+    persisted.map_err(|e| match e.error.kind() {
+        std::io::ErrorKind::AlreadyExists if replace == Replace::Never => Error::OutputExists {
+            path: path.to_path_buf(),
+        },
+        _ => Error::io(IoOp::Rename, path, e.error),
+    })?;
     Ok(())
 }
 

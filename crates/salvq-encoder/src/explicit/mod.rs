@@ -4,6 +4,7 @@
 //! steps per group) are fitted to it, then each rate's layer is coded with its own voxel
 //! grid and prior tables.
 
+pub mod fit_rates;
 pub mod input;
 pub mod layer;
 pub mod prepare;
@@ -13,6 +14,7 @@ pub mod ratios;
 use half::f16;
 use nalgebra::{DMatrix, SymmetricEigen};
 
+pub use fit_rates::{choose_klt, rate_plans, Progress};
 pub use layer::{CodedLayer, LayerReport, RatePlan, SizeClasses, Variant};
 pub use prepare::PreparedGaussians;
 
@@ -23,7 +25,6 @@ use salvq::entropy::GaussianTables;
 use salvq::explicit::groups::{write_gqua, Group, GroupKind};
 use salvq::explicit::header::GaussianHeader;
 use salvq::explicit::Gaussians;
-use salvq_render::compare::RingTarget;
 
 /// Where the rate-distortion curves' trial steps are centred (Annex A.8.2): the voxel edge
 /// and each group's step, in scene units, that the trials scale by powers of two.
@@ -55,9 +56,6 @@ impl TrialSteps {
         }
     }
 }
-
-/// Allocations tried per rate before the closest to its target is kept (Annex A.8.2).
-const CORRECTIONS: usize = 4;
 
 /// How the encoder sets each rate's steps (Annex A.8.2).
 #[derive(Debug, Clone, PartialEq)]
@@ -218,112 +216,6 @@ pub fn fit_groups(p: &PreparedGaussians, plans: &[RatePlan], klt: &[bool]) -> Ve
         .collect()
 }
 
-/// Which groups get a KLT basis (Annex A.8.3): SH DC, then SH rest, each kept when `size`
-/// (the bytes of the shared model and one layer, coded with the quantizers it is given)
-/// shrinks.
-fn choose_klt(
-    p: &PreparedGaussians,
-    plans: &[RatePlan],
-    size: &dyn Fn(&[Group]) -> Result<usize>,
-) -> Result<Vec<bool>> {
-    let mut klt = vec![false; p.kinds.len()];
-    let mut best = size(&fit_groups(p, plans, &klt))?;
-    for (gi, kind) in p.kinds.iter().enumerate() {
-        if matches!(kind, GroupKind::Dc | GroupKind::Rest) {
-            klt[gi] = true;
-            let s = size(&fit_groups(p, plans, &klt))?;
-            if s < best {
-                best = s;
-            } else {
-                klt[gi] = false;
-            }
-        }
-    }
-    Ok(klt)
-}
-
-/// Each rate's plan, given or fitted to its PSNR target by rendering (Annex A.8.2), and the
-/// groups with a KLT basis (`klt` if given; else chosen on the middle target's first
-/// allocation, so that every rate is fitted with the quantizers it will be coded with).
-pub fn rate_plans(
-    g: &Gaussians,
-    p: &PreparedGaussians,
-    rates: &RateControl,
-    variant: Variant,
-    klt: Option<&[bool]>,
-    progress: &dyn Fn(&str),
-) -> Result<(Vec<RatePlan>, Option<Vec<bool>>)> {
-    let targets = match rates {
-        RateControl::Plans(s) => return Ok((s.clone(), klt.map(<[bool]>::to_vec))),
-        RateControl::Psnr(t) => t,
-    };
-    for (r, &db) in targets.iter().enumerate() {
-        if !(db.is_finite() && db > 0.0) {
-            return Err(Error::FitFailed {
-                tensor: "psnr target",
-                reason: format!("rate {r}: a target is a PSNR in dB above 0, not {db}"),
-            });
-        }
-    }
-    let classes = SizeClasses::for_variant(p, variant);
-    let target = RingTarget::new(g, ratios::FIT_VIEWS, ratios::FIT_WIDTH, ratios::FIT_HEIGHT)?;
-    let curves = ratios::measure_curves(g, p, &classes, variant, &target, progress)?;
-    // Each rate: allocate for the target, code the layer alone, render what the decoder
-    // will output, and correct the allocation's target by the error it missed by (the
-    // parts' errors do not add up exactly).
-    let tables = GaussianTables::standard();
-    let origin = p.min.map(|v| v as f32);
-    let code = |groups: &[Group], plan: &RatePlan| {
-        layer::encode_layer(p, groups, &classes, plan, origin, 0, 0, variant, tables)
-    };
-    let klt = match klt {
-        Some(k) => k.to_vec(),
-        None => {
-            progress("choosing KLT bases");
-            let middle = targets[targets.len() / 2];
-            let plan = ratios::allocate(p, &curves, 10f64.powf(-middle / 10.0));
-            choose_klt(p, std::slice::from_ref(&plan), &|groups: &[Group]| {
-                Ok(write_gqua(groups).len() + code(groups, &plan)?.chunks.len())
-            })?
-        }
-    };
-    let mut out = Vec::with_capacity(targets.len());
-    for (r, &db) in targets.iter().enumerate() {
-        progress(&format!("fitting rate {r} to {db} dB"));
-        let want = 10f64.powf(-db / 10.0);
-        // The allocation is on a grid of steps; a common factor f on every step then lands
-        // on the target (secant on log f against log MSE, which at high rate rises by 2
-        // per unit of log f).
-        let plan = ratios::allocate(p, &curves, want);
-        let measure = |f: f64| -> Result<f64> {
-            let scaled = plan.scaled(f);
-            let groups = fit_groups(p, std::slice::from_ref(&scaled), &klt);
-            let coded = code(&groups, &scaled)?;
-            Ok(target.mse(&coded.expected)?.max(1e-30))
-        };
-        let (mut lf, mut got) = (0.0f64, measure(1.0)?);
-        let mut best = (((got / want).log2()).abs(), lf);
-        let mut slope = 2.0;
-        for _ in 0..CORRECTIONS {
-            if best.0 < 0.05 {
-                break;
-            }
-            let next = (lf + (want.ln() - got.ln()) / slope).clamp(lf - 3.0, lf + 3.0);
-            let g2 = measure(next.exp())?;
-            if (next - lf).abs() > 1e-6 && g2 != got {
-                slope = ((g2.ln() - got.ln()) / (next - lf)).clamp(0.5, 4.0);
-            }
-            (lf, got) = (next, g2);
-            let miss = (got / want).log2().abs();
-            if miss < best.0 {
-                best = (miss, lf);
-            }
-        }
-        out.push(plan.scaled(best.1.exp()));
-    }
-    Ok((out, Some(klt)))
-}
-
 /// Encodes `p` (the prepared form of `g`) with each rate's `steps` (Annex A.8).
 pub fn encode_prepared(
     p: &PreparedGaussians,
@@ -420,11 +312,12 @@ pub fn encode_prepared(
 }
 
 /// Encodes the Gaussians `g`: validated and prepared once (Annex A.8.1), steps fitted per
-/// rate (A.8.2), then coded (A.8.3). `progress` hears what the encoder is doing.
+/// rate (A.8.2), then coded (A.8.3). `progress` hears what the encoder is doing and how far
+/// it is.
 pub fn encode_gaussians(
     g: &Gaussians,
     options: &ExplicitOptions,
-    progress: &dyn Fn(&str),
+    progress: &dyn Fn(Progress<'_>),
 ) -> Result<EncodedGaussians> {
     let p = PreparedGaussians::new(g)?;
     let (plans, klt) = rate_plans(
@@ -435,10 +328,23 @@ pub fn encode_gaussians(
         options.klt.as_deref(),
         progress,
     )?;
-    progress("coding");
     let options = ExplicitOptions {
         klt,
         ..options.clone()
     };
-    encode_prepared(&p, &plans, &options)
+    let total = fit_rates::work_units(&p, &options.rates);
+    let coding = fit_rates::coding_units(plans.len());
+    let step = format!("coding {} rates", plans.len());
+    progress(Progress {
+        step: &step,
+        done: total - coding,
+        total,
+    });
+    let encoded = encode_prepared(&p, &plans, &options)?;
+    progress(Progress {
+        step: &step,
+        done: total,
+        total,
+    });
+    Ok(encoded)
 }

@@ -49,9 +49,9 @@ impl PreparedGaussians {
     pub fn new(g: &Gaussians) -> Result<PreparedGaussians> {
         let n = g.len();
         if n == 0 || n > u32::MAX as usize {
-            return Err(Error::FitFailed {
-                tensor: "gaussians",
-                reason: format!("a scene has 1 … 2^32 − 1 Gaussians, this one has {n}"),
+            return Err(Error::UnsupportedInput {
+                found: format!("a scene of {n} Gaussians").into(),
+                hint: "a stream holds 1 … 2^32 − 1 of them",
             });
         }
         let b = g.rest_per_channel();
@@ -153,21 +153,113 @@ impl PreparedGaussians {
     }
 }
 
-/// `g` without the Gaussians whose used values are not all finite (an infinite opacity
-/// logit is kept: it is an alpha of 0 or 1), and how many were dropped: what
-/// `salvq encode --drop-invalid` encodes instead of failing (Annex A.8.1).
-pub fn drop_invalid(g: &Gaussians) -> (Gaussians, usize) {
+/// Values the encoder changes on input (Annex A.8.1), one entry per property and kind of
+/// change, so that nothing changes without a word.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ValueChange {
+    /// The PLY property.
+    pub property: &'static str,
+    /// How many values.
+    pub count: u64,
+    /// What they were (`+inf`, `> 16`, …).
+    pub was: &'static str,
+    /// What they became.
+    pub became: f64,
+}
+
+/// The values [`PreparedGaussians::new`] will change in `g`: opacity logits beyond
+/// ±[`OPACITY_LOGIT_LIMIT`], infinite ones counted apart. Empty when it changes none.
+pub fn value_changes(g: &Gaussians) -> Vec<ValueChange> {
+    let limit = OPACITY_LOGIT_LIMIT;
+    let mut counts = [0u64; 4];
+    for &o in &g.opacity_logit {
+        let o = f64::from(o);
+        let kind = match o {
+            f64::INFINITY => 0,
+            o if o > limit => 1,
+            f64::NEG_INFINITY => 2,
+            o if o < -limit => 3,
+            _ => continue,
+        };
+        counts[kind] += 1;
+    }
+    let kinds = [
+        ("+inf", limit),
+        ("> 16", limit),
+        ("-inf", -limit),
+        ("< -16", -limit),
+    ];
+    kinds
+        .iter()
+        .zip(counts)
+        .filter(|&(_, count)| count > 0)
+        .map(|(&(was, became), count)| ValueChange {
+            property: "opacity",
+            count,
+            was,
+            became,
+        })
+        .collect()
+}
+
+/// What [`drop_invalid`] dropped: how many Gaussians, and per property how many were
+/// dropped for it (the first value of each that is not finite, in PLY property order).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Dropped {
+    /// Gaussians read.
+    pub read: u64,
+    /// Gaussians dropped.
+    pub dropped: u64,
+    /// `(property, Gaussians dropped for it)`, in the order properties are checked.
+    pub by_property: Vec<(String, u64)>,
+}
+
+/// The first property of Gaussian `i` whose value the format cannot hold (NaN anywhere, an
+/// infinity other than the opacity logit's, a zero-length quaternion), if any.
+fn first_invalid(g: &Gaussians, i: usize) -> Option<String> {
     let b = 3 * g.rest_per_channel();
-    let ok = |i: usize| {
-        g.positions[i].iter().all(|v| v.is_finite())
-            && g.log_scales[i].iter().all(|v| v.is_finite())
-            && g.rotations[i].iter().all(|v| v.is_finite())
-            && g.rotations[i].iter().any(|&v| v != 0.0)
-            && g.f_dc[i].iter().all(|v| v.is_finite())
-            && !g.opacity_logit[i].is_nan()
-            && g.f_rest[i * b..(i + 1) * b].iter().all(|v| v.is_finite())
-    };
-    let keep: Vec<usize> = (0..g.len()).filter(|&i| ok(i)).collect();
+    let bad = |v: &f32| !v.is_finite();
+    let names = |prefix: &str, k: usize| format!("{prefix}{k}");
+    if let Some(a) = g.positions[i].iter().position(bad) {
+        return Some(["x", "y", "z"][a].into());
+    }
+    if let Some(c) = g.f_dc[i].iter().position(bad) {
+        return Some(names("f_dc_", c));
+    }
+    if let Some(k) = g.f_rest[i * b..(i + 1) * b].iter().position(bad) {
+        return Some(names("f_rest_", k));
+    }
+    if g.opacity_logit[i].is_nan() {
+        return Some("opacity".into());
+    }
+    if let Some(a) = g.log_scales[i].iter().position(bad) {
+        return Some(names("scale_", a));
+    }
+    if let Some(c) = g.rotations[i].iter().position(bad) {
+        return Some(names("rot_", c));
+    }
+    if g.rotations[i].iter().all(|&v| v == 0.0) {
+        return Some("rot_0".into());
+    }
+    None
+}
+
+/// `g` without the Gaussians whose used values are not all finite (an infinite opacity
+/// logit is kept: it is an alpha of 0 or 1, clamped as [`value_changes`] counts), and what
+/// was dropped: what `salvq encode --drop-invalid` encodes instead of failing (Annex A.8.1).
+pub fn drop_invalid(g: &Gaussians) -> (Gaussians, Dropped) {
+    let b = 3 * g.rest_per_channel();
+    let mut by_property: Vec<(String, u64)> = Vec::new();
+    let mut keep = Vec::with_capacity(g.len());
+    for i in 0..g.len() {
+        match first_invalid(g, i) {
+            None => keep.push(i),
+            Some(p) => match by_property.iter_mut().find(|(q, _)| *q == p) {
+                Some((_, n)) => *n += 1,
+                None => by_property.push((p, 1)),
+            },
+        }
+    }
     let out = Gaussians {
         positions: keep.iter().map(|&i| g.positions[i]).collect(),
         sh_degree: g.sh_degree,
@@ -180,6 +272,80 @@ pub fn drop_invalid(g: &Gaussians) -> (Gaussians, usize) {
         log_scales: keep.iter().map(|&i| g.log_scales[i]).collect(),
         rotations: keep.iter().map(|&i| g.rotations[i]).collect(),
     };
-    let dropped = g.len() - out.len();
+    let dropped = Dropped {
+        read: g.len() as u64,
+        dropped: (g.len() - out.len()) as u64,
+        by_property,
+    };
     (out, dropped)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(opacity: &[f32]) -> Gaussians {
+        let n = opacity.len();
+        Gaussians {
+            positions: (0..n).map(|i| [i as f32, 0.0, 0.0]).collect(),
+            sh_degree: 0,
+            f_dc: vec![[0.1; 3]; n],
+            f_rest: Vec::new(),
+            opacity_logit: opacity.to_vec(),
+            log_scales: vec![[-3.0; 3]; n],
+            rotations: vec![[1.0, 0.0, 0.0, 0.0]; n],
+        }
+    }
+
+    #[test]
+    fn every_clamped_opacity_is_counted_by_kind() {
+        let g = scene(&[
+            f32::INFINITY,
+            20.0,
+            3.0,
+            f32::NEG_INFINITY,
+            -17.0,
+            -40.0,
+            16.0,
+        ]);
+        let c = value_changes(&g);
+        let got: Vec<(&str, u64, f64)> = c.iter().map(|v| (v.was, v.count, v.became)).collect();
+        assert_eq!(
+            got,
+            [
+                ("+inf", 1, 16.0),
+                ("> 16", 1, 16.0),
+                ("-inf", 1, -16.0),
+                ("< -16", 2, -16.0)
+            ]
+        );
+        // What the prepared form holds is what the count says.
+        let p = PreparedGaussians::new(&g).unwrap();
+        let at = p
+            .kinds
+            .iter()
+            .position(|&k| k == GroupKind::Opacity)
+            .unwrap();
+        assert_eq!(p.values[at], [16.0, 16.0, 3.0, -16.0, -16.0, -16.0, 16.0]);
+        assert!(value_changes(&scene(&[0.5, -2.0])).is_empty());
+    }
+
+    #[test]
+    fn dropped_gaussians_are_counted_by_their_first_bad_property() {
+        let mut g = scene(&[0.0, f32::INFINITY, f32::NAN, 1.0, 2.0]);
+        g.log_scales[3][1] = f32::NEG_INFINITY;
+        g.rotations[4] = [0.0; 4];
+        let (kept, d) = drop_invalid(&g);
+        assert_eq!(kept.len(), 2, "the infinite opacity is kept");
+        assert_eq!(d.read, 5);
+        assert_eq!(d.dropped, 3);
+        assert_eq!(
+            d.by_property,
+            [
+                ("opacity".into(), 1),
+                ("scale_1".into(), 1),
+                ("rot_0".into(), 1)
+            ]
+        );
+    }
 }

@@ -14,12 +14,59 @@ use salvq::explicit::layer::SIZE_CLASSES;
 use salvq::explicit::Gaussians;
 use salvq_render::compare::RingTarget;
 
-/// Views and image size of the fit's renders (small: each trial renders them all).
-pub const FIT_VIEWS: u32 = 8;
-/// Width of the fit's renders.
-pub const FIT_WIDTH: u32 = 256;
-/// Height of the fit's renders.
-pub const FIT_HEIGHT: u32 = 192;
+/// Views of the curves' renders.
+pub const CURVE_VIEWS: u32 = 8;
+/// Width of the curves' renders: small, since every trial renders every view; the curves
+/// only rank the parts against each other, and the rates land on their targets at the
+/// [`QUALITY_WIDTH`] yardstick.
+pub const CURVE_WIDTH: u32 = 256;
+/// Height of the curves' renders.
+pub const CURVE_HEIGHT: u32 = 192;
+
+/// Views of the render-PSNR yardstick (Annex A.8.2, C.2): every rate lands on its target
+/// here, the encoder's summary reports it, and `salvq compare` and `salvq render` default
+/// to it. 512 × 384 is the smallest size at which a viewer's window is no sharper than the
+/// renders: at 256 × 192 a Gaussian smaller than a pixel hides its errors, and rates fitted
+/// there measured 0.7 to 3.1 dB lower at 512 × 384.
+pub const QUALITY_VIEWS: u32 = 8;
+/// Width of the yardstick's renders.
+pub const QUALITY_WIDTH: u32 = 512;
+/// Height of the yardstick's renders.
+pub const QUALITY_HEIGHT: u32 = 384;
+
+/// Trial steps of a part's curve: octaves, half octaves for the scale group.
+fn trial_exponents(part: Part) -> (Vec<i32>, f64) {
+    match part {
+        Part::Scale => ((-16..=10).rev().collect(), 0.5),
+        _ => ((-10..=8).rev().collect(), 1.0),
+    }
+}
+
+/// `g` with every part at the finest step its curve tries: the best render the
+/// allocation can choose from (Annex A.8.2).
+pub fn finest(g: &Gaussians, p: &PreparedGaussians) -> Gaussians {
+    let start = TrialSteps::default_for(p);
+    let finest_step = |part: Part, base: f64| {
+        let (ks, scale) = trial_exponents(part);
+        base * (f64::from(ks.iter().copied().min().unwrap_or(0)) * scale).exp2()
+    };
+    let mut out = quantized(
+        g,
+        p,
+        None,
+        None,
+        finest_step(Part::Position(0), start.position),
+    );
+    for gi in 0..p.kinds.len() {
+        let part = if gi == 0 {
+            Part::Scale
+        } else {
+            Part::Group(gi, 0)
+        };
+        out = quantized(&out, p, Some(gi), None, finest_step(part, start.groups[gi]));
+    }
+    out
+}
 
 /// `g` with one part of the Gaussians of class `class` (all when `None`) uniformly
 /// quantized at `step`: group `group`, or the positions (voxel centres) when `None`.
@@ -82,17 +129,65 @@ pub enum Part {
     Group(usize, u8),
 }
 
+impl Part {
+    /// What the part is, in a person's words (`kinds`: the scene's groups).
+    pub fn describe(self, kinds: &[GroupKind]) -> String {
+        let class = |c: u8| {
+            let which = ["smallest", "second smallest", "second largest", "largest"];
+            format!(
+                "{} quarter by size",
+                which.get(usize::from(c)).unwrap_or(&"a")
+            )
+        };
+        match self {
+            Part::Position(c) => format!("positions, {}", class(c)),
+            Part::Scale => "scales".into(),
+            Part::Group(gi, c) => {
+                let what = match kinds.get(gi) {
+                    Some(GroupKind::Opacity) => "opacity",
+                    Some(GroupKind::Rotation) => "rotations",
+                    Some(GroupKind::Dc) => "base colour (SH DC)",
+                    Some(GroupKind::Rest) => "view-dependent colour (SH rest)",
+                    Some(GroupKind::Scale) | None => "values",
+                };
+                format!("{what}, {}", class(c))
+            }
+        }
+    }
+}
+
+/// The parts of `p` in the order their curves are measured.
+pub fn parts(p: &PreparedGaussians) -> Vec<Part> {
+    let mut parts: Vec<Part> = (0..SIZE_CLASSES as u8).map(Part::Position).collect();
+    parts.push(Part::Scale);
+    for gi in 1..p.kinds.len() {
+        for c in 0..SIZE_CLASSES as u8 {
+            parts.push(Part::Group(gi, c));
+        }
+    }
+    parts
+}
+
+/// Trial renders [`measure_curves`] makes at most.
+pub fn curve_trials(p: &PreparedGaussians) -> u64 {
+    parts(p)
+        .into_iter()
+        .map(|part| trial_exponents(part).0.len() as u64)
+        .sum()
+}
+
 /// Every part's rate-distortion curve (Annex A.8.2): each part alone is quantized at trial
 /// steps, its render error measured against `target` and its bits counted as the layer
 /// coder would pay them (positions: the octree at that edge, shared by classes in
-/// proportion to their Gaussians).
+/// proportion to their Gaussians). `progress` hears each part as it starts (its number from
+/// 1, and its description) and the trial renders done so far.
 pub fn measure_curves(
     g: &Gaussians,
     p: &PreparedGaussians,
     classes: &SizeClasses,
     variant: super::Variant,
     target: &RingTarget,
-    progress: &dyn Fn(&str),
+    progress: &dyn Fn(usize, &str, u64),
 ) -> Result<Vec<(Part, Curve)>> {
     use super::layer::{grid, group_bits, group_coordinates, BitCost};
     use salvq::entropy::GaussianTables;
@@ -104,26 +199,23 @@ pub fn measure_curves(
     let class_of = classes.classes(p);
     let n = p.len() as f64;
     let cost = BitCost::standard();
-    let mut parts = Vec::new();
-    for c in 0..SIZE_CLASSES as u8 {
-        parts.push(Part::Position(c));
-    }
-    parts.push(Part::Scale);
-    for gi in 1..p.kinds.len() {
-        for c in 0..SIZE_CLASSES as u8 {
-            parts.push(Part::Group(gi, c));
-        }
-    }
+    let parts = parts(p);
+    let mut trials_done = 0u64;
     // Octree bits per Gaussian at each trial edge, shared by the position parts.
     let mut octree_bits: rustc_hash::FxHashMap<i64, f64> = Default::default();
     let mut out = Vec::with_capacity(parts.len());
-    for part in parts {
-        let (group, class, base, half) = match part {
-            Part::Position(c) => (None, Some(c), start.position, false),
-            Part::Scale => (Some(0), None, start.groups[0], true),
-            Part::Group(gi, c) => (Some(gi), Some(c), start.groups[gi], false),
+    for (number, part) in parts.into_iter().enumerate() {
+        let (group, class, base) = match part {
+            Part::Position(c) => (None, Some(c), start.position),
+            Part::Scale => (Some(0), None, start.groups[0]),
+            Part::Group(gi, c) => (Some(gi), Some(c), start.groups[gi]),
         };
-        progress(&format!("measuring {part:?}"));
+        let (ks, scale) = trial_exponents(part);
+        let what = part.describe(&p.kinds);
+        let before = trials_done;
+        progress(number + 1, &what, before);
+        // Trials a curve skips (it stops once the error vanishes) count as done.
+        trials_done += ks.len() as u64;
         let members: Vec<usize> = match class {
             Some(c) => reference
                 .order
@@ -148,12 +240,10 @@ pub fn measure_curves(
             members.iter().map(|&i| reference.voxels[at[i]]).collect()
         };
         let tiles = TileTable::cut(&subset_voxels, DEFAULT_TILE_ANCHORS);
-        let (ks, scale): (Vec<i32>, f64) = if half {
-            ((-16..=10).rev().collect(), 0.5)
-        } else {
-            ((-10..=8).rev().collect(), 1.0)
-        };
-        for k in ks {
+        for (k_at, k) in ks.into_iter().enumerate() {
+            if k_at > 0 {
+                progress(number + 1, &what, before + k_at as u64);
+            }
             let log2 = f64::from(k) * scale;
             let step = base * log2.exp2();
             let mse = target.mse(&quantized(

@@ -1,0 +1,262 @@
+//! Each rate's steps fitted to its render-PSNR target (Annex A.8.2): the targets checked
+//! (finest first, within what the scene can reach) before any work, the parts' curves
+//! measured at the curves' size, an allocation per target, and each rate landed on its
+//! target at the quality yardstick ([`ratios::QUALITY_WIDTH`]).
+
+use super::layer::{self, RatePlan, SizeClasses, Variant};
+use super::prepare::PreparedGaussians;
+use super::{fit_groups, ratios, RateControl};
+use crate::error::{Error, Result};
+use salvq::entropy::GaussianTables;
+use salvq::explicit::groups::{write_gqua, Group, GroupKind};
+use salvq::explicit::Gaussians;
+use salvq_render::compare::RingTarget;
+
+/// Allocations tried per rate before the closest to its target is kept (Annex A.8.2).
+const CORRECTIONS: usize = 4;
+
+/// A render at the yardstick's size counts as this many at the curves' (its pixels).
+const QUALITY_RENDER_UNITS: u64 = 4;
+
+/// Work units of the KLT choice (three codings of a layer).
+const KLT_UNITS: u64 = 3;
+
+/// How far an explicit encode is: the step a person reads, and the work done and in all,
+/// in units of one trial render at the curves' size (the unit of its cost).
+#[derive(Debug, Clone, Copy)]
+pub struct Progress<'a> {
+    /// What the encoder is doing.
+    pub step: &'a str,
+    /// Units done.
+    pub done: u64,
+    /// Units in all (at most; a curve that stops early counts its skipped trials as done).
+    pub total: u64,
+}
+
+/// Work units of coding `rates` layers at the end.
+pub fn coding_units(rates: usize) -> u64 {
+    2 * rates as u64
+}
+
+/// Work units of a whole encode of `p` under `rates` ([`Progress::total`]).
+pub fn work_units(p: &PreparedGaussians, rates: &RateControl) -> u64 {
+    let coding = coding_units(rates.rate_count());
+    match rates {
+        RateControl::Plans(_) => coding,
+        RateControl::Psnr(t) => {
+            let landing = (1 + CORRECTIONS as u64) * QUALITY_RENDER_UNITS;
+            QUALITY_RENDER_UNITS
+                + ratios::curve_trials(p)
+                + KLT_UNITS
+                + t.len() as u64 * landing
+                + coding
+        }
+    }
+}
+
+/// Refuses targets that are not positive and finite, or not strictly falling (rate 0 is
+/// the finest, Annex A.8.2).
+fn check_order(targets: &[f64]) -> Result<()> {
+    for (r, &db) in targets.iter().enumerate() {
+        if !(db.is_finite() && db > 0.0) {
+            return Err(Error::FitFailed {
+                tensor: "psnr target",
+                reason: format!("rate {r}: a target is a PSNR in dB above 0, not {db}"),
+            });
+        }
+        if let Some(&finer) = r.checked_sub(1).and_then(|q| targets.get(q)) {
+            if db >= finer {
+                return Err(Error::FitFailed {
+                    tensor: "psnr target",
+                    reason: format!(
+                        "rate {r}'s target {db} dB is not below rate {}'s {finer} dB: rate 0 is \
+                         the finest, so targets fall from the first to the last",
+                        r - 1
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The render PSNR of `g` with every part at the finest step the curves try, at the
+/// yardstick: no allocation renders better, so a target above it cannot be met.
+pub fn ceiling_db(g: &Gaussians, p: &PreparedGaussians, quality: &RingTarget) -> Result<f64> {
+    let mse = quality.mse(&ratios::finest(g, p))?;
+    Ok(-10.0 * mse.max(1e-30).log10())
+}
+
+/// Which groups get a KLT basis (Annex A.8.3): SH DC, then SH rest, each kept when `size`
+/// (the bytes of the shared model and one layer, coded with the quantizers it is given)
+/// shrinks.
+pub fn choose_klt(
+    p: &PreparedGaussians,
+    plans: &[RatePlan],
+    size: &dyn Fn(&[Group]) -> Result<usize>,
+) -> Result<Vec<bool>> {
+    let mut klt = vec![false; p.kinds.len()];
+    let mut best = size(&fit_groups(p, plans, &klt))?;
+    for (gi, kind) in p.kinds.iter().enumerate() {
+        if matches!(kind, GroupKind::Dc | GroupKind::Rest) {
+            klt[gi] = true;
+            let s = size(&fit_groups(p, plans, &klt))?;
+            if s < best {
+                best = s;
+            } else {
+                klt[gi] = false;
+            }
+        }
+    }
+    Ok(klt)
+}
+
+/// Each rate's plan, given or fitted to its PSNR target by rendering (Annex A.8.2), and the
+/// groups with a KLT basis (`klt` if given; else chosen on the middle target's first
+/// allocation, so that every rate is fitted with the quantizers it will be coded with).
+/// Targets above what the scene reaches fail at once ([`Error::TargetUnreachable`]).
+pub fn rate_plans(
+    g: &Gaussians,
+    p: &PreparedGaussians,
+    rates: &RateControl,
+    variant: Variant,
+    klt: Option<&[bool]>,
+    progress: &dyn Fn(Progress<'_>),
+) -> Result<(Vec<RatePlan>, Option<Vec<bool>>)> {
+    let targets = match rates {
+        RateControl::Plans(s) => return Ok((s.clone(), klt.map(<[bool]>::to_vec))),
+        RateControl::Psnr(t) => t,
+    };
+    check_order(targets)?;
+    let total = work_units(p, rates);
+    let say = |step: &str, done: u64| progress(Progress { step, done, total });
+    say("checking what the scene can reach", 0);
+    let quality = RingTarget::new(
+        g,
+        ratios::QUALITY_VIEWS,
+        ratios::QUALITY_WIDTH,
+        ratios::QUALITY_HEIGHT,
+    )?;
+    let ceiling = ceiling_db(g, p, &quality)?;
+    if let Some(&db) = targets.first().filter(|&&db| db > ceiling) {
+        return Err(Error::TargetUnreachable {
+            rate: 0,
+            target_db: db,
+            ceiling_db: ceiling,
+        });
+    }
+    let classes = SizeClasses::for_variant(p, variant);
+    let curve_target = RingTarget::new(
+        g,
+        ratios::CURVE_VIEWS,
+        ratios::CURVE_WIDTH,
+        ratios::CURVE_HEIGHT,
+    )?;
+    let parts = ratios::parts(p).len();
+    let curves = ratios::measure_curves(
+        g,
+        p,
+        &classes,
+        variant,
+        &curve_target,
+        &|number, what, done| {
+            say(
+                &format!(
+                    "measuring what precision costs the renders, part {number} of {parts}: {what}"
+                ),
+                QUALITY_RENDER_UNITS + done,
+            )
+        },
+    )?;
+    let mut done = QUALITY_RENDER_UNITS + ratios::curve_trials(p);
+    // Each rate: allocate for the target, code the layer alone, render what the decoder
+    // will output, and correct the allocation's target by the error it missed by (the
+    // parts' errors do not add up exactly, and the curves were measured at another size).
+    let tables = GaussianTables::standard();
+    let origin = p.min.map(|v| v as f32);
+    let code = |groups: &[Group], plan: &RatePlan| {
+        layer::encode_layer(p, groups, &classes, plan, origin, 0, 0, variant, tables)
+    };
+    let klt = match klt {
+        Some(k) => k.to_vec(),
+        None => {
+            say("choosing a KLT basis for the colours", done);
+            let middle = targets[targets.len() / 2];
+            let plan = ratios::allocate(p, &curves, 10f64.powf(-middle / 10.0));
+            choose_klt(p, std::slice::from_ref(&plan), &|groups: &[Group]| {
+                Ok(write_gqua(groups).len() + code(groups, &plan)?.chunks.len())
+            })?
+        }
+    };
+    done += KLT_UNITS;
+    let mut out = Vec::with_capacity(targets.len());
+    for (r, &db) in targets.iter().enumerate() {
+        let step = format!(
+            "fitting rate {r} of {} to {db} dB ({} views at {}x{})",
+            targets.len(),
+            ratios::QUALITY_VIEWS,
+            ratios::QUALITY_WIDTH,
+            ratios::QUALITY_HEIGHT
+        );
+        let want = 10f64.powf(-db / 10.0);
+        // The allocation is on a grid of steps; a common factor f on every step then lands
+        // on the target (secant on log f against log MSE, which at high rate rises by 2
+        // per unit of log f).
+        let plan = ratios::allocate(p, &curves, want);
+        let measured = std::cell::Cell::new(0u64);
+        let measure = |f: f64| -> Result<f64> {
+            say(&step, done + measured.get() * QUALITY_RENDER_UNITS);
+            measured.set(measured.get() + 1);
+            let scaled = plan.scaled(f);
+            let groups = fit_groups(p, std::slice::from_ref(&scaled), &klt);
+            let coded = code(&groups, &scaled)?;
+            Ok(quality.mse(&coded.expected)?.max(1e-30))
+        };
+        let (mut lf, mut got) = (0.0f64, measure(1.0)?);
+        let mut best = (((got / want).log2()).abs(), lf);
+        let mut slope = 2.0;
+        for _ in 0..CORRECTIONS {
+            if best.0 < 0.05 {
+                break;
+            }
+            let next = (lf + (want.ln() - got.ln()) / slope).clamp(lf - 3.0, lf + 3.0);
+            let g2 = measure(next.exp())?;
+            if (next - lf).abs() > 1e-6 && g2 != got {
+                slope = ((g2.ln() - got.ln()) / (next - lf)).clamp(0.5, 4.0);
+            }
+            (lf, got) = (next, g2);
+            let miss = (got / want).log2().abs();
+            if miss < best.0 {
+                best = (miss, lf);
+            }
+        }
+        done += (1 + CORRECTIONS as u64) * QUALITY_RENDER_UNITS;
+        out.push(plan.scaled(best.1.exp()));
+    }
+    Ok((out, Some(klt)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn targets_fall_from_the_finest() {
+        assert!(check_order(&[62.0, 50.0, 35.0]).is_ok());
+        for bad in [
+            &[30.0, 40.0][..],
+            &[40.0, 40.0],
+            &[f64::NAN],
+            &[0.0],
+            &[50.0, -1.0],
+        ] {
+            let e = check_order(bad).unwrap_err();
+            assert_eq!(e.class(), "FitFailed", "{bad:?}");
+        }
+        let e = check_order(&[30.0, 40.0]).unwrap_err().to_string();
+        assert!(
+            e.contains("rate 1's target 40 dB is not below rate 0's 30 dB"),
+            "{e}"
+        );
+    }
+}
