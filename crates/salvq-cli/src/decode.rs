@@ -88,7 +88,7 @@ fn output_for(args: &DecodeArgs, ctx: Ctx, explicit: bool) -> Result<Output, Err
         }
         .into());
     }
-    files::json_beside(args.json, &output)?;
+    files::json_beside(args.json, &output);
     Ok(output)
 }
 
@@ -170,10 +170,10 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
         files::print_json(&decoded);
     }
     ctx.say(&format!(
-        "decoded {} anchors (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
+        "decoded {} anchors at rate {} (of rates 0 … {}; rate 0 is the finest) into {} in {:.2} s",
         decoded.count,
         decoded_rate.map_or("?".into(), |r| r.to_string()),
-        decoded.rates,
+        decoded.rates.saturating_sub(1),
         decoded.output,
         decoded.seconds
     ));

@@ -65,8 +65,11 @@ pub(crate) fn run(
         files::print_json(&report);
     }
     how.ctx.say(&format!(
-        "decoded {n} Gaussians (rate {} of {}; rate 0 is the finest) into {} in {:.2} s",
-        decoded.rate, report.rates, report.output, report.seconds
+        "decoded {n} Gaussians at rate {} (of rates 0 … {}; rate 0 is the finest) into {} in {:.2} s",
+        decoded.rate,
+        report.rates.saturating_sub(1),
+        report.output,
+        report.seconds
     ));
     Ok(())
 }

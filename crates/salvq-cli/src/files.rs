@@ -48,7 +48,7 @@ impl Ctx {
     ) -> Result<Output, Error> {
         let path = match given {
             Some(p) => p.to_path_buf(),
-            None => default_name(input, extension)?,
+            None => default_name(input, extension).unwrap_or_else(|why| usage(why)),
         };
         self.check(path, inputs)
     }
@@ -57,12 +57,10 @@ impl Ctx {
     pub(crate) fn check(&self, path: PathBuf, inputs: &[&Path]) -> Result<Output, Error> {
         if is_stdio(&path) {
             if std::io::stdout().is_terminal() && !self.force {
-                return Err(Error::OptionUnsupported {
-                    option: "-o -",
-                    reason: "standard output is a terminal, and the output is binary data",
-                    hint: "redirect it (`-o - > file` or `| next-command`), name a file, or \
-                           pass --force",
-                });
+                usage(
+                    "-o -: standard output is a terminal, and the output is binary data; \
+                     redirect it (`-o - > file`, `| next-command`), name a file, or pass --force",
+                );
             }
             return Ok(Output {
                 path,
@@ -147,22 +145,30 @@ impl Output {
     }
 }
 
-/// `input`'s name with `extension` in place of its own, in its folder.
-fn default_name(input: &Path, extension: &str) -> Result<PathBuf, Error> {
+/// A usage error, reported as clap reports its own (`error: …` on standard error, exit
+/// status 2), before any work.
+pub(crate) fn usage(message: &str) -> ! {
+    clap::Error::raw(
+        clap::error::ErrorKind::ArgumentConflict,
+        format!("{message}\n"),
+    )
+    .exit()
+}
+
+/// `input`'s name with `extension` in place of its own, in its folder; or why there is none.
+fn default_name(input: &Path, extension: &str) -> Result<PathBuf, &'static str> {
     if is_stdio(input) {
-        return Err(Error::OptionUnsupported {
-            option: "-o",
-            reason: "the input is standard input, so no output name follows from it",
-            hint: "name the output with -o FILE, or -o - for standard output",
-        });
+        return Err(
+            "the input is standard input, so no output name follows from it: name \
+                    the output with -o FILE, or -o - for standard output",
+        );
     }
     let name = input.with_extension(extension);
     if name == input {
-        return Err(Error::OptionUnsupported {
-            option: "-o",
-            reason: "the default output name would be the input's own",
-            hint: "name the output with -o FILE",
-        });
+        return Err(
+            "the default output name would be the input's own: name the output with \
+                    -o FILE",
+        );
     }
     Ok(name)
 }
@@ -208,16 +214,14 @@ pub(crate) fn print_json(value: &impl serde::Serialize) {
     ));
 }
 
-/// Refuses `--json` where the data itself goes to standard output.
-pub(crate) fn json_beside(json: bool, output: &Output) -> Result<(), Error> {
+/// Refuses `--json` where the data itself goes to standard output (a usage error).
+pub(crate) fn json_beside(json: bool, output: &Output) {
     if json && output.is_stdout() {
-        return Err(Error::OptionUnsupported {
-            option: "--json",
-            reason: "the output (-o -) already takes standard output",
-            hint: "write the output to a file, or leave out --json",
-        });
+        usage(
+            "--json: the output (-o -) already takes standard output; write the output to a \
+             file, or leave out --json",
+        );
     }
-    Ok(())
 }
 
 #[cfg(test)]
@@ -238,7 +242,9 @@ mod tests {
             default_name(Path::new("noext"), "ply").unwrap(),
             Path::new("noext.ply")
         );
-        assert!(default_name(Path::new("-"), "ply").is_err());
+        assert!(default_name(Path::new("-"), "ply")
+            .unwrap_err()
+            .contains("-o FILE"));
         assert!(default_name(Path::new("x.salvq"), "salvq").is_err());
     }
 }

@@ -269,7 +269,7 @@ fn main() -> ExitCode {
 fn encode(a: encode::EncodeArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
     let output = ctx.output(a.output.as_deref(), &a.input, "salvq", &[&a.input])?;
-    files::json_beside(a.json, &output)?;
+    files::json_beside(a.json, &output);
     let progress = progress::Progress::new(ctx.quiet);
     let bytes = files::read_input(&a.input)?;
     if salvq_encoder::explicit::input::input_kind(&bytes)?

@@ -33,7 +33,7 @@ impl Progress {
             let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
             bar.set_style(
                 ProgressStyle::with_template(
-                    "{spinner} [{elapsed_precise}] {msg}\n  {bar:40} {percent:>3} %  ETA {eta}",
+                    "{spinner} [{elapsed_precise}] {wide_msg}\n  {bar:40} {percent:>3} %  ETA {eta}",
                 )
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
             );

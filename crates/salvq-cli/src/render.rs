@@ -153,7 +153,7 @@ pub(crate) fn render(a: RenderArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
     let extension = format!("view{}.png", a.ring.view);
     let output = ctx.output(a.output.as_deref(), &a.input, &extension, &[&a.input])?;
-    files::json_beside(a.json, &output)?;
+    files::json_beside(a.json, &output);
     let scene = load(&a.input, a.rate)?;
     let load_secs = secs(t);
     let camera = a
@@ -211,7 +211,7 @@ pub(crate) fn render(a: RenderArgs, ctx: Ctx) -> Result<(), Error> {
 pub(crate) fn export_ply(a: ExportPlyArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
     let output = ctx.output(a.output.as_deref(), &a.input, "ply", &[&a.input])?;
-    files::json_beside(a.json, &output)?;
+    files::json_beside(a.json, &output);
     let bytes = files::read_input(&a.input)?;
     let scene = Scene::from_bytes(&bytes, a.rate)?;
     let written = |gaussians: usize| Written {

@@ -161,9 +161,7 @@ pub fn rate_plans(
         &curve_target,
         &|number, what, done| {
             say(
-                &format!(
-                    "measuring what precision costs the renders, part {number} of {parts}: {what}"
-                ),
+                &format!("measuring what precision costs, part {number} of {parts}: {what}"),
                 QUALITY_RENDER_UNITS + done,
             )
         },

@@ -133,7 +133,7 @@ impl Part {
     /// What the part is, in a person's words (`kinds`: the scene's groups).
     pub fn describe(self, kinds: &[GroupKind]) -> String {
         let class = |c: u8| {
-            let which = ["smallest", "second smallest", "second largest", "largest"];
+            let which = ["smallest", "2nd smallest", "2nd largest", "largest"];
             format!(
                 "{} quarter by size",
                 which.get(usize::from(c)).unwrap_or(&"a")
