@@ -17,15 +17,16 @@ cp "$REPO"/tools/viewer_check/{index.html,shoot.mjs,ring_camera.py,compare.py,pa
 cd "$WORK"
 if [ -f package-lock.json ]; then npm ci --no-audit --no-fund; else npm install --no-audit --no-fund; fi
 
-# salvq output: generated scene -> stream -> exported PLY (ring camera 0)
-"$SALVQ" gen --anchors 20000 --seed 1 -o data/g.safetensors
-"$SALVQ" encode data/g.safetensors -o data/g.salvq
-"$SALVQ" export-ply data/g.salvq -o data/g.ply
-"$SALVQ" decode data/g.salvq -o data/g.dec.safetensors      # only for the ring camera's bounds
+# salvq output: generated scene -> stream -> exported PLY (ring camera 0); -f: a WORK folder
+# kept from an earlier run (WORK=dir) holds these files already.
+"$SALVQ" gen --anchors 20000 --seed 1 -o data/g.safetensors -f
+"$SALVQ" encode data/g.safetensors -o data/g.salvq -f
+"$SALVQ" export-ply data/g.salvq -o data/g.ply -f
+"$SALVQ" decode data/g.salvq -o data/g.dec.safetensors -f      # only for the ring camera's bounds
 cp "$GUITAR" data/guitar.ply
 # reference images from salvq's own CPU rasterizer, same cameras
-"$SALVQ" render data/g.salvq --view 0 -o out/salvq_generated_view0.png
-"$SALVQ" render data/guitar.ply --view 2 -o out/salvq_guitar_view2.png
+"$SALVQ" render data/g.salvq --view 0 -o out/salvq_generated_view0.png -f
+"$SALVQ" render data/guitar.ply --view 2 -o out/salvq_guitar_view2.png -f
 
 python3 -m http.server "$PORT" --bind 127.0.0.1 >out/http.log 2>&1 &
 SERVER=$!

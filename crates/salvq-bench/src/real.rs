@@ -242,6 +242,8 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
         progress(&format!("{scene}: {n} Gaussians, rendering the input"));
         let reference = RingTarget::new(&g, o.views, o.width, o.height)?;
         let p = PreparedGaussians::new(&g)?;
+        // A line when the step changes, not at every trial render.
+        let last_step = std::cell::RefCell::new(String::new());
         let encode = |variant: Variant, klt: Option<bool>| -> Result<(EncodedGaussians, f64)> {
             let t = Instant::now();
             let klt = klt.map(|k| vec![k; p.kinds.len()]);
@@ -251,7 +253,12 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
                 &RateControl::Psnr(o.targets.clone()),
                 variant,
                 klt.as_deref(),
-                &|m| progress(&format!("{scene}: {}", m.step)),
+                &|m| {
+                    if *last_step.borrow() != m.step {
+                        m.step.clone_into(&mut last_step.borrow_mut());
+                        progress(&format!("{scene}: {}", m.step));
+                    }
+                },
             )?;
             let options = ExplicitOptions {
                 rates: RateControl::Plans(plans.clone()),
