@@ -10,14 +10,22 @@ use salvq_gen::{generate, GenParams};
 use salvq_render::error::IoOp;
 use salvq_render::interchange::write_model;
 
+use super::files::Ctx;
 use super::secs;
 
+/// The files `demo --out DIR` keeps.
+const KEPT: [&str; 3] = ["scene.safetensors", "scene.salvq", "decoded.safetensors"];
+
 /// Generates a scene, encodes it, decodes it, checks the result, prints the tables.
-pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Error> {
+pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Result<(), Error> {
     let tmp;
     let dir = match out {
         Some(d) => {
             std::fs::create_dir_all(d).map_err(|e| Error::io(IoOp::Write, d, e))?;
+            // Files an earlier run kept are replaced only with --force, before any work.
+            for name in KEPT {
+                ctx.check(d.join(name), &[])?;
+            }
             d.to_path_buf()
         }
         None => {
@@ -39,7 +47,8 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
     let t = Instant::now();
     let model = generate(&params);
     let t_gen = secs(t);
-    let model_path = dir.join("scene.safetensors");
+    let [model_name, stream_name, decoded_name] = KEPT;
+    let model_path = dir.join(model_name);
     write_model(&model, &model_path)?;
     let input_bytes = std::fs::metadata(&model_path).map(|m| m.len()).unwrap_or(0);
 
@@ -51,12 +60,12 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>) -> Result<(), Er
     let encoded = salvq_encoder::encode_full(&model, &options)?;
     let t_enc = secs(t);
     let (stream, report) = (&encoded.stream, encoded.report());
-    salvq_render::io::write_bytes_atomic(&dir.join("scene.salvq"), stream)?;
+    salvq_render::io::write_bytes_atomic(&dir.join(stream_name), stream)?;
 
     let t = Instant::now();
     let decoded = salvq::decode(stream)?;
     let t_dec = secs(t);
-    write_model(&decoded, &dir.join("decoded.safetensors"))?;
+    write_model(&decoded, &dir.join(decoded_name))?;
 
     let info = inspect(stream, &Limits::default())?;
     out!("{:<10} {:>10}", "step", "seconds");

@@ -159,7 +159,8 @@ enum Command {
         /// Random seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Keep the generated files in this folder (default: a temporary folder).
+        /// Keep the generated files in this folder (default: a temporary folder); files of
+        /// an earlier run there are replaced only with --force.
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -199,7 +200,7 @@ fn run(command: Command, ctx: Ctx) -> Result<(), Error> {
         Command::Conformance { .. } | Command::MakeVectors { .. } => {}
         Command::Info(args) => info::run(args)?,
         Command::Bench { which } => bench::run(which)?,
-        Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref())?,
+        Command::Demo { anchors, seed, out } => demo(anchors, seed, out.as_deref(), ctx)?,
         Command::Render(args) => render::render(args, ctx)?,
         Command::ExportPly(args) => render::export_ply(args, ctx)?,
         Command::Compare(args) => compare::run(args)?,

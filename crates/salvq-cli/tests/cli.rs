@@ -334,7 +334,9 @@ fn a_region_that_is_no_box_is_refused_before_the_stream_is_read() {
 fn demo_checks_pass_with_the_default_encoder_choices() {
     // The demo's own check (geometry, masks and the MLPs as stored exact; every value within
     // half a step) fails it with status 1; CI's demo run once did after a default changed.
-    let o = salvq(&["demo", "--anchors", "3000"]);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = salvq(&["demo", "--anchors", "3000", "--out", out]);
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
         o.status.success(),
@@ -342,4 +344,13 @@ fn demo_checks_pass_with_the_default_encoder_choices() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(text.contains("quantizers exact; every coded value within half a step: yes"));
+    // The files it kept are not replaced by a second run, unless --force.
+    let stream = std::fs::read(dir.path().join("scene.salvq")).unwrap();
+    let o = salvq(&["demo", "--anchors", "2000", "--out", out]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("OutputExists"), "{err}");
+    assert_eq!(std::fs::read(dir.path().join("scene.salvq")).unwrap(), stream);
+    let o = salvq(&["demo", "--anchors", "2000", "--out", out, "-f"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_ne!(std::fs::read(dir.path().join("scene.salvq")).unwrap(), stream);
 }
