@@ -349,8 +349,14 @@ fn demo_checks_pass_with_the_default_encoder_choices() {
     let o = salvq(&["demo", "--anchors", "2000", "--out", out]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("OutputExists"), "{err}");
-    assert_eq!(std::fs::read(dir.path().join("scene.salvq")).unwrap(), stream);
+    assert_eq!(
+        std::fs::read(dir.path().join("scene.salvq")).unwrap(),
+        stream
+    );
     let o = salvq(&["demo", "--anchors", "2000", "--out", out, "-f"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_ne!(std::fs::read(dir.path().join("scene.salvq")).unwrap(), stream);
+    assert_ne!(
+        std::fs::read(dir.path().join("scene.salvq")).unwrap(),
+        stream
+    );
 }
