@@ -77,9 +77,23 @@ impl Ctx {
                 .into());
             }
         }
-        let exists = std::fs::metadata(&path).is_ok_and(|m| m.is_file());
+        let metadata = std::fs::metadata(&path);
+        let exists = metadata.as_ref().is_ok_and(|m| m.is_file());
         if exists && !self.force {
             return Err(salvq_render::Error::OutputExists { path }.into());
+        }
+        // A regular file is written beside itself and renamed: a folder that takes no new
+        // file (read-only, say) fails now, not after the work.
+        if metadata.map_or(true, |m| m.is_file()) {
+            let dir = match path.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            tempfile::Builder::new()
+                .prefix(".salvq-")
+                .suffix(".tmp")
+                .tempfile_in(dir)
+                .map_err(|e| Error::io(IoOp::CreateTemp, &path, e))?;
         }
         let replace = if self.force {
             Replace::Allowed

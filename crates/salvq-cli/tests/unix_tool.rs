@@ -193,6 +193,15 @@ fn no_command_writes_over_an_input_or_an_existing_output() {
     failed(&salvq(&["decode", s(&stream)]), "OutputExists");
     ok(&salvq(&["extract", s(&stream), "--rate", "1"]));
     assert!(p("scene.rate1.salvq").is_file());
+    // A folder that takes no new file (/proc, even for root) fails before the work.
+    #[cfg(target_os = "linux")]
+    {
+        let err = failed(
+            &salvq(&["decode", s(&stream), "-o", "/proc/salvq-test.ply"]),
+            "Io",
+        );
+        assert!(err.contains("temporary file"), "{err}");
+    }
     // The extension names the format; a wrong one is refused before decoding.
     let err = failed(
         &salvq(&["decode", s(&stream), "-o", s(&p("x.safetensors"))]),
