@@ -411,18 +411,21 @@ fn explicit_stream(a: &Args, scene: &str, ply: &Path, salvq: &Path, cache: &Path
     if a.fresh || !r0.exists() {
         println!("{scene}: salvq encode (default settings) …");
         let t = run_timed(
+            // --force: a fresh encode replaces the cached streams.
             Command::new(salvq)
                 .arg("encode")
                 .arg(ply)
                 .arg("-o")
-                .arg(&all),
+                .arg(&all)
+                .arg("--force"),
         )?;
         run_timed(
             Command::new(salvq)
                 .arg("extract")
                 .arg(&all)
                 .args(["--rate", "0", "-o"])
-                .arg(&r0),
+                .arg(&r0)
+                .arg("--force"),
         )?;
         println!("{scene}: encoded in {t:.1} s");
     }
@@ -521,11 +524,13 @@ fn explicit_scene(
     // slower for a while after Node had run (docs/speed, sixteenth session).
     for _ in 0..a.rounds {
         cmd.push(run_timed(
+            // Each round replaces the last one's PLY, as splat-transform's `-w` below.
             Command::new(salvq)
                 .arg("decode")
                 .arg(&path)
                 .arg("-o")
-                .arg(&out_ply),
+                .arg(&out_ply)
+                .arg("--force"),
         )?);
         if let Some(st) = st {
             for (i, f) in peer_files.iter().enumerate() {
