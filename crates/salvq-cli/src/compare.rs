@@ -44,10 +44,10 @@ pub(crate) struct CompareArgs {
     /// Image height (ring default 384).
     #[arg(long)]
     height: Option<u32>,
-    /// The rate to decode A at, if a stream (default: its lowest rate).
+    /// The rate to decode A at, if a stream (default: the finest rate it carries).
     #[arg(long)]
     rate_a: Option<u8>,
-    /// The rate to decode B at, if a stream (default: its lowest rate).
+    /// The rate to decode B at, if a stream (default: the finest rate it carries).
     #[arg(long)]
     rate_b: Option<u8>,
     /// Print JSON instead of a table (PSNR `null` where the images are identical: MSE 0).

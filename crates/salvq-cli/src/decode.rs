@@ -108,6 +108,17 @@ fn parse_box(s: &str) -> Result<salvq::RegionBox, String> {
 pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
     let stream = files::read_input(&args.input)?;
+    // What the input is comes first: a file that is no stream fails as such, before its
+    // output's name is judged by a profile it does not have.
+    if let Err(e) = salvq::container::signature::Signature::parse(&stream) {
+        if stream.starts_with(b"ply") {
+            return Err(Error::UnsupportedInput {
+                found: "a 3DGS PLY, not a SALVQ stream".into(),
+                hint: "`salvq encode` encodes it into one",
+            });
+        }
+        return Err(e.into());
+    }
     let explicit = salvq::decoder::is_explicit(&stream);
     let output = if args.measure {
         None

@@ -35,7 +35,7 @@ pub struct EncodeArgs {
     /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views
     /// at 512x384, as `salvq compare` measures), e.g. `62,56,50,45,40,35` (the default); sorted
     /// so that rate 0 is the finest.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = parse_target, allow_hyphen_values = true)]
     pub(crate) psnr: Option<Vec<f64>>,
     /// PLY input: drop (and count, by property) Gaussians with a NaN, or an infinite value
     /// other than an opacity logit, instead of failing on the first (spec Annex A.8.1).
@@ -97,6 +97,14 @@ pub struct EncodeArgs {
     /// stay on standard error.
     #[arg(long)]
     pub(crate) json: bool,
+}
+
+/// A render-PSNR target: a finite number of dB above 0.
+fn parse_target(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(db) if db.is_finite() && db > 0.0 => Ok(db),
+        _ => Err(format!("a target is a PSNR in dB above 0, not {s}")),
+    }
 }
 
 /// The `--json` summary.

@@ -72,9 +72,10 @@ struct Summary {
     layers: Vec<LayerLine>,
 }
 
-/// The targets, finest first; refused when two are equal, or when `--rates` picks among
-/// targets given in another order (its indices would change meaning).
-fn sorted_targets(a: &EncodeArgs) -> Result<(Vec<f64>, Option<Vec<f64>>), Error> {
+/// The targets, finest first, and the order given when it was another; a usage error when
+/// two are equal, or when `--rates` picks among targets given in another order (its indices
+/// would change meaning).
+fn sorted_targets(a: &EncodeArgs) -> (Vec<f64>, Option<Vec<f64>>) {
     let given = a
         .psnr
         .clone()
@@ -82,23 +83,18 @@ fn sorted_targets(a: &EncodeArgs) -> Result<(Vec<f64>, Option<Vec<f64>>), Error>
     let mut sorted = given.clone();
     sorted.sort_by(|x, y| y.total_cmp(x));
     if sorted.windows(2).any(|w| w[0] == w[1]) {
-        return Err(Error::OptionUnsupported {
-            option: "--psnr",
-            reason: "two rates have the same target",
-            hint: "give each rate its own target",
-        });
+        files::usage("--psnr: two rates have the same target; give each rate its own");
     }
     if sorted == given {
-        return Ok((sorted, None));
+        return (sorted, None);
     }
     if a.rates.is_some() {
-        return Err(Error::OptionUnsupported {
-            option: "--psnr",
-            reason: "its targets are not finest first, and --rates picks rates by position",
-            hint: "list the targets from the highest PSNR (rate 0) to the lowest",
-        });
+        files::usage(
+            "--psnr: its targets are not finest first, and --rates picks rates by position; \
+             list the targets from the highest PSNR (rate 0) to the lowest",
+        );
     }
-    Ok((sorted, Some(given)))
+    (sorted, Some(given))
 }
 
 /// Reads the PLY: strictly, or dropping what the format cannot hold (`--drop-invalid`).
@@ -135,7 +131,7 @@ pub fn run(
     t: Instant,
     progress: &Progress,
 ) -> Result<(), Error> {
-    let (targets, targets_given) = sorted_targets(&a)?;
+    let (targets, targets_given) = sorted_targets(&a);
     let (g, dropped) = read(&a, bytes, progress)?;
     if g.is_empty() {
         return Err(Error::UnsupportedInput {
@@ -143,11 +139,15 @@ pub fn run(
             hint: "a scene needs at least one Gaussian to encode",
         });
     }
+    let source = if files::is_stdio(&a.input) {
+        "standard input".to_string()
+    } else {
+        a.input.display().to_string()
+    };
     progress.say(&format!(
-        "read {} Gaussians (SH degree {}) from {}",
+        "read {} Gaussians (SH degree {}) from {source}",
         g.len(),
-        g.sh_degree,
-        a.input.display()
+        g.sh_degree
     ));
     let ignored = salvq_render::ply::unused_properties(bytes);
     if !ignored.is_empty() {
@@ -390,13 +390,13 @@ mod tests {
     }
 
     #[test]
-    fn targets_are_sorted_finest_first_or_refused() {
-        let (t, given) = sorted_targets(&args(&[30.0, 40.0], None)).unwrap();
+    fn targets_are_sorted_finest_first() {
+        let (t, given) = sorted_targets(&args(&[30.0, 40.0], None));
         assert_eq!(t, [40.0, 30.0]);
         assert_eq!(given, Some(vec![30.0, 40.0]));
-        let (t, given) = sorted_targets(&args(&[50.0, 40.0], None)).unwrap();
+        let (t, given) = sorted_targets(&args(&[50.0, 40.0], None));
         assert_eq!((t, given), (vec![50.0, 40.0], None));
-        assert!(sorted_targets(&args(&[40.0, 40.0], None)).is_err());
-        assert!(sorted_targets(&args(&[30.0, 40.0], Some(vec![0]))).is_err());
+        // Equal targets, and unsorted ones with --rates, are usage errors (exit 2): the
+        // integration tests run them.
     }
 }

@@ -38,6 +38,7 @@ struct Written {
 pub(crate) fn run(a: ExtractArgs, ctx: Ctx) -> Result<(), Error> {
     let extension = format!("rate{}.salvq", a.rate);
     let output = ctx.output(a.output.as_deref(), &a.input, &extension, &[&a.input])?;
+    output.require_extension(&["salvq"], "extract writes a SALVQ stream", ".salvq")?;
     files::json_beside(a.json, &output);
     let stream = files::read_input(&a.input)?;
     let one = salvq::extract_rate(&stream, a.rate, &Limits::default())?;

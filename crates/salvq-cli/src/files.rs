@@ -141,6 +141,26 @@ impl Output {
             .unwrap_or_default()
     }
 
+    /// Refuses an output whose extension names another format than the one written (none,
+    /// standard output and devices pass): `what` and `extensions` say what it is written as.
+    pub(crate) fn require_extension(
+        &self,
+        allowed: &[&str],
+        what: &'static str,
+        extensions: &'static str,
+    ) -> Result<(), Error> {
+        let ext = self.extension();
+        if ext.is_empty() || allowed.contains(&ext.as_str()) {
+            return Ok(());
+        }
+        Err(salvq_render::Error::OutputExtension {
+            path: self.path.clone(),
+            what,
+            extensions,
+        }
+        .into())
+    }
+
     /// Writes the output atomically ([`salvq_render::io::write_atomic_as`]).
     pub(crate) fn write(
         &self,

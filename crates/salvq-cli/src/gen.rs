@@ -59,6 +59,7 @@ struct Written {
 /// `salvq gen`.
 pub(crate) fn run(a: GenArgs, ctx: Ctx) -> Result<(), Error> {
     let output = ctx.check(a.output.clone(), &[])?;
+    output.require_extension(&["safetensors"], "gen writes a model file", ".safetensors")?;
     files::json_beside(a.json, &output);
     let mut params = if a.small {
         GenParams::small(a.anchors, a.seed)

@@ -105,6 +105,9 @@ fn ply(path: &Path, bytes: &[u8], json: bool) -> Result<(), Error> {
         invalid: drop_invalid(&g).1,
         encode: if files::is_stdio(path) {
             "salvq encode - -o scene.salvq".into()
+        } else if path.with_extension("salvq") == path {
+            // The default output name would be the input's own.
+            format!("salvq encode {shown} -o scene.salvq")
         } else {
             format!("salvq encode {shown}")
         },
@@ -147,13 +150,8 @@ fn ply(path: &Path, bytes: &[u8], json: bool) -> Result<(), Error> {
         t.push_str("it holds no Gaussian: there is nothing to encode\n");
     } else {
         t.push_str(&format!(
-            "encode it: {} (writes {}; --psnr sets the rates' render-PSNR targets)\n",
-            info.encode,
-            if files::is_stdio(path) {
-                "scene.salvq".into()
-            } else {
-                path.with_extension("salvq").display().to_string()
-            }
+            "encode it: {} (--psnr sets the rates' render-PSNR targets)\n",
+            info.encode
         ));
     }
     crate::print_text(&t);

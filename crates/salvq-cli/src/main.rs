@@ -270,6 +270,7 @@ fn main() -> ExitCode {
 fn encode(a: encode::EncodeArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
     let output = ctx.output(a.output.as_deref(), &a.input, "salvq", &[&a.input])?;
+    output.require_extension(&["salvq"], "the encoder writes a SALVQ stream", ".salvq")?;
     files::json_beside(a.json, &output);
     let progress = progress::Progress::new(ctx.quiet);
     let bytes = files::read_input(&a.input)?;

@@ -55,7 +55,7 @@ pub(crate) struct RenderArgs {
     /// standard output).
     #[arg(short, long)]
     pub(crate) output: Option<PathBuf>,
-    /// The rate to decode a stream at (default: the lowest rate it carries).
+    /// The rate to decode a stream at (default: the finest rate it carries).
     #[arg(long)]
     rate: Option<u8>,
     #[command(flatten)]
@@ -86,7 +86,7 @@ pub(crate) struct ExportPlyArgs {
     /// `.ply`; `-`: standard output).
     #[arg(short, long)]
     pub(crate) output: Option<PathBuf>,
-    /// The rate to decode a stream at (default: the lowest rate it carries).
+    /// The rate to decode a stream at (default: the finest rate it carries).
     #[arg(long)]
     rate: Option<u8>,
     /// The ring camera that the view-dependent MLPs are evaluated from (spec Annex C.1, C.2).
@@ -153,6 +153,7 @@ pub(crate) fn render(a: RenderArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
     let extension = format!("view{}.png", a.ring.view);
     let output = ctx.output(a.output.as_deref(), &a.input, &extension, &[&a.input])?;
+    output.require_extension(&["png"], "render writes a PNG image", ".png")?;
     files::json_beside(a.json, &output);
     let scene = load(&a.input, a.rate)?;
     let load_secs = secs(t);
@@ -211,6 +212,7 @@ pub(crate) fn render(a: RenderArgs, ctx: Ctx) -> Result<(), Error> {
 pub(crate) fn export_ply(a: ExportPlyArgs, ctx: Ctx) -> Result<(), Error> {
     let t = Instant::now();
     let output = ctx.output(a.output.as_deref(), &a.input, "ply", &[&a.input])?;
+    output.require_extension(&["ply"], "export-ply writes a 3DGS PLY", ".ply")?;
     files::json_beside(a.json, &output);
     let bytes = files::read_input(&a.input)?;
     let scene = Scene::from_bytes(&bytes, a.rate)?;

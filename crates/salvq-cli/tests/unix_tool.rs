@@ -208,6 +208,20 @@ fn no_command_writes_over_an_input_or_an_existing_output() {
         "OutputExtension",
     );
     assert!(err.contains(".ply"), "{err}");
+    // Every command's output names its format, and a wrong one fails before any work.
+    for (args, wants) in [
+        (vec!["encode", s(&p("out.ply"))], ".salvq"),
+        (vec!["extract", s(&stream), "--rate", "1"], ".salvq"),
+        (vec!["render", s(&stream)], ".png"),
+        (vec!["export-ply", s(&stream)], ".ply"),
+        (vec!["gen", "--anchors", "100", "--small"], ".safetensors"),
+    ] {
+        let wrong = p("wrong.jpg");
+        let o = salvq(&[args.as_slice(), &["-o", s(&wrong)]].concat());
+        let err = failed(&o, "OutputExtension");
+        assert!(err.contains(wants), "{args:?}: {err}");
+        assert!(!wrong.exists());
+    }
 }
 
 #[test]
@@ -366,6 +380,25 @@ fn inputs_it_does_not_read_are_named_by_what_they_are() {
     let err = failed(&salvq(&["encode", s(&p("empty.ply"))]), "UnsupportedInput");
     assert!(err.contains("no Gaussian"), "{err}");
     assert!(!p("empty.salvq").exists() && !p("notes.salvq").exists());
+    // A file that is no stream fails as what it is, whatever output it is given.
+    let err = failed(
+        &salvq(&["decode", s(&p("empty.ply")), "-o", s(&p("x.ply"))]),
+        "UnsupportedInput",
+    );
+    assert!(err.contains("a 3DGS PLY, not a SALVQ stream"), "{err}");
+    let err = failed(
+        &salvq(&["decode", s(&p("notes.txt")), "-o", s(&p("x.ply"))]),
+        "SignatureMismatch",
+    );
+    assert!(err.contains("§1.2"), "{err}");
+    // Targets that are no PSNR, or two equal ones, are usage errors before the PLY is read.
+    for bad in ["45,45", "0", "-5", "inf"] {
+        let err = usage_error(&salvq(&["encode", s(&p("empty.ply")), "--psnr", bad]));
+        assert!(
+            err.contains("--psnr") || err.contains("above 0"),
+            "{bad}: {err}"
+        );
+    }
     let o = salvq(&["info", s(&p("empty.ply"))]);
     ok(&o);
     assert!(String::from_utf8_lossy(&o.stdout).contains("nothing to encode"));

@@ -134,7 +134,7 @@ impl fmt::Display for Error {
             Error::Files(e) => return write!(f, "{e}"),
             Error::UnsupportedInput { found, hint } => write!(
                 f,
-                "the input is {found}, which the encoder does not read: {hint}"
+                "the input is {found}, which this command does not read: {hint}"
             )?,
             Error::OptionUnsupported {
                 option,
