@@ -101,7 +101,7 @@ impl fmt::Display for Error {
                 max,
             } => write!(
                 f,
-                "{}: value {value} is outside {min}..={max}",
+                "{}: value {value} is outside [{min}, {max}]",
                 field.spec_name()
             )?,
             DecodedSizeMismatch { stated, computed } => write!(
@@ -144,7 +144,7 @@ impl fmt::Display for Error {
                 max,
             } => write!(
                 f,
-                "chunk {tag}: symbol {symbol}: scale index {scale_index} is outside 0..={max}"
+                "chunk {tag}: symbol {symbol}: scale index {scale_index} is outside [0, {max}]"
             )?,
             LatticeDimension {
                 field,
@@ -177,10 +177,19 @@ impl fmt::Display for Error {
                 f,
                 "APOS octree: {rule} (depth {depth}: {count}, anchor_count {anchors})"
             )?,
-            RateNotCoded { rate, rate_mask } => write!(
-                f,
-                "rate {rate} has no symbol layer in this stream (rate_mask {rate_mask:#x})"
-            )?,
+            RateNotCoded { rate, rate_mask } => {
+                write!(f, "rate {rate} has no symbol layer in this stream; it holds ")?;
+                match rate_mask.count_ones() {
+                    0 => write!(f, "none")?,
+                    1 => write!(f, "rate ")?,
+                    _ => write!(f, "rates ")?,
+                }
+                let coded = (0..64u8).filter(|r| rate_mask >> r & 1 == 1);
+                for (i, r) in coded.enumerate() {
+                    write!(f, "{}{r}", if i == 0 { "" } else { ", " })?;
+                }
+                write!(f, " (rate_mask {rate_mask:#x})")?
+            }
             NonFiniteValue { tensor, index } => {
                 write!(f, "{tensor}{}: value is not finite", Index(index))?
             }
