@@ -36,7 +36,7 @@ pub(crate) enum Bench {
         #[arg(long, default_value_t = 2_000_000)]
         max: u32,
     },
-    /// The explicit profile on real 3DGS scenes (issue 19): salvq's rates from one file
+    /// The explicit profile on real 3DGS scenes: salvq's rates from one file
     /// against splat-transform's SPZ, SOG and compressed PLY, render PSNR / SSIM from the
     /// same ring cameras, encode and decode times, ablations and bits per attribute group
     /// (SVG, CSV, text in OUT).
@@ -77,7 +77,7 @@ pub(crate) enum Bench {
     },
     /// Model share of the stream and bits per anchor vs scene size, plain, with
     /// `--prune-grid`, and with binary16 Scaffold-GS MLPs; then total bytes vs precision per
-    /// model tensor group at 100 k anchors (issue 10; SVG, CSV).
+    /// model tensor group at 100 k anchors (SVG, CSV).
     Parsimony {
         /// Output folder.
         #[arg(long, default_value = "charts")]

@@ -79,14 +79,8 @@ fn output_for(args: &DecodeArgs, ctx: Ctx, explicit: bool) -> Result<Output, Err
             ),
         };
     let output = ctx.output(args.output.as_deref(), &args.input, default, &[&args.input])?;
-    let ext = output.extension();
-    if !allowed.is_empty() && !ext.is_empty() && !allowed.contains(&ext.as_str()) {
-        return Err(salvq_render::Error::OutputExtension {
-            path: output.path.clone(),
-            what,
-            extensions,
-        }
-        .into());
+    if !args.canonical {
+        output.require_extension(allowed, what, extensions)?;
     }
     files::json_beside(args.json, &output);
     Ok(output)
