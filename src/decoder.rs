@@ -50,6 +50,11 @@ pub struct DecodeOptions {
     /// is then empty). What a viewer needs: less memory written, and about a third less at
     /// the peak. The conformance output (§11.6) needs the symbols.
     pub gaussians_only: bool,
+    /// Explicit profile, progressive streams (§3.8): a stream that ends before `SEND`, after
+    /// at least one complete layer, decodes to its last complete layer
+    /// ([`crate::explicit::DecodedGaussians::truncated`]) instead of failing with the
+    /// truncation.
+    pub accept_prefix: bool,
     /// A deliberate decoder bug, for proving that the conformance vectors catch it (§11);
     /// only with the `test-hooks` feature, never set outside tests.
     #[cfg(feature = "test-hooks")]
@@ -69,6 +74,13 @@ impl DecodeOptions {
     #[must_use]
     pub fn with_rate(mut self, rate: Option<u8>) -> Self {
         self.rate = rate;
+        self
+    }
+
+    /// These options accepting a progressive stream's prefix ([`Self::accept_prefix`]).
+    #[must_use]
+    pub fn with_accept_prefix(mut self, accept: bool) -> Self {
+        self.accept_prefix = accept;
         self
     }
 

@@ -10,42 +10,49 @@ use crate::error::{Error, Result};
 use crate::explicit::GaussianHeader;
 use crate::limits::Limits;
 
-/// A preflight rewritten for one rate: its payload, the selected layer, the layer count.
-type Rewritten = Result<(Vec<u8>, usize, usize)>;
+/// A preflight rewritten for one rate: its payload, the selected layer, the layer count,
+/// and whether the layers nest (§3.8).
+type Rewritten = Result<(Vec<u8>, usize, usize, bool)>;
 
 /// What the extraction walk needs of a profile.
 struct Profile {
     /// Every critical chunk type of the profile (§1.5 rule 0, §3.7).
     critical: &'static [ChunkTag],
-    /// The critical chunk due at position `i` of a stream with `layers` layers.
-    expected: fn(usize, usize) -> ChunkTag,
-    /// The chunk that opens a layer's section (§7.4: `AFEA`; §3.7: `GLAY`).
-    layer_start: ChunkTag,
-    /// The preflight with `rate_mask = 2^rate`, and (selected layer, layers).
+    /// The critical chunk due at position `i` of a stream with `layers` layers, progressive
+    /// or not.
+    expected: fn(usize, usize, bool) -> ChunkTag,
+    /// The chunks that open a layer's section (§7.4: `AFEA`; §3.7: `GLAY`; §3.8: `GREF`).
+    layer_start: &'static [ChunkTag],
+    /// The preflight with `rate_mask = 2^rate` (in a progressive stream, the coded rates
+    /// from `rate` up), and (selected layer, layers, progressive).
     rewrite: fn(&[u8], u8, &Limits) -> Rewritten,
 }
 
 const ANCHORS: Profile = Profile {
     critical: &ChunkTag::CRITICAL_ORDER,
-    expected: crate::decoder::expected_critical,
-    layer_start: ChunkTag::AFEA,
+    expected: |i, layers, _| crate::decoder::expected_critical(i, layers),
+    layer_start: &[ChunkTag::AFEA],
     rewrite: |payload, rate, limits| {
         let mut head = Preflight::parse(payload, limits)?;
         let (_, selected, layers) = head.select_layer(Some(rate))?;
         head.rate_mask = 1 << rate;
-        Ok((head.to_payload(), selected, layers))
+        Ok((head.to_payload(), selected, layers, false))
     },
 };
 
 const EXPLICIT: Profile = Profile {
     critical: &crate::explicit::decode::CRITICAL_CHUNKS,
     expected: crate::explicit::decode::expected_critical,
-    layer_start: ChunkTag::GLAY,
+    layer_start: &[ChunkTag::GLAY, ChunkTag::GREF],
     rewrite: |payload, rate, limits| {
         let mut head = GaussianHeader::parse(payload, limits)?;
         let (_, selected, layers) = head.select_layer(Some(rate))?;
-        head.rate_mask = 1 << rate;
-        Ok((head.to_payload(), selected, layers))
+        // §3.8: a progressive stream's prefix keeps the coarser layers rate refines.
+        head.rate_mask = match head.progressive {
+            true => head.rate_mask & !((1u64 << rate) - 1),
+            false => 1 << rate,
+        };
+        Ok((head.to_payload(), selected, layers, head.progressive))
     },
 };
 
@@ -62,14 +69,33 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut out = Vec::with_capacity(data.len());
     out.extend_from_slice(&data[..SIGNATURE_LEN]);
-    let (mut layers, mut selected) = (0usize, 0usize);
+    let (mut layers, mut selected, mut progressive) = (0usize, 0usize, false);
+    // Whether a chunk of section `l` is kept: the selected layer's, and in a progressive
+    // stream every layer before it too.
+    let kept = |section: Option<usize>, selected: usize, progressive: bool| match section {
+        None => true,
+        Some(l) => l == selected || (progressive && l < selected),
+    };
     let mut next_critical = 0usize;
     // The layer the chunks now read belong to (§7.4): None before the first layer.
     let mut section: Option<usize> = None;
     let mut head_seen = false;
     loop {
         // §1.5 rule 4: the stream ends only with SEND.
-        let chunk = reader.next_before_send()?;
+        let chunk = match reader.next_before_send() {
+            Ok(chunk) => chunk,
+            // §3.8: a progressive stream cut after the selected layer is its prefix.
+            Err(e)
+                if progressive
+                    && e.is_truncation()
+                    && crate::explicit::decode::layer_of(next_critical, layers, true)
+                        .map_or(true, |l| l > selected) =>
+            {
+                write_chunk(&mut out, ChunkTag::SEND, &[]);
+                return Ok(out);
+            }
+            Err(e) => return Err(e),
+        };
         let tag = chunk.tag;
         if !tag.is_critical() {
             if !head_seen {
@@ -78,7 +104,7 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
                     expected: ChunkTag::HEAD,
                 });
             }
-            if section.map_or(true, |l| l == selected) {
+            if kept(section, selected, progressive) {
                 write_chunk(&mut out, tag, chunk.payload);
             }
             continue;
@@ -86,7 +112,7 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
         if !profile.critical.contains(&tag) {
             return Err(Error::UnknownCriticalChunk { tag });
         }
-        let expected = (profile.expected)(next_critical, layers);
+        let expected = (profile.expected)(next_critical, layers, progressive);
         if tag != expected {
             return Err(Error::ChunkOrder {
                 found: tag,
@@ -95,14 +121,15 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
         }
         if next_critical == 0 {
             let payload;
-            (payload, selected, layers) = (profile.rewrite)(chunk.payload, rate, limits)?;
+            (payload, selected, layers, progressive) =
+                (profile.rewrite)(chunk.payload, rate, limits)?;
             write_chunk(&mut out, tag, &payload);
             head_seen = true;
             next_critical += 1;
             continue;
         }
         next_critical += 1;
-        if tag == profile.layer_start {
+        if profile.layer_start.contains(&tag) {
             section = Some(section.map_or(0, |l| l + 1));
         }
         if tag == ChunkTag::SEND {
@@ -110,7 +137,7 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
             write_chunk(&mut out, tag, chunk.payload);
             return Ok(out);
         }
-        if section.map_or(true, |l| l == selected) {
+        if kept(section, selected, progressive) {
             write_chunk(&mut out, tag, chunk.payload);
         }
     }

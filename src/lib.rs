@@ -12,7 +12,7 @@
 //! vectors, runner, fuzzing harness), `salvq-bench` (research benches) and `salvq-cli` (the
 //! `salvq` command). Dependencies point one way, towards this crate.
 //!
-//! ## Map of a stream (format 0.14)
+//! ## Map of a stream (format 0.15)
 //!
 //! | stream part | spec | module |
 //! |---|---|---|

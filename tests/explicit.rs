@@ -94,7 +94,11 @@ fn coarser_rates_are_smaller_and_further_from_the_input() {
     let g = generate_gaussians(&params);
     let p = PreparedGaussians::new(&g).unwrap();
     let rate_plans = plans(3, 5);
-    let e = encode_synthetic(&params, rate_plans.clone(), ExplicitOptions::default()).unwrap();
+    let layered = ExplicitOptions {
+        progressive: false,
+        ..Default::default()
+    };
+    let e = encode_synthetic(&params, rate_plans.clone(), layered).unwrap();
     let sizes: Vec<usize> = e.layers.iter().map(|l| l.1).collect();
     assert!(sizes[0] > sizes[1] && sizes[1] > sizes[2], "{sizes:?}");
     // Decoded Gaussians are in each layer's Morton order: compare through it.
@@ -148,14 +152,18 @@ fn positions_and_attributes_stay_within_their_steps() {
 #[test]
 fn extract_equals_encoding_the_rate_alone() {
     let params = GaussianParams::new(150, 3, 21);
-    let all = encode_synthetic(&params, plans(3, 5), ExplicitOptions::default()).unwrap();
+    let layered = ExplicitOptions {
+        progressive: false,
+        ..Default::default()
+    };
+    let all = encode_synthetic(&params, plans(3, 5), layered.clone()).unwrap();
     for r in 0..3u8 {
         let alone = encode_synthetic(
             &params,
             plans(3, 5),
             ExplicitOptions {
                 coded: Some(vec![r]),
-                ..Default::default()
+                ..layered.clone()
             },
         )
         .unwrap();

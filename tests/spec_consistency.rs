@@ -304,7 +304,8 @@ fn tensor_names_match_table_2_1() {
 }
 
 /// §3.7 Table 3-2 lists the explicit profile's critical chunks in the order the decoder
-/// expects them (one layer shown), and Table 3-3 its groups with their value counts.
+/// expects them (a progressive stream of two layers shown), and Table 3-3 its groups with
+/// their value counts.
 #[test]
 fn explicit_profile_tables_match_the_code() {
     use salvq::explicit::decode::expected_critical;
@@ -314,8 +315,8 @@ fn explicit_profile_tables_match_the_code() {
         .into_iter()
         .filter(|t| t.chars().next().is_some_and(|c| c.is_ascii_uppercase()))
         .collect();
-    let code: Vec<String> = (0..7)
-        .map(|i| expected_critical(i, 1).as_str().to_string())
+    let code: Vec<String> = (0..9)
+        .map(|i| expected_critical(i, 2, true).as_str().to_string())
         .collect();
     assert_eq!(chunks, code);
     // Table 3-3: `| g | group | d | ...`, d as SH degree 3 gives it (3B = 45 for rest).

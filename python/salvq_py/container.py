@@ -7,7 +7,7 @@ from .errors import SalvqError
 
 MAGIC = b"\x89SALVQ\r\n"
 MAJOR = 0
-MINOR = 14                  # §1.2 (0.14); §1.2.1: major 0 is the draft series, only 0.14
+MINOR = 15                  # §1.2 (0.15); §1.2.1: major 0 is the draft series, only 0.15
 
 
 @dataclass

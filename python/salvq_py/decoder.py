@@ -1,6 +1,6 @@
 """The decoding processes: chunk order and per-chunk decoding of the anchors profile (§1.5,
-§7.4 rate selection) and of the explicit-Gaussians profile (§3.7), told apart by the first
-chunk (§1.5)."""
+§7.4 rate selection) and of the explicit-Gaussians profile (§3.7; its progressive streams,
+§3.8, since 0.15), told apart by the first chunk (§1.5)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -10,8 +10,9 @@ import numpy as np
 from .container import Chunk, Limits, check_signature, read_chunk
 from .entropy import Prior, decode_amsk, decode_layer, payload_method
 from .errors import SalvqError
-from .explicit import GHead, parse_ghed, parse_glay, parse_gqua
+from .explicit import GHead, parse_ghed, parse_glay, parse_gqua, parse_gref
 from .gatt import decode_gatt
+from .grsy import Precision, decode_grsy
 from .gaussians import reconstruct_gaussians
 from .geometry import decode_apos
 from .hyperprior import (grid_body_length, mlp_grid_tensors, parse_grid,
@@ -23,7 +24,8 @@ from .tiles import check_tiles, parse_tils, split_tiles
 
 KNOWN_CRITICAL = ("HEAD", "MLPS", "QUAN", "TILS", "APOS", "GRID", "AMSK", "AFEA", "ASCL",
                   "AOFF", "SEND")                                     # Table 1-3
-EXPLICIT_CRITICAL = ("GHED", "GQUA", "GLAY", "TILS", "APOS", "GATT", "SEND")   # Table 3-2
+EXPLICIT_CRITICAL = ("GHED", "GQUA", "GLAY", "TILS", "APOS", "GATT", "GREF", "GRSY",
+                     "SEND")                                                    # Table 3-2
 
 
 @dataclass
@@ -46,6 +48,7 @@ class ExplicitDecoded:
     tensors: dict          # Table 3-4 (the decoded Gaussians), in order
     profile = "explicit"
     tiles: list | None = None   # region decode (§10.3.1): the selected tiles' indices
+    prefix: bool = False   # §3.8.4: a progressive stream that ended early, decoded to `rate`
 
 
 def _fixed_length(tag: str, payload: bytes, method: int, body_len: int) -> bytes:
@@ -78,27 +81,37 @@ def _send(chunk: Chunk, data: bytes, pos: int) -> None:
 
 
 def decode_bytes(data: bytes, rate: int | None = None, limits: Limits | None = None,
-                 region=None):
+                 region=None, prefix: bool = False):
     """Decode a stream of either profile: a `Decoded` (anchors) or an `ExplicitDecoded`.
     `region` (six numbers or the string `x0,y0,z0,x1,y1,z1`) makes it a region decode
-    (§10.3.1); a box that is no box raises `region.RegionError` before the stream is read."""
+    (§10.3.1); a box that is no box raises `region.RegionError` before the stream is read.
+    `prefix` consents to decoding a progressive stream that ends early (§3.8.4) to its last
+    complete layer; without it the truncation is the error."""
     box = None if region is None else parse_region(region)
     limits = limits or Limits()
     pos = check_signature(data)
     first, pos = read_chunk(data, pos, limits)
     if first.tag == "GHED":                                            # §1.5, §3
-        return _decode_explicit(data, first, pos, rate, limits, box)
+        return _decode_explicit(data, first, pos, rate, limits, box, prefix)
     return _decode_anchors(data, first, pos, rate, limits, box)
 
 
 def _decode_explicit(data: bytes, chunk: Chunk, pos: int, rate: int | None,
-                     limits: Limits, box=None) -> ExplicitDecoded:
+                     limits: Limits, box=None, prefix: bool = False) -> ExplicitDecoded:
     """§3.7: GHED GQUA (GLAY TILS APOS GATT)×L SEND; the selected layer's chunks are decoded
-    as they are read, the other layers' are only checked as chunks and for their order."""
+    as they are read, the other layers' are only checked as chunks and for their order. A
+    progressive stream (§3.8): GHED GQUA GLAY TILS APOS GATT (GREF GRSY)×(L − 1) SEND, layers
+    in decreasing rate order; the full layer and every refinement up to the selected rate's
+    are decoded as they are read. With `prefix` (the caller's consent, §3.8.4) a progressive
+    stream that ends before SEND after its full layer's GATT decodes to the last layer whose
+    chunks are all present (the result's `prefix` is True and its `rate` names that layer)."""
     order = ["GHED"]
     due = 0
     layer = -1
     sel = None
+    progressive = False
+    complete = -1               # progressive: the last layer whose chunks are all decoded
+    cut = False
     while True:
         tag = chunk.tag
         if chunk.critical and tag not in EXPLICIT_CRITICAL:
@@ -112,13 +125,44 @@ def _decode_explicit(data: bytes, chunk: Chunk, pos: int, rate: int | None,
             if tag == "GHED":
                 head = parse_ghed(p, limits)                           # §3.2 steps 1-6
                 rate = _select_rate(rate, head.M, head.rate_mask)      # §3.2 step 7
-                coded = head.coded_rates()
-                order = ["GHED", "GQUA"] + ["GLAY", "TILS", "APOS", "GATT"] * len(coded) + ["SEND"]
+                coded = head.layer_rates()                             # rate of each layer
+                progressive = head.progressive
+                if progressive:                                        # §3.7, §3.8
+                    order = (["GHED", "GQUA", "GLAY", "TILS", "APOS", "GATT"]
+                             + ["GREF", "GRSY"] * (len(coded) - 1) + ["SEND"])
+                    last = coded.index(rate)                           # the selected layer
+                else:
+                    order = ["GHED", "GQUA"] + ["GLAY", "TILS", "APOS", "GATT"] * len(coded) + ["SEND"]
             elif tag == "GQUA":
                 groups = parse_gqua(p, head)
             elif tag == "SEND":
                 _send(chunk, data, pos)
                 break
+            elif progressive:
+                if tag in ("GLAY", "GREF"):
+                    layer += 1
+                if layer <= last:                                      # up to the selected layer
+                    if tag == "GLAY":
+                        lay = parse_glay(p, head)
+                    elif tag == "TILS":
+                        payload_method(tag, p, 0)
+                        tiles = parse_tils(p, head.N, lay.coord_bits)
+                        sel = None if box is None else select_tiles(
+                            tiles, head.origin(), lay.voxel_size, box)
+                    elif tag == "APOS":
+                        payload_method(tag, p, 1)
+                        voxels = decode_apos(split_tiles("APOS", p, 1, len(tiles)), tiles)
+                        check_tiles(tiles, voxels)
+                    elif tag == "GATT":                                # the full layer, rate b
+                        sym = decode_gatt(p, head, lay, tiles, voxels, sel)
+                        precision = Precision.full_layer(groups, coded[0], lay)   # §3.8.3
+                        complete = 0
+                    elif tag == "GREF":                                # §3.8.1
+                        ref = parse_gref(p, head, lay.coord_bits, precision.E)
+                    else:                                              # GRSY, §3.8.2
+                        sym = decode_grsy(p, head, ref, tiles, voxels, sym, sel)
+                        precision = precision.refined(ref)             # §3.8.3
+                        complete = layer
             else:
                 if tag == "GLAY":
                     layer += 1
@@ -137,7 +181,14 @@ def _decode_explicit(data: bytes, chunk: Chunk, pos: int, rate: int | None,
                         check_tiles(tiles, voxels)
                     else:
                         sym = decode_gatt(p, head, lay, tiles, voxels, sel)
-        chunk, pos = read_chunk(data, pos, limits)
+        try:
+            chunk, pos = read_chunk(data, pos, limits)
+        except SalvqError as e:                                        # §3.8.4
+            if not (prefix and progressive and complete >= 0
+                    and e.error_class in ("Truncated", "ChunkLengthPastEnd")):
+                raise
+            rate, cut = coded[complete], True
+            break
     chosen = None
     if sel is not None:                                                # §10.3.1 step 4
         rows = selected_rows(tiles, sel)
@@ -150,8 +201,9 @@ def _decode_explicit(data: bytes, chunk: Chunk, pos: int, rate: int | None,
         "symbols.size_class": sym.size_class,
         "symbols.refinement": sym.refinement,
     }
-    gaussians = reconstruct_gaussians(head, groups, rate, lay, voxels, sym)
-    return ExplicitDecoded(head, rate, integers, gaussians, chosen)
+    gaussians = reconstruct_gaussians(head, groups, rate, lay, voxels, sym,
+                                      precision if progressive else None)
+    return ExplicitDecoded(head, rate, integers, gaussians, chosen, cut)
 
 
 def _decode_anchors(data: bytes, chunk: Chunk, pos: int, rate: int | None,
@@ -273,8 +325,9 @@ def _rebase_regions(dims: Dims, groups: dict, tensors: dict, rows) -> Dims:
     return replace(dims, **out)
 
 
-def decode_file(path, rate: int | None = None, limits: Limits | None = None, region=None):
+def decode_file(path, rate: int | None = None, limits: Limits | None = None, region=None,
+                prefix: bool = False):
     box = None if region is None else parse_region(region)      # refused before reading
     with open(path, "rb") as fh:
         data = fh.read()
-    return decode_bytes(data, rate, limits, box)
+    return decode_bytes(data, rate, limits, box, prefix)

@@ -1,5 +1,6 @@
 """The explicit-Gaussians profile's fixed chunks (§3): the preflight `GHED` (§3.2), the
-attribute groups `GQUA` (§3.3, Table 3-3) and a layer's `GLAY` (§3.4)."""
+attribute groups `GQUA` (§3.3, Table 3-3), a layer's `GLAY` (§3.4) and, in a progressive
+stream (0.15), a refinement's header `GREF` (§3.8.1)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -26,7 +27,7 @@ class GHead:
     N: int
     sh_degree: int
     M: int
-    head_flags: int
+    head_flags: int        # bit 0: progressive (§3.8, 0.15); bits 1 – 7 reserved
     rate_mask: int
     origin_bits: list
     decoded_bytes: int
@@ -65,6 +66,18 @@ class GHead:
     def coded_rates(self) -> list[int]:
         return [r for r in range(64) if (self.rate_mask >> r) & 1]
 
+    @property
+    def progressive(self) -> bool:
+        """`head_flags` bit 0 (§3.2, §3.8): the coarsest coded rate as a full layer, then each
+        finer one as a refinement of the rate before it."""
+        return bool(self.head_flags & 1)
+
+    def layer_rates(self) -> list[int]:
+        """The rate of each layer in stream order (§3.7): increasing in a layered stream,
+        decreasing in a progressive one (layer 0 the highest set bit of `rate_mask`)."""
+        rates = self.coded_rates()
+        return rates[::-1] if self.progressive else rates
+
     def origin(self) -> np.ndarray:
         return np.array(self.origin_bits, np.uint32).view(np.float32)
 
@@ -81,8 +94,9 @@ def parse_ghed(payload: bytes, limits: Limits) -> GHead:
     if r.remaining() != 0:                                                         # step 2
         raise SalvqError("ChunkSizeMismatch",
                          f"chunk GHED: payload length {len(payload)}, expected {GHED_LENGTH} [§3.2]")
-    if h.head_flags != 0:                                                          # step 3
-        raise SalvqError("ReservedBitsSet", f"GHED head_flags = 0x{h.head_flags:02x}: reserved bits set [§3.2]")
+    if h.head_flags & 0xFE:                                                        # step 3
+        raise SalvqError("ReservedBitsSet",
+                         f"GHED head_flags = 0x{h.head_flags:02x}: reserved bits 1 – 7 set [§3.2]")
 
     def rng(name, v, lo, hi):                                                      # step 4
         if not lo <= v <= hi:
@@ -290,3 +304,72 @@ def parse_glay(payload: bytes, h: GHead) -> GLayer:
     scale_table = [list(table[v * CONTEXT_CLASSES:(v + 1) * CONTEXT_CLASSES]) for v in range(h.D)]
     return GLayer(coord_bits, f32_from_bits(vbits), pred_level, rotation_freq, size_threshold,
                   refine, shift, scale_offset, predict, scale_table, rest_count_freq)
+
+
+@dataclass
+class GRefine:
+    """`GREF` fields (§3.8.1): a refinement's header."""
+    pred_level: int
+    refine: list                                        # refine[c]: position bits added
+    factor: list = field(default_factory=list)          # factor[g][c], 1 … 255
+    scale_offset: list = field(default_factory=list)    # scale_offset[g][c], every group
+    predict: list = field(default_factory=list)         # predict[g]
+    rest_count_freq: list = field(default_factory=list)  # as GLayer's (§3.4, §3.5)
+    scale_table: list = field(default_factory=list)     # scale_table[v][x], x of §3.8.2
+
+
+def gref_length(h: GHead) -> int:
+    """Payload length `1 + 5 + 9·G + 2·(2^L − 1) + 8·D` (§3.8.1): coding_method, pred_level,
+    refine[4], factor[4·G], scale_offset[4·G], predict[G], rest_count_freq, scale_table."""
+    nodes = (1 << rest_count_bits(h)) - 1
+    return 1 + 1 + SIZE_CLASSES + 2 * SIZE_CLASSES * h.G + h.G + 2 * nodes + CONTEXT_CLASSES * h.D
+
+
+def parse_gref(payload: bytes, h: GHead, coord_bits: int, E: list) -> GRefine:
+    """§3.8.1: §1.6 steps 1-2, the length, then the fields in stream order, each checked as it
+    is read (steps 1-7). `coord_bits` is the full layer's, E[c] the position bits below a
+    voxel before this refinement (§3.8.3)."""
+    payload_method("GREF", payload, 0)
+    expected = gref_length(h)
+    if len(payload) != expected:
+        raise SalvqError("ChunkSizeMismatch",
+                         f"chunk GREF: payload length {len(payload)}, expected {expected} [§3.8.1]")
+    r = Reader(payload, 1)
+
+    def rng(name, v, lo, hi):
+        if not lo <= v <= hi:
+            raise SalvqError("FieldOutOfRange", f"GREF field {name} = {v}, range {lo} … {hi} [§3.8.1]")
+
+    pred_level = r.u8()                                                          # step 1
+    rng("pred_level", pred_level, 0, coord_bits)
+    refine = [r.u8() for _ in range(SIZE_CLASSES)]                               # step 2
+    for c, e in enumerate(refine):
+        rng(f"refine[{c}]", e, 0, 24 - coord_bits - E[c])
+    factor = []                                                                  # step 3
+    for g in range(h.G):
+        row = [r.u8() for _ in range(SIZE_CLASSES)]
+        for c, m in enumerate(row):
+            rng(f"factor[{g}][{c}]", m, 1, 255)
+        factor.append(row)
+    scale_offset = []                                                            # step 4
+    for g in range(h.G):
+        row = []
+        for c in range(SIZE_CLASSES):
+            v = int.from_bytes(r.take(1), "little", signed=True)
+            if not -63 <= v <= 63:
+                raise SalvqError("ValueInvalid",
+                                 f"GREF.scale_offset[{g}, {c}] = {v}, range −63 … 63 [§3.8.1]")
+            row.append(v)
+        scale_offset.append(row)
+    predict = [r.u8() for _ in range(h.G)]                                       # step 5
+    for g, p in enumerate(predict):
+        rng(f"predict[{g}]", p, 0, 1)
+    rest_count_freq = []                                                         # step 6
+    for m in range((1 << rest_count_bits(h)) - 1):
+        rest_count_freq.append(r.u16())
+        rng(f"rest_count_freq[{m}]", rest_count_freq[-1], 1, 65535)
+    table = r.take(CONTEXT_CLASSES * h.D)                                        # step 7
+    for i, k in enumerate(table):
+        rng(f"scale_table[{i // CONTEXT_CLASSES}][{i % CONTEXT_CLASSES}]", k, 0, 127)
+    scale_table = [list(table[v * CONTEXT_CLASSES:(v + 1) * CONTEXT_CLASSES]) for v in range(h.D)]
+    return GRefine(pred_level, refine, factor, scale_offset, predict, rest_count_freq, scale_table)

@@ -11,6 +11,9 @@ Run with `python3 -m pytest python/tests` if pytest is installed, or directly:
   must-fail vectors, is decoded with its box and checked as above; plus `test_region_decodes`
   (boxes that are no box refused before the stream is read, CLI exit status 2; an unbounded
   box gives the full decode; the re-basing of spatial regions, §10.3.1 step 5).
+* progressive streams (§3.8, 0.15): both vectors' GRSY re-encoded byte for byte, edited
+  progressive streams with the reference's outcome (`progressive_cases`), §3.7's extraction,
+  §3.8.4's prefix decodes with and without consent, and region decodes of a progressive stream.
 """
 from __future__ import annotations
 
@@ -119,7 +122,7 @@ def test_region_decodes():
         assert r.returncode == 2 and "no box" in r.stderr, (bad, r.returncode, r.stderr)
     everything = "-inf,-inf,-inf,inf,inf,inf"
     for name, rate in (("tiles-regions", 0), ("sp-salvq-regions", 1), ("g-sh0", 0),
-                       ("g-sh3-rates", 2)):
+                       ("g-sh3-rates", 2), ("g-sh3-progressive", 1), ("g-sh0-progressive-skip", 0)):
         data = _read(f"{name}.salvq")
         whole = decode_bytes(data, rate)
         part = decode_bytes(data, rate, region=everything)
@@ -563,6 +566,326 @@ def test_explicit_profile_checks():
         assert got == want, f"{label}: {got}, expected {want}"
 
 
+def _nth_payload(data: bytes, tag: str, nth: int) -> bytes:
+    pos, k = 12, 0
+    while pos + 8 <= len(data):
+        n = int.from_bytes(data[pos:pos + 4], "little")
+        if data[pos + 4:pos + 8] == tag.encode():
+            if k == nth:
+                return data[pos + 8:pos + 8 + n]
+            k += 1
+        pos += 12 + n
+    raise KeyError(tag)
+
+
+def _chunk_ends(data: bytes) -> list[tuple[str, int]]:
+    """(tag, offset after the chunk) of each chunk of a stream."""
+    pos, out = 12, []
+    while pos + 8 <= len(data):
+        n = int.from_bytes(data[pos:pos + 4], "little")
+        pos += 12 + n
+        out.append((data[pos - 8 - n:pos - 4 - n].decode(), pos))
+    return out
+
+
+def _progressive_reencode(data: bytes, gref_edit=None, target=None, counts=None) -> bytes:
+    """Re-encodes every GRSY of the progressive stream `data` (§3.8.2, tools/reencode.py) after
+    `gref_edit(l, payload)` edits refinement l's GREF (l = 1 …), with the values
+    `target(l, ref, old_u, old_w, u, w)` returns (default: the stream's own refined values u, w;
+    old_u, old_w the previous layer's): the new stream."""
+    sys.path.insert(0, os.path.join(HERE, "..", "tools"))
+    from reencode import encode_grsy
+    from salvq_py.explicit import parse_glay, parse_gref
+    from salvq_py.tiles import parse_tils
+    h = decode_bytes(data).head
+    rates = h.layer_rates()
+    decs = [decode_bytes(data, r).integers for r in rates]
+    lay = parse_glay(_payload(data, "GLAY"), h)
+    tils = parse_tils(_payload(data, "TILS"), h.N, lay.coord_bits)
+    vox, cls = decs[0]["gaussian.voxel"], decs[0]["symbols.size_class"]
+    old_u, old_w = decs[0]["symbols.coordinates"], decs[0]["symbols.refinement"]
+    E = list(lay.refine)
+    for l in range(1, len(rates)):
+        if gref_edit is not None:
+            data = _chunk_edit(data, "GREF", lambda p: gref_edit(l, p), l - 1)
+        ref = parse_gref(_nth_payload(data, "GREF", l - 1), h, lay.coord_bits, E)
+        u, w = decs[l]["symbols.coordinates"], decs[l]["symbols.refinement"]
+        if target is not None:
+            u, w = target(l, ref, old_u, old_w, u, w)
+        grsy = encode_grsy(h, ref, tils, vox, old_u, u, cls, old_w, w, (counts or {}).get(l))
+        data = _chunk_edit(data, "GRSY", lambda p: grsy, l - 1)
+        old_u, old_w = u, w
+        E = [e + r for e, r in zip(E, ref.refine)]
+    return data
+
+
+def test_progressive_reencoded():                       # §3.8.2 (0.15)
+    """Both progressive vectors, each refinement's values decoded by salvq_py and re-encoded by
+    tools/reencode.py (§3.8.2 read from the encoder's side: old cell centre, residual, context
+    classes, sh_rest count up to the last nonzero symbol), give the streams byte for byte."""
+    for name in ("g-sh3-progressive", "g-sh0-progressive-skip"):
+        data = _read(f"{name}.salvq")
+        assert _progressive_reencode(data) == data, name
+
+
+def test_progressive_region():                          # §10.3.1 with §3.8 (0.15)
+    """A region decode of a progressive stream selects tiles by the full layer's TILS and
+    voxel_size (a refinement has neither) and leaves the other tiles' bodies undecoded in GATT
+    and in every GRSY decoded: a fault in one is not reported, while a whole decode reports it
+    (the reference decoder agrees on all of these)."""
+    data = _read("g-sh3-progressive.salvq")
+    box = "-1e9,-1e9,-1e9,0.0,1e9,1e9"
+    from salvq_py.explicit import parse_glay
+    from salvq_py.tiles import parse_tils
+    head = decode_bytes(data).head
+    tiles = parse_tils(_payload(data, "TILS"), head.N, parse_glay(_payload(data, "GLAY"), head).coord_bits)
+    T = len(tiles)
+    base = {r: decode_bytes(data, r, region=box) for r in (2, 1, 0)}
+    sel = base[0].tiles
+    assert 0 < len(sel) < T and all(base[r].tiles == sel for r in base)
+    out = [t for t in range(T) if t not in sel][0]
+
+    def zero_top(p):                       # tile `out`'s body: a zero top word (§6.2.6 step 2)
+        lens = [int.from_bytes(p[1 + 4 * i:5 + 4 * i], "little") for i in range(T)]
+        at = 1 + 4 * T + sum(lens[:out])
+        p[at:at + 4] = bytes(4)
+
+    for tag, nth in (("GATT", 0), ("GRSY", 0), ("GRSY", 1)):
+        broken = _chunk_edit(data, tag, zero_top, nth)
+        for r in (2, 1, 0):
+            dec = decode_bytes(broken, r, region=box)
+            assert hashes(canonical_form(dec)) == hashes(canonical_form(base[r])), (tag, nth, r)
+        try:
+            decode_bytes(broken, 0)
+            raise AssertionError(f"{tag} {nth}: the whole decode did not see the fault")
+        except SalvqError as e:
+            assert e.error_class == "AnsStreamInvalid", (tag, nth, e)
+
+
+def progressive_cases() -> list[tuple[str, bytes, int, str]]:
+    """Edited progressive streams (§3.8, 0.15) that no vector covers, as explicit_cases: (label,
+    stream, rate, expected class, "ok" or "ok:<integer-domain hash>:<float hash>"). The
+    vectors' refinements never predict (every GREF `predict` is 0), never reach a wide scale or
+    context classes above 6, and use one factor per refinement; here GREF predicts, reaches wide
+    scales, mixes factors 1, 2 (even), 255 and the most position bits §3.8.1 allows, and breaks
+    §3.8.1's and §3.8.2's rules. Each expectation is the reference decoder's (0.15,
+    `tools/probe_reference.py` reruns them), which salvq_py matches."""
+    from salvq_py.explicit import parse_glay, rest_count_bits
+    from salvq_py.tiles import parse_tils
+    s3, s0 = _read("g-sh3-progressive.salvq"), _read("g-sh0-progressive-skip.salvq")
+    h3, h0 = decode_bytes(s3).head, decode_bytes(s0).head
+    lay3, lay0 = parse_glay(_payload(s3, "GLAY"), h3), parse_glay(_payload(s0, "GLAY"), h0)
+    coord3, coord0, E0 = lay3.coord_bits, lay0.coord_bits, list(lay0.refine)
+    body3 = 1 + 4 * len(parse_tils(_payload(s3, "TILS"), h3.N, coord3))   # GRSY: tile 0's body
+    rng = np.random.RandomState(2026)
+
+    def assign(p, at, b):
+        p[at:at + len(b)] = b
+
+    def gref_at(h):        # offsets in a GREF payload (§3.8.1)
+        G = h.G
+        return dict(pred=1, refine=2, factor=6, offset=6 + 4 * G, predict=6 + 8 * G,
+                    freq=6 + 9 * G, table=6 + 9 * G + 2 * ((1 << rest_count_bits(h)) - 1))
+
+    a3, a0 = gref_at(h3), gref_at(h0)
+
+    def predict_all(at):
+        return lambda l, p: assign(p, at["predict"], b"\x01" * (at["freq"] - at["predict"]))
+
+    def wide(at):
+        def edit(l, p):
+            for i in range(at["table"], len(p)):
+                p[i] = min(p[i] + 50, 127)
+        return edit
+
+    def coarse_pred(at):   # pred_level = coord_bits: a reference whenever the classes agree
+        def edit(l, p):
+            p[at["pred"]] = coord3
+            assign(p, at["predict"], b"\x01" * (at["freq"] - at["predict"]))
+        return edit
+
+    def mixed_factors(l, p):
+        # g-sh0-progressive-skip: factor[g][c]: 1 for the scale group in class 0, 2 in class 1,
+        # 255 in class 2; opacity 1 everywhere; the other groups as they were (17)
+        f = a0["factor"]
+        assign(p, f, bytes([1, 2, 255, 17, 1, 1, 1, 1]))
+        assign(p, a0["predict"], b"\x01\x00\x01\x01")
+
+    def most_bits(l, p):   # refine[c] = 24 − coord_bits − E[c] (the most §3.8.1 allows)
+        assign(p, a0["refine"], bytes(24 - coord0 - e for e in E0))
+
+    def random_target(l, ref, old_u, old_w, u, w):
+        """New values around the old cells' centres: u' = u·m + r, r in −40 … 40 (0 where the
+        factor is 1), w' = w·2^e + e random bits."""
+        cls = decode_bytes(s0).integers["symbols.size_class"].astype(np.int64)
+        offs, dims = h0.group_offsets(), h0.group_dims()
+        new_u = old_u.astype(np.int64).copy()
+        for g, d in enumerate(dims):
+            m = np.array(ref.factor[g], np.int64)[cls][:, None]
+            r = rng.randint(-40, 41, (h0.N, d)) * (m > 1)
+            new_u[:, offs[g]:offs[g] + d] = old_u[:, offs[g]:offs[g] + d] * m + r
+        e = np.array(ref.refine, np.int64)[cls][:, None]
+        new_w = (old_w.astype(np.int64) << e) + rng.randint(0, 1 << 20, (h0.N, 3)) % (1 << e)
+        return new_u.astype(np.int32), new_w.astype(np.int32)
+
+    def coordinate(value):
+        def t(l, ref, old_u, old_w, u, w):
+            u = u.copy()
+            u[100, 8] = value      # sh_dc of Gaussian 100: factor 3 at rate 1, kept (1) at rate 0
+            return u, w
+        return t
+
+    cases = [
+        ("GREF predict all 1, GRSY re-encoded (same values), rate 0",
+         _progressive_reencode(s3, predict_all(a3)), 0,
+         "ok:79aefb9398df6bcbaeac603e0244fce4b32324fb556579c9bb6e87357f9bbb8a"
+         ":d1f18ca9351411a8ff32ea4b6f4470b0677a7012f2c40c0eaa0ac34a606a9ae0"),
+        ("GREF predict all 1, pred_level = coord_bits, re-encoded, rate 1",
+         _progressive_reencode(s3, coarse_pred(a3)), 1,
+         "ok:0c45d87aa45311a7d63fe4c776abd7019fb2880a1c01a84fb13b535c5d5e1d81"
+         ":f18298e4e00a2eaaae83e9ddfce1954d99457ba530afee0f7c8218d91b05e936"),
+        ("GREF scale_table + 50 (wide scales), re-encoded, rate 0",
+         _progressive_reencode(s3, wide(a3)), 0,
+         "ok:79aefb9398df6bcbaeac603e0244fce4b32324fb556579c9bb6e87357f9bbb8a"
+         ":d1f18ca9351411a8ff32ea4b6f4470b0677a7012f2c40c0eaa0ac34a606a9ae0"),
+        ("GREF factors 1, 2, 255 and predict, new values, rate 0",
+         _progressive_reencode(s0, mixed_factors, random_target), 0,
+         "ok:a2226876988fff0e58324dc2875758ee536cccb358090543f88eb65f03e80ddf"
+         ":8fd0f21768dfa0a0c4d05de9e6bd418796b0d456a1d0c239f7888d90ae465b49"),
+        ("GREF refine at 24 − coord_bits − E[c], predict 1, new values, rate 0",
+         _progressive_reencode(s0, lambda l, p: (most_bits(l, p), predict_all(a0)(l, p)),
+                               random_target), 0,
+         "ok:2835e3e9628f9ec67904b6c88a6211b9b6413b1aef4152c09fab828dc0f7665e"
+         ":83d35cf3e0b80330a0b50565bd76d5f67a6491cdd88920ea9899a60269a56dc9"),
+        ("GREF refine[0] one above 24 − coord_bits − E[0]",
+         _chunk_edit(s0, "GREF", lambda p: assign(p, a0["refine"], bytes([25 - coord0 - E0[0]]))), 0,
+         "FieldOutOfRange"),
+        ("GRSY coordinate 2^24, re-encoded", _progressive_reencode(s3, target=coordinate(1 << 24)), 0,
+         "ok:53407bf8084a1fc443ed73b2466b5eefbdf828b4f3dd228fc0f3194bcfb5c710"
+         ":6cd92d3f9880a71c43ca3c2cfe9f0df57d0b9d395bdd51d174133bc382b6f1e7"),
+        ("GRSY coordinate −2^24 − 1, re-encoded",
+         _progressive_reencode(s3, target=coordinate(-(1 << 24) - 1)), 0, "ValueInvalid"),
+        ("GRSY rest count 63 > 45 (Gaussian 7), re-encoded",
+         _progressive_reencode(s3, counts={1: {7: 63}}), 0, "ValueInvalid"),
+        ("GREF factor[0][0] = 0 and scale_offset[0][0] = 64 (factor first)",
+         _chunk_edit(s3, "GREF", lambda p: (assign(p, a3["factor"], b"\0"), assign(p, a3["offset"], b"\x40"))),
+         0, "FieldOutOfRange"),
+        ("GREF scale_offset[0][0] = −64 and predict[0] = 2",
+         _chunk_edit(s3, "GREF", lambda p: (assign(p, a3["offset"], b"\xc0"), assign(p, a3["predict"], b"\x02"))),
+         0, "ValueInvalid"),
+        ("GREF pred_level = coord_bits + 1 and refine[0] = 255",
+         _chunk_edit(s3, "GREF", lambda p: (assign(p, 1, bytes([coord3 + 1])), assign(p, 2, b"\xff"))), 0, "FieldOutOfRange"),
+        ("GREF one byte longer", _chunk_edit(s3, "GREF", lambda p: p + b"\0"), 0, "ChunkSizeMismatch"),
+        ("GREF coding_method 1", _chunk_edit(s3, "GREF", lambda p: assign(p, 0, b"\x01")), 0,
+         "UnknownCodingMethod"),
+        ("GRSY coding_method 0", _chunk_edit(s3, "GRSY", lambda p: assign(p, 0, b"\x00")), 0,
+         "UnknownCodingMethod"),
+        ("GRSY empty", _chunk_edit(s3, "GRSY", lambda p: bytearray()), 0, "ChunkSizeMismatch"),
+        ("layer 1's GREF coding_method 5, rate 2 (not parsed)",
+         _chunk_edit(s3, "GREF", lambda p: assign(p, 0, b"\x05"), 0), 2,
+         "ok:fdbcd4397678552ff3d251fe698ae0eb8a510f05e7c8a46832a8193491573893"
+         ":abd4a43f9b751825a854e693d45b8a603a590ece190d83ed8ce67c1208f45472"),
+        ("layer 2's GREF coding_method 5, rate 1 (not parsed)",
+         _chunk_edit(s3, "GREF", lambda p: assign(p, 0, b"\x05"), 1), 1,
+         "ok:0c45d87aa45311a7d63fe4c776abd7019fb2880a1c01a84fb13b535c5d5e1d81"
+         ":f18298e4e00a2eaaae83e9ddfce1954d99457ba530afee0f7c8218d91b05e936"),
+        ("layer 1's GREF coding_method 5, rate 1", _chunk_edit(s3, "GREF", lambda p: assign(p, 0, b"\x05"), 0),
+         1, "UnknownCodingMethod"),
+        ("layer 1's GRSY broken, a byte after SEND (decoded as read), rate 1",
+         _chunk_edit(s3, "GRSY", lambda p: assign(p, body3, bytes(4)), 0) + b"\0", 1, "AnsStreamInvalid"),
+        ("layer 1's GRSY broken, rate 2", _chunk_edit(s3, "GRSY", lambda p: assign(p, body3, bytes(4)), 0),
+         2, "ok:fdbcd4397678552ff3d251fe698ae0eb8a510f05e7c8a46832a8193491573893"
+            ":abd4a43f9b751825a854e693d45b8a603a590ece190d83ed8ce67c1208f45472"),
+        ("ancillary chunk between GREF and GRSY", _chunk_insert(s3, "GREF", "encd", b"x"), 0,
+         "ok:79aefb9398df6bcbaeac603e0244fce4b32324fb556579c9bb6e87357f9bbb8a"
+         ":d1f18ca9351411a8ff32ea4b6f4470b0677a7012f2c40c0eaa0ac34a606a9ae0"),
+        ("GREF inserted after a layered stream's first GATT",
+         _chunk_insert(_read("g-sh3-rates.salvq"), "GATT", "GREF", b"\0"), 0, "ChunkOrder"),
+        ("rate 1 of rates 0 and 2", s0, 1, "RateNotCoded"),
+        ("g-sh0 (one rate) with head_flags 1: a full layer and no refinement",
+         _chunk_edit(_read("g-sh0.salvq"), "GHED", lambda p: assign(p, 6, b"\x01")), 0,
+         "ok:dbd4a52fe78c627903697f3000665a2ab33472f610cc82d70213b3b65df7deb7"
+         ":0c80379032680b754108d39a3543ce33c838d0a0adef00dbe64f4e7f46816108"),
+    ]
+    return cases
+
+
+def test_progressive_checks():                          # §3.8 (0.15)
+    """§3.8 on edited progressive streams no vector covers (progressive_cases)."""
+    for label, data, rate, want in progressive_cases():
+        try:
+            dec = decode_bytes(data, rate)
+        except SalvqError as e:
+            got = e.error_class
+        else:
+            h = hashes(canonical_form(dec))
+            got = f"ok:{h[0]}:{h[1]}" if want.startswith("ok:") else "ok"
+        assert got == want, f"{label}: {got}, expected {want}"
+
+
+def _extract_progressive(data: bytes, rate: int) -> bytes:
+    """§3.7's extraction from a progressive stream: the prefix up to the end of the rate's
+    section (from its GLAY or GREF to the next GREF or SEND), GHED's rate_mask keeping the bits
+    of the rate and the rates above it, then SEND."""
+    rates = decode_bytes(data).head.layer_rates()
+    layer = rates.index(rate)
+    ends = _chunk_ends(data)
+    start = [i for i, (t, _) in enumerate(ends) if t in ("GLAY", "GREF")][layer]
+    stop = next(i for i, (t, _) in enumerate(ends) if i > start and t in ("GREF", "SEND"))
+    mask = sum(1 << r for r in rates[:layer + 1])
+    out = _chunk_edit(data[:ends[stop - 1][1]], "GHED",
+                      lambda p: p.__setitem__(slice(7, 15), mask.to_bytes(8, "little")))
+    return out + bytes(4) + b"SEND" + crc32c(b"SEND").to_bytes(4, "little")
+
+
+def test_progressive_extraction_and_prefix():           # §3.7, §3.8.4 (0.15)
+    """A progressive stream's extraction (§3.7: a prefix, rate_mask cut, SEND; the reference's
+    `salvq extract` writes these bytes for every rate of both vectors) decodes to the same
+    canonical form as the whole stream at that rate, by default at that rate. A stream cut
+    anywhere (§3.8.4) is an error without the caller's consent (Truncated or
+    ChunkLengthPastEnd); with it, one cut after the full layer's GATT decodes to the last layer
+    whose chunks are all present, or the selected one when that is complete, bit-exactly."""
+    for name in ("g-sh3-progressive", "g-sh0-progressive-skip"):
+        data = _read(f"{name}.salvq")
+        head = decode_bytes(data).head
+        rates = head.layer_rates()
+        whole = {r: hashes(canonical_form(decode_bytes(data, r))) for r in rates}
+        for r in rates:
+            ext = _extract_progressive(data, r)
+            dec = decode_bytes(ext)
+            assert dec.rate == r and hashes(canonical_form(dec)) == whole[r], (name, r)
+            assert dec.head.progressive and not dec.prefix
+        ends = _chunk_ends(data)
+        gatt_end = next(e for t, e in ends if t == "GATT")
+        complete = [e for t, e in ends if t == "GRSY"]            # where layer 1, 2, … end
+        cuts = sorted({e for _, e in ends[:-1]} | {ends[-1][1] - 3}
+                      | {(a + b) // 2 for (_, a), (_, b) in zip(ends, ends[1:])})
+        for cut in cuts:
+            part = data[:cut]
+            # the finest rate at every cut; a coarser one where the cut is after the full layer
+            for want in [rates[-1]] + (rates[:-1] if cut > gatt_end else []):
+                if want == rates[-1]:
+                    try:
+                        decode_bytes(part, want)
+                        raise AssertionError(f"{name} cut at {cut}: decoded without consent")
+                    except SalvqError as e:
+                        assert e.error_class in ("Truncated", "ChunkLengthPastEnd"), (name, cut, e)
+                try:
+                    dec = decode_bytes(part, want, prefix=True)
+                except SalvqError as e:
+                    assert cut < gatt_end and e.error_class in ("Truncated", "ChunkLengthPastEnd"), \
+                        (name, cut, want, e)
+                    continue
+                assert cut >= gatt_end, (name, cut)
+                last = sum(1 for e in complete if e <= cut)        # complete refinements
+                got = rates[min(last, rates.index(want))]
+                assert dec.prefix and dec.rate == got, (name, cut, want, dec.rate)
+                assert hashes(canonical_form(dec)) == whole[got], (name, cut, want)
+    cut = _read("x-g-progressive-cut.salvq")                  # cut inside its refinement's GRSY
+    dec = decode_bytes(cut, 0, prefix=True)
+    assert dec.prefix and dec.rate == dec.head.layer_rates()[0]
+
+
 def _payload(data: bytes, tag: str) -> bytes:
     pos = 12
     while True:
@@ -642,7 +965,8 @@ def main() -> int:
     for t in (test_crc32c_check_value, test_tables_match_data_files, test_ans_golden_vector,
               test_ans_uniform_values, test_mlps_precision_checks, test_explicit_profile_checks,
               test_rest_count_reencoded, test_ans_wide_scales, test_wide_scales_reencoded,
-              test_region_decodes):
+              test_region_decodes, test_progressive_checks, test_progressive_reencoded,
+              test_progressive_extraction_and_prefix, test_progressive_region):
         try:
             t()
             print(f"pass  {t.__name__}")

@@ -82,9 +82,13 @@ def main():
     # 4. The explicit profile (§3): the edited streams of tests/test_conformance.py.
     sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
     os.environ.setdefault("SALVQ_VECTORS", vdir)
-    from test_conformance import explicit_cases
+    from test_conformance import explicit_cases, progressive_cases
     for label, data, rate, want in explicit_cases():
         show(ref, f"explicit: {label} (expected {want})", data, rate)
+
+    # 5. Progressive streams (§3.8, 0.15): the edited streams of tests/test_conformance.py.
+    for label, data, rate, want in progressive_cases():
+        show(ref, f"progressive: {label} (expected {want[:40]})", data, rate)
 
 
 if __name__ == "__main__":

@@ -182,3 +182,72 @@ def encode_gatt(h, lay, tiles, voxels, coords, rot_index, size_class, refinement
                                          refinement)) for t in tiles]
     return (bytes([1]) + b"".join(len(b).to_bytes(4, "little") for b in bodies)
             + b"".join(bodies))
+
+
+# ------------------------------------------------------------------ progressive streams (§3.8.2)
+
+def grsy_intervals(h, ref, tile, voxels, old, new, size_class, old_w, new_w, counts=None):
+    """The intervals of one tile's GRSY body (§3.8.2) refining the coordinates `old` into `new`
+    and the position bits `old_w` into `new_w`, by §3.8.2 as salvq_py reads it (the encoder's
+    side of `salvq_py.grsy._tile`; the sh_rest count is the values up to the last nonzero
+    symbol, or `counts[n]` for Gaussian n of the layer when given, even above d)."""
+    from salvq_py.explicit import SH_REST, rest_count_bits
+    dims, offs = h.group_dims(), h.group_offsets()
+    pl = ref.pred_level
+    out = []
+    prev_u = prev_r = None
+    for i in range(tile.count):
+        n = tile.start + i
+        c = int(size_class[n])
+        v_now, v_prev = voxels[n], voxels[n - 1]
+        has_ref = (i > 0 and int(size_class[n - 1]) == c
+                   and all((int(v_prev[a]) >> pl) == (int(v_now[a]) >> pl) for a in range(3)))
+        u_old = [int(x) for x in old[n]]
+        u = [int(x) for x in new[n]]
+        r = [0] * h.D
+        for g, d in enumerate(dims):
+            if g == 1:
+                e = ref.refine[c]
+                for a in range(3):
+                    w = int(new_w[n, a])
+                    assert w >> e == int(old_w[n, a]), "position bits must extend the old ones"
+                    out += [binary_interval((w >> b) & 1, 1 << 15) for b in range(e - 1, -1, -1)]
+            m = ref.factor[g][c]
+            if m == 1:
+                assert u[offs[g]:offs[g] + d] == u_old[offs[g]:offs[g] + d], "factor 1 keeps the group"
+                continue
+            half = m // 2
+            o = ref.scale_offset[g][c]
+            for v in range(offs[g], offs[g] + d):
+                q = u_old[v] * m
+                p = min(max(prev_u[v], q - half), q + half) if has_ref and ref.predict[g] == 1 else q
+                r[v] = u[v] - p
+            coded = d
+            if g == SH_REST:
+                coded = max([j + 1 for j in range(d) if r[offs[g] + j] != 0], default=0)
+                if counts is not None and n in counts:
+                    coded = counts[n]
+                bits = rest_count_bits(h)
+                node = 1
+                for b in range(bits - 1, -1, -1):
+                    bit = (coded >> b) & 1
+                    out.append(binary_interval(bit, ref.rest_count_freq[node - 1]))
+                    node = 2 * node + bit
+                coded = min(coded, d)
+            for v in range(offs[g], offs[g] + coded):
+                if has_ref:
+                    x = 2 + min(abs(prev_r[v]).bit_length(), 5)
+                else:
+                    x = 0 if u_old[v] == 0 else 1
+                k = min(max(ref.scale_table[v][x] + o, 0), 127)
+                out += symbol_intervals(r[v], k)
+        prev_u, prev_r = u, r
+    return out
+
+
+def encode_grsy(h, ref, tiles, voxels, old, new, size_class, old_w, new_w, counts=None) -> bytes:
+    """A GRSY payload (coding_method 1, §10.2 framing over the full layer's tiles)."""
+    bodies = [encode_body(grsy_intervals(h, ref, t, voxels, old, new, size_class, old_w, new_w,
+                                         counts)) for t in tiles]
+    return (bytes([1]) + b"".join(len(b).to_bytes(4, "little") for b in bodies)
+            + b"".join(bodies))

@@ -9,7 +9,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'S', b'A', b'L', b'V', b'Q', 0x0d, 0x0a];
 /// Format major version this crate implements.
 pub const FORMAT_MAJOR: u8 = 0;
 /// Format minor version this crate implements.
-pub const FORMAT_MINOR: u8 = 14;
+pub const FORMAT_MINOR: u8 = 15;
 
 /// Bytes in the signature: magic (8), major (1), minor (1), flags (2).
 pub const SIGNATURE_LEN: usize = 12;

@@ -39,6 +39,11 @@ impl ChunkTag {
     pub const GLAY: ChunkTag = ChunkTag(*b"GLAY");
     /// Explicit-Gaussians attribute symbols, one body per tile (§3.5). Critical.
     pub const GATT: ChunkTag = ChunkTag(*b"GATT");
+    /// Explicit-Gaussians refinement layer header: position bits, step factors, prior
+    /// tables (§3.8). Critical.
+    pub const GREF: ChunkTag = ChunkTag(*b"GREF");
+    /// Explicit-Gaussians refinement symbols, one body per tile (§3.8). Critical.
+    pub const GRSY: ChunkTag = ChunkTag(*b"GRSY");
     /// Encoder identification, UTF-8 text (§1.7). Ancillary.
     pub const ENCD: ChunkTag = ChunkTag(*b"encd");
     /// Encoder statistics, JSON (§1.7). Ancillary.

@@ -94,6 +94,8 @@ pub enum Field {
     Refine,
     /// `rest_count_freq`.
     RestCountFreq,
+    /// `factor`.
+    Factor,
 }
 
 impl Field {
@@ -108,6 +110,7 @@ impl Field {
             Field::PredictFlag => "predict",
             Field::Refine => "refine",
             Field::RestCountFreq => "rest_count_freq",
+            Field::Factor => "factor",
             Field::FileFlags => "file_flags",
             Field::HeadFlags => "head_flags",
             Field::AnchorCount => "anchor_count",

@@ -384,6 +384,7 @@ fn explicit_section(tag: ChunkTag) -> Option<&'static str> {
         b"GQUA" => Some("§3.3"),
         b"GLAY" => Some("§3.4"),
         b"GATT" => Some("§3.5"),
+        b"GREF" | b"GRSY" => Some("§3.8"),
         _ => None,
     }
 }
@@ -395,6 +396,18 @@ fn tensor_tag(tensor: &str) -> ChunkTag {
 }
 
 impl Error {
+    /// Whether the error says the bytes ended early: a chunk's header or payload runs past
+    /// the end, or the stream ends before `SEND`.
+    pub fn is_truncation(&self) -> bool {
+        matches!(
+            self,
+            Error::Truncated {
+                structure: Structure::ChunkHeader,
+                ..
+            } | Error::ChunkLengthPastEnd { .. }
+        )
+    }
+
     /// The spec section whose rule this error reports.
     pub fn spec_section(&self) -> &'static str {
         use Error::*;
@@ -429,6 +442,10 @@ impl Error {
                     | Field::Refine,
                 ..
             } => "§3.4",
+            FieldOutOfRange {
+                field: Field::Factor,
+                ..
+            } => "§3.8",
             NonFiniteValue { tensor, .. }
             | ValueNotPositive { tensor, .. }
             | ValueInvalid { tensor, .. }

@@ -11,11 +11,12 @@ use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
 use crate::explicit::attributes::{TileSymbols, TileSymbolsRef};
-use crate::explicit::gatt::{decode_and_reconstruct, read_gatt, DecodedTiles};
+use crate::explicit::gatt::{decode_and_reconstruct, read_gatt, refine_tile, DecodedTiles};
 use crate::explicit::groups::{read_gqua, Group};
 use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
 use crate::explicit::reconstruct::reconstruct_tile_into;
+use crate::explicit::refinement::{Precision, Refinement};
 use crate::explicit::Gaussians;
 use crate::geometry::WalkScratch;
 use crate::limits::Limits;
@@ -33,8 +34,15 @@ pub struct DecodedGaussians {
     pub groups: Vec<Group>,
     /// The decoded rate.
     pub rate: u8,
-    /// The decoded layer's grid and prior (§3.4).
+    /// The grid and prior of the decoded layer, or of a progressive stream's first layer
+    /// (§3.4).
     pub layer: Layer,
+    /// The precision of the decoded Gaussians (§3.6, §3.8).
+    pub precision: Precision,
+    /// Whether the stream ended before `SEND` (a progressive stream's prefix accepted with
+    /// [`DecodeOptions::accept_prefix`], §3.8): the Gaussians are those of its last complete
+    /// layer, which [`Self::rate`] names.
+    pub truncated: bool,
     /// Voxel of every Gaussian decoded (all, or the selected tiles'), in stream order.
     pub voxels: Vec<[u32; 3]>,
     /// Every decoded tile's symbols, in order.
@@ -51,31 +59,51 @@ thread_local! {
 }
 
 /// §3.7 Table 3-2: the explicit profile's critical chunk types.
-pub const CRITICAL_CHUNKS: [ChunkTag; 7] = [
+pub const CRITICAL_CHUNKS: [ChunkTag; 9] = [
     ChunkTag::GHED,
     ChunkTag::GQUA,
     ChunkTag::GLAY,
     ChunkTag::TILS,
     ChunkTag::APOS,
     ChunkTag::GATT,
+    ChunkTag::GREF,
+    ChunkTag::GRSY,
     ChunkTag::SEND,
 ];
 
+/// The chunks of a full layer (§3.7).
+const LAYER: [ChunkTag; 4] = [
+    ChunkTag::GLAY,
+    ChunkTag::TILS,
+    ChunkTag::APOS,
+    ChunkTag::GATT,
+];
+
+/// The chunks of a refinement layer (§3.8).
+const REFINEMENT: [ChunkTag; 2] = [ChunkTag::GREF, ChunkTag::GRSY];
+
 /// §3.7 Table 3-2: the critical chunk due at position `i` (0 = `GHED`) of a stream with
-/// `layers` layers.
-pub fn expected_critical(i: usize, layers: usize) -> ChunkTag {
-    const LAYER: [ChunkTag; 4] = [
-        ChunkTag::GLAY,
-        ChunkTag::TILS,
-        ChunkTag::APOS,
-        ChunkTag::GATT,
-    ];
-    match i {
-        0 => ChunkTag::GHED,
-        1 => ChunkTag::GQUA,
-        i if i - 2 < 4 * layers => LAYER[(i - 2) % 4],
-        _ => ChunkTag::SEND,
+/// `layers` layers, each a full layer, or in a `progressive` stream (§3.8) the first a full
+/// layer and the others refinements.
+pub fn expected_critical(i: usize, layers: usize, progressive: bool) -> ChunkTag {
+    match (i, layer_of(i, layers, progressive)) {
+        (0, _) => ChunkTag::GHED,
+        (1, _) => ChunkTag::GQUA,
+        (_, None) => ChunkTag::SEND,
+        (i, Some(_)) if i < 6 => LAYER[i - 2],
+        (i, Some(_)) if progressive => REFINEMENT[(i - 6) % 2],
+        (i, Some(_)) => LAYER[(i - 2) % 4],
     }
+}
+
+/// The layer (in stream order) the critical chunk at position `i` belongs to: `None` for
+/// `GHED`, `GQUA` and `SEND`.
+pub fn layer_of(i: usize, layers: usize, progressive: bool) -> Option<usize> {
+    let l = match i.checked_sub(2)? {
+        p if progressive && p >= 4 => 1 + (p - 4) / 2,
+        p => p / 4,
+    };
+    (l < layers).then_some(l)
 }
 
 /// Decodes an explicit-profile stream at `rate` (default: the lowest coded rate), §3.7.
@@ -94,8 +122,15 @@ pub(crate) fn decode_explicit(data: &[u8], options: &DecodeOptions) -> Result<De
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, &options.limits);
     let mut state = ExplicitDecoder::new(options);
     loop {
-        // §1.5 rule 4: the stream ends only with SEND.
-        let chunk = reader.next_before_send()?;
+        // §1.5 rule 4: the stream ends only with SEND; §3.8: a progressive stream's prefix
+        // decodes to its last complete layer where the caller accepts it.
+        let chunk = match reader.next_before_send() {
+            Ok(chunk) => chunk,
+            Err(e) if options.accept_prefix && e.is_truncation() && state.prefix_decodes() => {
+                return state.finish_prefix();
+            }
+            Err(e) => return Err(e),
+        };
         if state.chunk(chunk.tag, chunk.payload, reader.remaining())? {
             break;
         }
@@ -147,7 +182,20 @@ pub(crate) struct ExplicitDecoder {
     selected_layer: usize,
     layers: usize,
     rate_chosen: u8,
+    /// Rates of the coded layers in stream order.
+    stream_rates: Vec<u8>,
+    progressive: bool,
     layer: Option<Layer>,
+    /// The precision of the symbols decoded so far (§3.8), once the first layer's `GATT` is.
+    precision: Option<Precision>,
+    /// The refinement whose `GRSY` comes next.
+    refinement: Option<Refinement>,
+    /// Layers whose symbols are decoded.
+    layers_done: usize,
+    /// The layer (in stream order) whose precision the Gaussians decoded so far are at.
+    gaussians_at: Option<usize>,
+    /// Whether the stream ended before `SEND` (a progressive stream's prefix, §3.8).
+    truncated: bool,
     tiles: Option<TileTable>,
     voxels: Option<Vec<[u32; 3]>>,
     /// Which tiles the region keeps (set with the selected layer's `GATT`).
@@ -184,7 +232,14 @@ impl ExplicitDecoder {
             selected_layer: 0,
             layers: 0,
             rate_chosen: 0,
+            stream_rates: Vec::new(),
+            progressive: false,
             layer: None,
+            precision: None,
+            refinement: None,
+            layers_done: 0,
+            gaussians_at: None,
+            truncated: false,
             tiles: None,
             voxels: None,
             selected: Vec::new(),
@@ -208,17 +263,18 @@ impl ExplicitDecoder {
         if !CRITICAL_CHUNKS.contains(&tag) {
             return Err(Error::UnknownCriticalChunk { tag });
         }
-        let expected = expected_critical(self.next, self.layers);
+        let expected = expected_critical(self.next, self.layers, self.progressive);
         if tag != expected {
             return Err(Error::ChunkOrder {
                 found: tag,
                 expected,
             });
         }
-        // The layer a layer chunk belongs to.
-        let in_layer = self.next.checked_sub(2).map(|p| p / 4);
-        Ok(match in_layer {
-            Some(l) if l < self.layers && l != self.selected_layer => Due::Skipped,
+        // The layers decoded: the selected one, and in a progressive stream every one
+        // before it.
+        Ok(match layer_of(self.next, self.layers, self.progressive) {
+            Some(l) if l > self.selected_layer => Due::Skipped,
+            Some(l) if l < self.selected_layer && !self.progressive => Due::Skipped,
             _ => Due::Decoded,
         })
     }
@@ -239,6 +295,10 @@ impl ExplicitDecoder {
             ChunkTag::GHED => {
                 let h = GaussianHeader::parse(bytes, &self.limits)?;
                 (self.rate_chosen, self.selected_layer, self.layers) = h.select_layer(self.rate)?;
+                self.stream_rates = h.stream_rates();
+                self.progressive = h.progressive;
+                // A refinement refines the symbols in place.
+                self.keep_symbols |= h.progressive && self.selected_layer > 0;
                 self.header = Some(h);
             }
             ChunkTag::GQUA => {
@@ -272,13 +332,26 @@ impl ExplicitDecoder {
                         self.select_tiles()?;
                         let (l, g, t, v) = self.tile_inputs()?;
                         let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-                        let rate = self.rate_chosen;
+                        let rate = self.layer_rate();
                         let keep = self.keep_symbols;
                         let inputs = (h, rate, l, g, &self.matrices[..], tables);
                         read_gatt(bytes, inputs, t, v, &self.selected, keep)?
                     }
                 };
                 self.decoded = Some(decoded);
+                self.layer_decoded();
+            }
+            ChunkTag::GREF => {
+                let g = self.groups.as_ref().ok_or(missing(ChunkTag::GQUA))?;
+                let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
+                let before = self.precision.as_ref().ok_or(missing(ChunkTag::GATT))?;
+                let values = g.iter().map(|g| g.dim).sum();
+                let r = Refinement::parse(bytes, g.len(), values, l.coord_bits, before)?;
+                self.refinement = Some(r);
+            }
+            ChunkTag::GRSY => {
+                self.refine(bytes, tables)?;
+                self.layer_decoded();
             }
             _ => {
                 // SEND: empty, last, nothing after it.
@@ -305,7 +378,7 @@ impl ExplicitDecoder {
         let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
         let attributes = body(ChunkTag::GATT, gatt, METHOD_CODED)
             .and_then(|words| split_bodies(ChunkTag::GATT, 1, words, tiles.len()));
-        let rate = self.rate_chosen;
+        let rate = self.layer_rate();
         let keep = self.keep_symbols;
         let (mut decoded, values) =
             DecodedTiles::allocate(tiles, &self.selected, g, h.sh_degree, keep);
@@ -406,6 +479,47 @@ impl ExplicitDecoder {
         })
     }
 
+    /// §3.6: every decoded tile's Gaussians from its symbols at the present precision (a
+    /// progressive stream cut before the selected layer, §3.8).
+    fn reconstruct_all(&mut self) -> Result<()> {
+        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+        let precision = self.precision.as_ref().ok_or(missing(ChunkTag::GATT))?;
+        let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
+        let g = self.groups.as_deref().ok_or(missing(ChunkTag::GQUA))?;
+        let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+        let voxels = self.voxels.as_deref().ok_or(missing(ChunkTag::APOS))?;
+        let decoded = self.decoded.as_mut().ok_or(missing(ChunkTag::GATT))?;
+        if !decoded.keep_symbols {
+            return Ok(());
+        }
+        let kept = decoded.symbols.size_class.len();
+        if decoded.gaussians.len() != kept {
+            decoded.gaussians = Gaussians::zeroed(h.sh_degree, kept);
+        }
+        let values = g.iter().map(|g| g.dim).sum();
+        let jobs = decoded.outputs(tiles, values);
+        let size = |t: usize| tiles.range(t).len();
+        let (origin, matrices) = (h.origin, &self.matrices[..]);
+        map_largest_first(jobs, size, |t, output| {
+            if let Some((Some(symbols), gaussians)) = output {
+                let v = &voxels[tiles.range(t)];
+                let s = symbols.as_ref();
+                reconstruct_tile_into(
+                    origin,
+                    l.voxel_size,
+                    precision,
+                    g,
+                    matrices,
+                    v,
+                    s,
+                    gaussians,
+                );
+            }
+        });
+        self.gaussians_at = self.layers_done.checked_sub(1);
+        Ok(())
+    }
+
     /// The stream's preflight, once `GHED` is decoded.
     pub(crate) fn header(&self) -> Option<&GaussianHeader> {
         self.header.as_ref()
@@ -423,7 +537,8 @@ impl ExplicitDecoder {
         let voxels = &v[tiles.range(t)];
         let tile = out.extend_zeroed(voxels.len());
         let m = &self.matrices;
-        reconstruct_tile_into(h.origin, l, g, m, self.rate_chosen, voxels, s, tile);
+        let precision = Precision::of_layer(l, g, self.layer_rate());
+        reconstruct_tile_into(h.origin, l.voxel_size, &precision, g, m, voxels, s, tile);
         Ok(())
     }
 
@@ -450,6 +565,112 @@ impl ExplicitDecoder {
             starts,
             keep_symbols: true,
         });
+        self.layer_decoded();
+    }
+
+    /// The rate of the stream's first layer, the one `GLAY` … `GATT` code: the selected
+    /// rate, or in a progressive stream the coarsest coded rate (§3.8).
+    fn layer_rate(&self) -> u8 {
+        match self.progressive {
+            true => self
+                .stream_rates
+                .first()
+                .copied()
+                .unwrap_or(self.rate_chosen),
+            false => self.rate_chosen,
+        }
+    }
+
+    /// Whether the stream so far is a progressive stream's prefix holding a complete layer
+    /// (§3.8).
+    pub(crate) fn prefix_decodes(&self) -> bool {
+        self.progressive && self.layers_done > 0
+    }
+
+    /// Records that the layer of the chunk just decoded (`GATT` or `GRSY`) is complete:
+    /// its symbols are decoded and the precision is the layer's.
+    fn layer_decoded(&mut self) {
+        let Some(l) = self
+            .next
+            .checked_sub(1)
+            .and_then(|p| layer_of(p, self.layers, self.progressive))
+        else {
+            return;
+        };
+        if let Some(r) = self.refinement.take() {
+            self.precision = self.precision.as_ref().map(|p| p.refined(&r));
+        } else if let (Some(layer), Some(groups)) = (&self.layer, &self.groups) {
+            self.precision = Some(Precision::of_layer(layer, groups, self.layer_rate()));
+            self.gaussians_at = Some(l);
+        }
+        self.layers_done = l + 1;
+    }
+
+    /// §3.8: the selected tiles' symbols refined by `GRSY` (`bytes`) in place, each tile in
+    /// its own task; at the selected layer, its Gaussians reconstructed in the same task.
+    fn refine(&mut self, bytes: &[u8], tables: &GaussianTables) -> Result<()> {
+        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
+        let r = self.refinement.as_ref().ok_or(missing(ChunkTag::GREF))?;
+        let before = self.precision.as_ref().ok_or(missing(ChunkTag::GATT))?;
+        let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
+        let g = self.groups.as_deref().ok_or(missing(ChunkTag::GQUA))?;
+        let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
+        let voxels = self.voxels.as_deref().ok_or(missing(ChunkTag::APOS))?;
+        let decoded = self.decoded.as_mut().ok_or(missing(ChunkTag::GATT))?;
+        // Where the first layer's tiles were reconstructed by the caller (a stream decoded
+        // as it arrives), the refined Gaussians get their own room.
+        let kept = decoded.symbols.size_class.len();
+        if decoded.gaussians.len() != kept {
+            decoded.gaussians = Gaussians::zeroed(h.sh_degree, kept);
+        }
+        let words = body(ChunkTag::GRSY, bytes, METHOD_CODED)?;
+        let bodies = split_bodies(ChunkTag::GRSY, 1, words, tiles.len())?;
+        let layer = self
+            .next
+            .checked_sub(1)
+            .and_then(|p| layer_of(p, self.layers, self.progressive));
+        let last = layer == Some(self.selected_layer);
+        let after = before.refined(r);
+        let values = g.iter().map(|g| g.dim).sum();
+        let outputs = decoded.outputs(tiles, values);
+        let jobs: Vec<_> = bodies.into_iter().zip(outputs).collect();
+        let size = |t: usize| tiles.range(t).len();
+        let (origin, matrices) = (h.origin, &self.matrices[..]);
+        let results = map_largest_first(jobs, size, |t, (b, output)| {
+            let Some((Some(mut symbols), gaussians)) = output else {
+                return Ok(());
+            };
+            let tile_voxels = &voxels[tiles.range(t)];
+            refine_tile(r, g, tile_voxels, b, tables, &mut symbols)?;
+            if last {
+                let s = symbols.as_ref();
+                reconstruct_tile_into(
+                    origin,
+                    l.voxel_size,
+                    &after,
+                    g,
+                    matrices,
+                    tile_voxels,
+                    s,
+                    gaussians,
+                );
+            }
+            Ok(())
+        });
+        // §10.3: the lowest tile's error is reported.
+        results.into_iter().collect::<Result<()>>()?;
+        if last {
+            self.gaussians_at = layer;
+        }
+        Ok(())
+    }
+
+    /// §3.8: a progressive stream that ended before `SEND`: the Gaussians of its last
+    /// complete layer, marked as truncated.
+    pub(crate) fn finish_prefix(mut self) -> Result<DecodedGaussians> {
+        self.refinement = None;
+        self.truncated = true;
+        self.finish()
     }
 
     /// §3.6, after `SEND`: the Gaussians of every decoded tile, in stream order.
@@ -463,6 +684,15 @@ impl ExplicitDecoder {
         mut self,
         reconstructed: Option<Gaussians>,
     ) -> Result<DecodedGaussians> {
+        let last = self.layers_done.checked_sub(1);
+        let (reconstructed, stale) = match reconstructed {
+            // The caller's are the full layer's: right where no refinement followed.
+            Some(g) if !self.progressive || last == Some(0) => (Some(g), false),
+            _ => (None, self.gaussians_at != last),
+        };
+        if stale {
+            self.reconstruct_all()?;
+        }
         let decoded = self.decoded.take().ok_or(missing(ChunkTag::GATT))?;
         let (_, _, tiles, voxels) = self.tile_inputs()?;
         let kept = if decoded.starts.iter().all(Option::is_some) {
@@ -477,11 +707,22 @@ impl ExplicitDecoder {
             kept
         };
         let missing_part = |tag| missing(tag);
+        let rate = self
+            .layers_done
+            .checked_sub(1)
+            .map_or(self.rate_chosen, |l| {
+                self.stream_rates
+                    .get(l)
+                    .copied()
+                    .unwrap_or(self.rate_chosen)
+            });
         Ok(DecodedGaussians {
             header: self.header.ok_or(missing_part(ChunkTag::GHED))?,
             groups: self.groups.ok_or(missing_part(ChunkTag::GQUA))?,
-            rate: self.rate_chosen,
+            rate,
             layer: self.layer.ok_or(missing_part(ChunkTag::GLAY))?,
+            precision: self.precision.ok_or(missing_part(ChunkTag::GATT))?,
+            truncated: self.truncated,
             voxels: kept,
             symbols: decoded.symbols,
             tiles: self.tiles.ok_or(missing_part(ChunkTag::TILS))?,

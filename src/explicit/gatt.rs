@@ -16,6 +16,7 @@ use crate::explicit::groups::Group;
 use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
 use crate::explicit::reconstruct::reconstruct_tile_into;
+use crate::explicit::refinement::{refine_walk, Precision, Refinement};
 use crate::explicit::Gaussians;
 use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
@@ -69,6 +70,23 @@ fn decode_tile_into(
         symbols: SymbolReader::new(ChunkTag::GATT, body, tables)?,
     };
     walk_into(layer, groups, voxels, &mut reader, out)?;
+    reader.symbols.finish()
+}
+
+/// §3.8: refines one tile's symbols `out` in place from its body of `GRSY`; `voxels` are the
+/// tile's.
+pub(crate) fn refine_tile(
+    refinement: &Refinement,
+    groups: &[Group],
+    voxels: &[[u32; 3]],
+    body: &[u8],
+    tables: &GaussianTables,
+    out: &mut TileSymbolsMut,
+) -> Result<()> {
+    let mut reader = Reader {
+        symbols: SymbolReader::new(ChunkTag::GRSY, body, tables)?,
+    };
+    refine_walk(refinement, groups, voxels, &mut reader, out)?;
     reader.symbols.finish()
 }
 
@@ -200,12 +218,13 @@ pub(crate) fn decode_and_reconstruct(
     let values = groups.iter().map(|g| g.dim).sum::<usize>();
     let mut symbols = symbols.unwrap_or_else(|| scratch.resized(voxels.len(), values));
     decode_tile_into(layer, groups, voxels, body, tables, &mut symbols)?;
+    let precision = Precision::of_layer(layer, groups, rate);
     reconstruct_tile_into(
         header.origin,
-        layer,
+        layer.voxel_size,
+        &precision,
         groups,
         matrices,
-        rate,
         voxels,
         symbols.as_ref(),
         gaussians,

@@ -23,7 +23,13 @@ pub struct GaussianHeader {
     pub rate_mask: u64,
     /// World position of voxel (0, 0, 0)'s corner in every layer.
     pub origin: [f32; 3],
+    /// `head_flags` bit 0 (§3.8): the rates nest, the coarsest coded first and each finer
+    /// one a refinement of the one before.
+    pub progressive: bool,
 }
+
+/// `head_flags` bit 0: a progressive stream (§3.8).
+pub const HEAD_FLAG_PROGRESSIVE: u8 = 1;
 
 /// Binary32 values per decoded Gaussian: position 3, opacity 1, log-scales 3, rotation 4,
 /// SH DC 3, SH rest 3·B (§3.6, Table 3-4).
@@ -44,13 +50,27 @@ impl GaussianHeader {
             .collect()
     }
 
+    /// The coded rates in stream order (§3.7, §3.8): lowest first, or in a progressive
+    /// stream the highest (coarsest) first.
+    pub fn stream_rates(&self) -> Vec<u8> {
+        let mut rates = self.coded_rates();
+        if self.progressive {
+            rates.reverse();
+        }
+        rates
+    }
+
     /// The `GHED` payload (§3.2), as the encoder writes it.
     pub fn to_payload(&self) -> Vec<u8> {
         let mut w = PayloadWriter::default();
         w.u32(self.count);
         w.u8(self.sh_degree);
         w.u8(self.rate_count);
-        w.u8(0);
+        w.u8(if self.progressive {
+            HEAD_FLAG_PROGRESSIVE
+        } else {
+            0
+        });
         w.u64(self.rate_mask);
         for v in self.origin {
             w.f32(v);
@@ -73,7 +93,7 @@ impl GaussianHeader {
         let stated = r.u64()?;
         r.finish()?;
         // Step 3: reserved bits.
-        if flags != 0 {
+        if flags & !HEAD_FLAG_PROGRESSIVE != 0 {
             return Err(Error::ReservedBitsSet {
                 field: Field::HeadFlags,
                 value: u32::from(flags),
@@ -122,6 +142,7 @@ impl GaussianHeader {
             rate_count,
             rate_mask,
             origin,
+            progressive: flags & HEAD_FLAG_PROGRESSIVE != 0,
         };
         // Step 5: the decoded size.
         let computed = head.decoded_bytes();
@@ -134,7 +155,8 @@ impl GaussianHeader {
         Ok(head)
     }
 
-    /// §3.7: the selected rate, its layer index among the coded layers, and the layer count.
+    /// §3.7, §3.8: the selected rate (default: the lowest coded, the finest), its layer's
+    /// index in stream order, and the layer count.
     pub fn select_layer(&self, rate: Option<u8>) -> Result<(u8, usize, usize)> {
         let coded = self.coded_rates();
         let rate = match rate {
@@ -155,7 +177,8 @@ impl GaussianHeader {
             }
             Some(r) => r,
         };
-        let index = coded.iter().position(|&c| c == rate).unwrap_or(0);
+        let order = self.stream_rates();
+        let index = order.iter().position(|&c| c == rate).unwrap_or(0);
         Ok((rate, index, coded.len()))
     }
 }

@@ -14,6 +14,7 @@
 //! | reconstruction, the decoded Gaussians | §3.6 | [`reconstruct`], [`gaussians`] |
 //! | `GATT` decoded tile by tile, in parallel | §3.5, §3.6 | `gatt` (private) |
 //! | stream order and decoding | §3.7 | [`decode`] |
+//! | progressive streams: `GREF`, `GRSY` | §3.8 | [`refinement`] |
 
 pub mod attributes;
 pub mod decode;
@@ -23,6 +24,7 @@ pub mod groups;
 pub mod header;
 pub mod layer;
 pub mod reconstruct;
+pub mod refinement;
 
 pub use decode::{decode_gaussians, DecodedGaussians};
 pub use gaussians::{rest_per_channel, Gaussians};

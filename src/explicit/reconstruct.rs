@@ -5,7 +5,7 @@
 use crate::explicit::attributes::TileSymbolsRef;
 use crate::explicit::gaussians::GaussiansMut;
 use crate::explicit::groups::{Group, GroupKind};
-use crate::explicit::layer::{Layer, SIZE_CLASSES};
+use crate::explicit::refinement::Precision;
 use crate::hyperprior::step::canonical_nan;
 use crate::quantizer::LatticeMatrix;
 
@@ -49,33 +49,26 @@ pub fn quaternion(small: [f32; 3], largest: u8) -> [f32; 4] {
     q
 }
 
-/// §3.6: the Gaussians of one tile, written into `out` (room for exactly the tile's; to append
-/// them to a [`crate::explicit::Gaussians`], [`crate::explicit::Gaussians::extend_zeroed`]).
+/// §3.6: the Gaussians of one tile at `precision` (a layer's, [`Precision::of_layer`], or a
+/// refinement's, §3.8), written into `out` (room for exactly the tile's; to append them to a
+/// [`crate::explicit::Gaussians`], [`crate::explicit::Gaussians::extend_zeroed`]).
 ///
 /// `matrices` are the groups' ([`Group::matrix`]), computed once per layer by the caller: a
 /// learned basis's is d³ work, which per tile took 7 % of a small scene's decode.
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct_tile_into(
     origin: [f32; 3],
-    layer: &Layer,
+    voxel_size: f32,
+    precision: &Precision,
     groups: &[Group],
     matrices: &[LatticeMatrix],
-    rate: u8,
     voxels: &[[u32; 3]],
     symbols: TileSymbolsRef,
     out: GaussiansMut,
 ) {
     debug_assert_eq!(matrices.len(), groups.len());
     let values: usize = groups.iter().map(|g| g.dim).sum();
-    // Step 2's Δ = G ⊗ 2^shift of every group and size class, once per tile.
-    let deltas: Vec<[f32; SIZE_CLASSES]> = groups
-        .iter()
-        .enumerate()
-        .map(|(gi, g)| {
-            let step = g.rate_step(rate);
-            std::array::from_fn(|class| step * pow2(layer.group_shift(gi, class).into()))
-        })
-        .collect();
+    let deltas = &precision.delta;
     let widest = groups.iter().map(|g| g.dim).max().unwrap_or(0);
     let mut z = vec![0.0f32; widest];
     let rest = out.rest_per_gaussian;
@@ -83,13 +76,13 @@ pub fn reconstruct_tile_into(
         let class = usize::from(symbols.size_class[i]);
         out.positions[i] = position(
             origin,
-            layer.voxel_size,
+            voxel_size,
             voxel,
-            layer.refine[class],
+            precision.refine[class],
             symbols.refinement[i],
         );
         let mut coords = &symbols.coords[i * values..(i + 1) * values];
-        for ((g, matrix), delta) in groups.iter().zip(matrices).zip(&deltas) {
+        for ((g, matrix), delta) in groups.iter().zip(matrices).zip(deltas) {
             let (u, later) = coords.split_at(g.dim.min(coords.len()));
             coords = later;
             let delta = delta[class];

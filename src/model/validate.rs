@@ -44,7 +44,7 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::TileAnchors => (1, u32::MAX as u64),
         Field::TileCellLevel => (0, MAX_COORD_BITS as u64),
         Field::TileCell => (0, u32::MAX as u64),
-        // The explicit profile's fields (spec §3.2-§3.4).
+        // The explicit profile's fields (spec §3.2-§3.4, §3.8).
         Field::GaussianCount => (1, u32::MAX as u64),
         Field::ShDegree => (0, 3),
         Field::PredLevel => (0, MAX_COORD_BITS as u64),
@@ -52,6 +52,7 @@ pub fn field_range(field: Field) -> (u64, u64) {
         Field::RotationFreq | Field::RestCountFreq => (1, u16::MAX as u64),
         Field::PredictFlag => (0, 1),
         Field::Refine => (0, 23),
+        Field::Factor => (1, 255),
         Field::RateMask => (1, u64::MAX),
         Field::CodedRate
         | Field::FileFlags

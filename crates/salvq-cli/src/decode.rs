@@ -46,6 +46,11 @@ pub(crate) struct DecodeArgs {
     /// Print what was decoded as JSON on standard output.
     #[arg(long)]
     pub(crate) json: bool,
+    /// Fail on a progressive stream that ends early. Without it, a progressive stream cut
+    /// after a complete rate (a partial download) decodes to its last complete rate, with a
+    /// note saying which (spec §3.8.4).
+    #[arg(long)]
+    pub(crate) strict: bool,
 }
 
 /// What `--json` prints.
@@ -126,6 +131,7 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
         canonical,
         inject_fault,
         json,
+        strict,
         ..
     } = args;
     let options = salvq::DecodeOptions::default()
@@ -135,7 +141,9 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
         .with_fault(inject_fault);
     if explicit {
         // The canonical form holds the symbols (§11.6); a PLY file only the Gaussians.
-        let options = options.with_gaussians_only(!canonical);
+        let options = options
+            .with_gaussians_only(!canonical)
+            .with_accept_prefix(!strict);
         let how = decode_explicit::How {
             canonical,
             json,

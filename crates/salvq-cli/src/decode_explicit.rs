@@ -33,6 +33,17 @@ pub(crate) fn run(
         salvq::decoder::Decoded::Anchors(_) => unreachable!("is_explicit chose the profile"),
     };
     let n = decoded.gaussians.len();
+    if decoded.truncated {
+        let asked = match options.rate {
+            Some(r) if r != decoded.rate => format!(" (rate {r} was asked for)"),
+            _ => String::new(),
+        };
+        how.ctx.say(&format!(
+            "salvq: note: the stream ends early (a progressive stream cut before its end \
+             chunk): decoded rate {}, the last complete one{asked}; --strict makes this an error",
+            decoded.rate
+        ));
+    }
     let Some(output) = output else {
         out!(
             "measure decode_secs={} peak_rss_bytes={} gaussians={n} decoded_bytes={}",

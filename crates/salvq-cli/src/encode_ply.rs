@@ -177,6 +177,7 @@ pub fn run(
         tile_gaussians: a.tile_anchors.unwrap_or(0),
         note: a.note.clone(),
         variant: Default::default(),
+        progressive: true,
     };
     let encoded = explicit::encode_gaussians(&g, &options, &|p| {
         progress.step(p.step, Some((p.done, p.total)))

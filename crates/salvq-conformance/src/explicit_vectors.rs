@@ -110,6 +110,7 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
         coded,
         klt,
         tile_gaussians: tiles,
+        progressive: false,
         ..Default::default()
     };
     Ok(vec![
@@ -193,6 +194,49 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                 options(80, None, Some(vec![false; 4])),
             )?,
         ),
+        vector(
+            "g-sh3-progressive",
+            "600 synthetic Gaussians, SH degree 3, three rates with steps doubling per rate as a \
+             progressive stream (§3.8): rate 2 a full layer, rates 1 and 0 refinements (step \
+             factors 1 and 3, position bits added, predictions and the sh_rest count), KLT bases \
+             for SH DC and SH rest, tiles of at most 64",
+            &["§3.8", "§3.8.1", "§3.8.2", "§3.8.3", "§7.4"],
+            encode_synthetic(
+                &GaussianParams::new(600, 3, 23),
+                rates(&base_plan(true), 3),
+                ExplicitOptions {
+                    progressive: true,
+                    ..options(64, None, Some(vec![false, false, false, true, true]))
+                },
+            )?,
+        ),
+        vector(
+            "g-sh0-progressive-skip",
+            "300 synthetic Gaussians, SH degree 0, rates 0 and 2 of three coded as a progressive \
+             stream (§3.8) whose steps shrink 16 times from rate 2 to rate 0 (step factors 5 and \
+             more), identity lattices, 4 tiles",
+            &["§3.8", "§3.8.1", "§3.8.2", "§3.8.3", "§7.4"],
+            encode_synthetic(
+                &GaussianParams::new(300, 0, 29),
+                {
+                    let base = base_plan(false);
+                    (0..3)
+                        .map(|k| {
+                            let f = (2.0 * k as f64).exp2();
+                            RatePlan {
+                                voxel: base.voxel * f,
+                                steps: base.steps.iter().map(|s| s * f).collect(),
+                                ..base.clone()
+                            }
+                        })
+                        .collect()
+                },
+                ExplicitOptions {
+                    progressive: true,
+                    ..options(80, Some(vec![0, 2]), Some(vec![false; 4]))
+                },
+            )?,
+        ),
     ])
 }
 
@@ -206,6 +250,25 @@ fn base_stream() -> Vec<u8> {
             coded: Some(vec![0, 1]),
             klt: Some(vec![false, false, false, true, false]),
             tile_gaussians: 16,
+            progressive: false,
+            ..Default::default()
+        },
+    )
+    .expect("a synthetic scene encodes")
+    .stream
+}
+
+/// The base scene as a progressive stream (§3.8): rate 1 a full layer, rate 0 its
+/// refinement.
+fn progressive_base_stream() -> Vec<u8> {
+    encode_synthetic(
+        &GaussianParams::new(30, 1, 2),
+        rates(&base_plan(true), 3),
+        ExplicitOptions {
+            coded: Some(vec![0, 1]),
+            klt: Some(vec![false, false, false, true, false]),
+            tile_gaussians: 16,
+            progressive: true,
             ..Default::default()
         },
     )
@@ -274,12 +337,75 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
         .expect("TILS");
     let mut trailing = base.clone();
     trailing.push(0);
-    vec![
+    let progressive = progressive_base_stream();
+    let gref = |f: &dyn Fn(&mut Vec<u8>)| edit(&progressive, ChunkTag::GREF, |p| f(p));
+    let cut = {
+        let at = surgery::chunk_offset(&progressive, ChunkTag::GRSY).expect("GRSY");
+        progressive[..at + 12].to_vec()
+    };
+    let refinement_first = {
+        let mut cs = chunks(&progressive);
+        let r = cs
+            .iter()
+            .position(|(t, _)| *t == ChunkTag::GREF)
+            .expect("GREF");
+        cs.swap(r, r + 1);
+        surgery::assemble(&progressive, &cs)
+    };
+    // GREF (§3.8.1): coding_method, pred_level (1), refine (2 … 5), factor (6 …, 4 per group),
+    // then the scale offsets (4 per group; G = 5).
+    let progressive_vectors = vec![
+        must_fail(
+            "x-g-gref-refine",
+            "FieldOutOfRange",
+            &["§3.8.1"],
+            "GREF refine[0] = 24: past 24 bits with the grid's",
+            gref(&|p| p[2] = 24),
+        ),
+        must_fail(
+            "x-g-gref-factor",
+            "FieldOutOfRange",
+            &["§3.8.1"],
+            "GREF factor[0][0] = 0",
+            gref(&|p| p[6] = 0),
+        ),
+        must_fail(
+            "x-g-gref-offset",
+            "ValueInvalid",
+            &["§3.8.1"],
+            "GREF scale_offset[0][0] = 64",
+            gref(&|p| p[6 + 20] = 64),
+        ),
+        must_fail(
+            "x-g-grsy-before-gref",
+            "ChunkOrder",
+            &["§3.7", "§3.8"],
+            "GRSY before GREF",
+            refinement_first,
+        ),
+        must_fail(
+            "x-g-progressive-cut",
+            "ChunkLengthPastEnd",
+            &["§1.3", "§3.8.4"],
+            "a progressive stream cut inside its refinement's GRSY (without the caller's \
+             consent to a prefix, the truncation is the error)",
+            cut,
+        ),
+    ];
+    let mut out = vec![
         must_fail(
             "x-g-head-flags",
             "ReservedBitsSet",
             &["§3.2"],
-            "GHED head_flags = 1",
+            "GHED head_flags = 2 (bit 1 is reserved)",
+            ghed(&|p| p[6] = 2),
+        ),
+        must_fail(
+            "x-g-progressive-layered",
+            "ChunkOrder",
+            &["§3.2", "§3.7", "§3.8"],
+            "GHED head_flags = 1 on a layered stream: GREF is due after the first GATT, GLAY \
+             comes",
             ghed(&|p| p[6] = 1),
         ),
         must_fail(
@@ -518,5 +644,7 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
                 base.clone(),
             )
         },
-    ]
+    ];
+    out.extend(progressive_vectors);
+    out
 }

@@ -10,18 +10,16 @@ use super::prior::{
     bit_cost, entropy_bits, fit_prior, freq, group_histograms, PRED_LEVEL_CANDIDATES,
 };
 pub use super::prior::{group_bits, BitCost, Variant};
+use super::writer::{rest_count_freq, Writer};
 use crate::error::Result;
 use salvq::container::chunk::{write_chunk, ChunkTag};
 use salvq::container::payload::METHOD_CODED;
-use salvq::entropy::{GaussianTables, SymbolWriter};
-use salvq::explicit::attributes::{
-    rest_count_of, walk, BitEvent, Events, TileSymbols, MAX_COORDINATE,
-};
+use salvq::entropy::GaussianTables;
+use salvq::explicit::attributes::{walk, TileSymbols, MAX_COORDINATE};
 use salvq::explicit::groups::{Group, GroupKind};
-use salvq::explicit::layer::{
-    rest_count_bits, rest_count_nodes, rest_values, Layer, MAX_COORD_BITS, SIZE_CLASSES,
-};
+use salvq::explicit::layer::{rest_count_nodes, rest_values, Layer, MAX_COORD_BITS, SIZE_CLASSES};
 use salvq::explicit::reconstruct::reconstruct_tile_into;
+use salvq::explicit::refinement::Precision;
 use salvq::explicit::Gaussians;
 use salvq::model::morton3;
 use salvq::tiles::{join_bodies, TileTable};
@@ -140,9 +138,31 @@ pub struct CodedLayer {
     pub expected: Gaussians,
     /// What it cost.
     pub report: LayerReport,
+    /// What a decoder holds after it: what a refinement (§3.8) refines.
+    pub state: LayerState,
+}
+
+/// The symbols of every Gaussian of a decoded layer, in canonical order, and their
+/// precision: what a refinement layer (§3.8) starts from.
+pub struct LayerState {
+    /// The grid and the canonical order.
+    pub grid: Grid,
+    /// The tiles.
+    pub tiles: TileTable,
+    /// Lattice coordinates, every coded value of each Gaussian.
+    pub coords: Vec<i32>,
+    /// Size class of each Gaussian.
+    pub size_class: Vec<u8>,
+    /// Position bits below the voxel of each Gaussian, per axis.
+    pub refinement: Vec<[u32; 3]>,
+    /// Index of each Gaussian's largest rotation component.
+    pub rotation: Vec<u8>,
+    /// The precision they are at.
+    pub precision: Precision,
 }
 
 /// The layer's grid: the voxel of each Gaussian and the canonical order.
+#[derive(Debug, Clone)]
 pub struct Grid {
     /// Bits per voxel coordinate.
     pub coord_bits: u8,
@@ -226,85 +246,6 @@ pub fn group_coordinates(
         }
     }
     out
-}
-
-struct Writer<'a, 't> {
-    out: SymbolWriter<'t>,
-    coords: &'a [i32],
-    rotation: &'a [u8],
-    refinement: &'a [[u32; 3]],
-    values: usize,
-    /// The `sh_rest` count of the Gaussian at hand (§3.5): its values up to the last nonzero
-    /// symbol.
-    rest_count: usize,
-    /// Every Gaussian's `sh_rest` count, in walk order.
-    rest_counts: Vec<usize>,
-}
-
-impl<'a, 't> Writer<'a, 't> {
-    fn new(
-        tables: &'t GaussianTables,
-        coords: &'a [i32],
-        rotation: &'a [u8],
-        refinement: &'a [[u32; 3]],
-        values: usize,
-    ) -> Self {
-        Writer {
-            out: SymbolWriter::new(ChunkTag::GATT, tables),
-            coords,
-            rotation,
-            refinement,
-            values,
-            rest_count: 0,
-            rest_counts: Vec::new(),
-        }
-    }
-}
-
-impl Events for Writer<'_, '_> {
-    fn bit(&mut self, freq_one: u32, i: usize, what: BitEvent) -> salvq::Result<bool> {
-        let bit = match what {
-            BitEvent::RotationHigh => self.rotation[i] >> 1 == 1,
-            BitEvent::RotationLow => self.rotation[i] & 1 == 1,
-            BitEvent::Refine { axis, bit } => self.refinement[i][axis] >> bit & 1 == 1,
-            BitEvent::RestCount { bit } => self.rest_count >> bit & 1 == 1,
-        };
-        self.out.bit(bit, freq_one);
-        Ok(bit)
-    }
-    fn symbol(&mut self, k: u8, i: usize, v: usize, pred: i64) -> salvq::Result<i64> {
-        let r = i64::from(self.coords[i * self.values + v]) - pred;
-        self.out.symbol(r, k)?;
-        Ok(r)
-    }
-    fn rest_predictions(&mut self, i: usize, first: usize, pred: impl Fn(usize) -> i64) {
-        let row = &self.coords[i * self.values + first..(i + 1) * self.values];
-        self.rest_count = rest_count_of(row, pred);
-        self.rest_counts.push(self.rest_count);
-    }
-}
-
-/// §3.4's `rest_count_freq` for `counts` (every Gaussian's `sh_rest` count) of a group of
-/// `dim` values: each tree node's share of ones among the counts that pass it, and the cost
-/// of coding them so, in bits.
-fn rest_count_freq(counts: &[usize], dim: usize) -> (Vec<u16>, f64) {
-    let bits = rest_count_bits(dim);
-    let nodes = rest_count_nodes(dim);
-    let (mut ones, mut total) = (vec![0u64; nodes], vec![0u64; nodes]);
-    for &n in counts {
-        let mut node = 1usize;
-        for bit in (0..bits).rev() {
-            let b = n >> bit & 1;
-            total[node - 1] += 1;
-            ones[node - 1] += b as u64;
-            node = 2 * node + b;
-        }
-    }
-    let freq: Vec<u16> = ones.iter().zip(&total).map(|(&o, &t)| freq(o, t)).collect();
-    let cost = (0..nodes)
-        .map(|m| bit_cost(ones[m], total[m], freq[m]))
-        .sum();
-    (freq, cost)
 }
 
 /// Codes layer `rate` of `p` with the quantizers `groups` (rate steps), `classes` and the
@@ -521,6 +462,7 @@ pub fn encode_layer(
     // The events of the Gaussians `range` (a tile).
     let writer = |range: std::ops::Range<usize>| {
         Writer::new(
+            ChunkTag::GATT,
             tables,
             &coords[range.start * values..range.end * values],
             &rotation[range.clone()],
@@ -542,6 +484,7 @@ pub fn encode_layer(
         layer.rest_count_freq = freq;
         group_bits[gi] += bits;
     }
+    let precision = Precision::of_layer(&layer, groups, rate);
     for t in 0..tiles.len() {
         let range = tiles.range(t);
         let (level, cell) = tiles.cells[t];
@@ -557,10 +500,10 @@ pub fn encode_layer(
         let tile = expected.extend_zeroed(range.len());
         reconstruct_tile_into(
             origin,
-            &layer,
+            layer.voxel_size,
+            &precision,
             groups,
             &matrices,
-            rate,
             &grid.voxels[range],
             symbols.as_ref(),
             tile,
@@ -594,6 +537,15 @@ pub fn encode_layer(
             refine_bits,
             predict,
             tiles: tiles.len(),
+        },
+        state: LayerState {
+            grid,
+            tiles,
+            coords,
+            size_class,
+            refinement,
+            rotation,
+            precision,
         },
     })
 }

@@ -9,7 +9,9 @@ pub mod input;
 pub mod layer;
 pub mod prepare;
 pub mod prior;
+pub mod progressive;
 pub mod ratios;
+mod writer;
 
 use half::f16;
 use nalgebra::{DMatrix, SymmetricEigen};
@@ -99,6 +101,9 @@ pub struct ExplicitOptions {
     pub note: Option<String>,
     /// The reference encoder, or a restricted one for ablations (Annex A.8.4).
     pub variant: Variant,
+    /// Whether the rates nest (§3.8): the coarsest coded rate a full layer, each finer one
+    /// a refinement of the one before; else each rate's layer is coded alone.
+    pub progressive: bool,
 }
 
 impl Default for ExplicitOptions {
@@ -110,6 +115,7 @@ impl Default for ExplicitOptions {
             tile_gaussians: 0,
             note: None,
             variant: Variant::default(),
+            progressive: true,
         }
     }
 }
@@ -258,6 +264,7 @@ pub fn encode_prepared(
         rate_count: m as u8,
         rate_mask,
         origin,
+        progressive: options.progressive,
     };
     let tile_gaussians = options.tile_gaussians;
     let code_layer = |groups: &[Group], r: u8| {
@@ -296,10 +303,23 @@ pub fn encode_prepared(
     }
     let shared_bytes = stream.len() - salvq::container::signature::SIGNATURE_LEN;
     let mut layers = Vec::new();
-    for r in header.coded_rates() {
-        let l = code_layer(&groups, r)?;
+    let mut state: Option<layer::LayerState> = None;
+    for r in header.stream_rates() {
+        let l = match &state {
+            Some(before) if options.progressive => progressive::encode_refinement(
+                p,
+                &groups,
+                before,
+                &plans[usize::from(r)],
+                origin,
+                r,
+                tables,
+            )?,
+            _ => code_layer(&groups, r)?,
+        };
         stream.extend_from_slice(&l.chunks);
         layers.push((l.report, l.chunks.len(), l.expected));
+        state = Some(l.state);
     }
     write_chunk(&mut stream, ChunkTag::SEND, &[]);
     Ok(EncodedGaussians {

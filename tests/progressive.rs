@@ -1,0 +1,138 @@
+//! Progressive explicit streams (spec §3.8): every rate decodes to what the encoder
+//! predicted, a rate's extraction is the stream's prefix (and the stream of the coarser rates
+//! coded alone), and a stream cut anywhere decodes, where the caller accepts it, to its last
+//! complete rate.
+
+use salvq::decoder::{decode_any, DecodeOptions, Decoded};
+use salvq::explicit::{decode_gaussians, DecodedGaussians};
+use salvq::Limits;
+use salvq_conformance::explicit_vectors::encode_synthetic;
+use salvq_encoder::explicit::{EncodedGaussians, ExplicitOptions, RatePlan};
+use salvq_gen::gaussians::GaussianParams;
+
+/// Three rates whose steps and voxel double per rate (rate 0 the finest).
+fn plans() -> Vec<RatePlan> {
+    (0..3)
+        .map(|k| {
+            let f = (k as f64).exp2();
+            RatePlan {
+                voxel: 0.05 * f,
+                refine: [3, 2, 1, 0],
+                steps: [0.1, 0.25, 0.03, 0.03, 0.04].map(|s| s * f).to_vec(),
+                shift: vec![[1, 0, 0, -1], [2, 1, 0, 0], [1, 0, 0, 0], [2, 1, 0, 0]],
+            }
+        })
+        .collect()
+}
+
+fn encode(coded: Option<Vec<u8>>) -> EncodedGaussians {
+    encode_synthetic(
+        &GaussianParams::new(500, 3, 31),
+        plans(),
+        ExplicitOptions {
+            coded,
+            tile_gaussians: 64,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+fn decoded(d: Decoded) -> DecodedGaussians {
+    match d {
+        Decoded::Gaussians(g) => *g,
+        Decoded::Anchors(_) => panic!("an explicit stream"),
+    }
+}
+
+#[test]
+fn every_rate_decodes_to_the_encoders_prediction() {
+    let e = encode(None);
+    assert!(e.header.progressive);
+    let rates: Vec<u8> = e.layers.iter().map(|l| l.0.rate).collect();
+    assert_eq!(rates, [2, 1, 0], "the coarsest rate first");
+    for (report, _, expected) in &e.layers {
+        let d = decode_gaussians(&e.stream, &Limits::default(), Some(report.rate)).unwrap();
+        assert_eq!(d.rate, report.rate);
+        assert!(!d.truncated);
+        assert!(d.gaussians == *expected, "rate {}", report.rate);
+    }
+    let finest = decode_gaussians(&e.stream, &Limits::default(), None).unwrap();
+    assert_eq!(finest.rate, 0, "the finest rate by default");
+}
+
+#[test]
+fn refinements_are_smaller_than_coding_the_rate_alone() {
+    let e = encode(None);
+    let layered = encode_synthetic(
+        &GaussianParams::new(500, 3, 31),
+        plans(),
+        ExplicitOptions {
+            tile_gaussians: 64,
+            progressive: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        e.stream.len() < layered.stream.len(),
+        "progressive {} bytes, layered {}",
+        e.stream.len(),
+        layered.stream.len()
+    );
+}
+
+#[test]
+fn extraction_is_the_prefix_and_the_coarser_rates_coded_alone() {
+    let e = encode(None);
+    for r in 0..3u8 {
+        let extracted = salvq::extract_rate(&e.stream, r, &Limits::default()).unwrap();
+        let alone = encode(Some((r..3).collect()));
+        assert_eq!(extracted, alone.stream, "rate {r}");
+        // After GHED (whose rate_mask changed), a prefix of the stream.
+        let ghed_end = salvq::container::signature::SIGNATURE_LEN + 8 + 35 + 4;
+        let prefix = &extracted[ghed_end..extracted.len() - 12];
+        let same = &e.stream[ghed_end..ghed_end + prefix.len()];
+        assert!(prefix == same, "rate {r} is a prefix");
+        let d = decode_gaussians(&extracted, &Limits::default(), None).unwrap();
+        let expected = &e.layers.iter().find(|l| l.0.rate == r).unwrap().2;
+        assert!(d.gaussians == *expected, "rate {r}");
+    }
+}
+
+#[test]
+fn a_cut_stream_decodes_to_its_last_complete_rate() {
+    let e = encode(None);
+    let accept = DecodeOptions::default().with_accept_prefix(true);
+    // Where each rate's last chunk ends.
+    let mut ends = Vec::new();
+    let mut at = e.stream.len() - 12;
+    for (_, bytes, _) in e.layers.iter().rev() {
+        ends.push(at);
+        at -= bytes;
+    }
+    ends.reverse();
+    let mut last = None;
+    for cut in (0..e.stream.len()).step_by(97).chain(ends.iter().copied()) {
+        let data = &e.stream[..cut];
+        let complete = e.layers.iter().zip(&ends).rfind(|(_, &end)| end <= cut);
+        match (decode_any(data, &accept), complete) {
+            (Ok(d), Some(((report, _, expected), _))) => {
+                let d = decoded(d);
+                assert!(d.truncated, "cut at {cut}");
+                assert_eq!(d.rate, report.rate, "cut at {cut}");
+                assert!(d.gaussians == *expected, "cut at {cut}");
+                last = Some(d.rate);
+            }
+            (Err(e), None) => assert!(e.is_truncation() || cut < 40, "cut at {cut}: {e}"),
+            (got, want) => panic!(
+                "cut at {cut}: {:?}, expected rate {:?}",
+                got.map(|d| decoded(d).rate),
+                want.map(|w| w.0 .0.rate)
+            ),
+        }
+        // Without consent, every cut is an error.
+        assert!(decode_any(data, &DecodeOptions::default()).is_err());
+    }
+    assert_eq!(last, Some(0));
+}
