@@ -343,6 +343,23 @@ pub fn rest_count_of(row: &[i32], pred: impl Fn(usize) -> i64) -> usize {
         .map_or(0, |j| j + 1)
 }
 
+/// §3.5: the `sh_rest` count of tile-local Gaussian `i`, `bits` binary events down the
+/// tree whose node probabilities are `freq` (most significant bit first).
+pub fn read_rest_count(
+    events: &mut impl Events,
+    freq: &[u16],
+    bits: u32,
+    i: usize,
+) -> Result<usize> {
+    let mut node = 1usize;
+    for bit in (0..bits).rev() {
+        let f = freq.get(node - 1).copied().unwrap_or(1);
+        let b = events.bit(u32::from(f), i, BitEvent::RestCount { bit })?;
+        node = 2 * node + usize::from(b);
+    }
+    Ok(node - (1 << bits))
+}
+
 /// One group of one Gaussian's values as §3.5 reads them.
 struct Values {
     /// The tile-local Gaussian.
@@ -447,13 +464,7 @@ fn rest_values(
 ) -> Result<()> {
     let i = group.gaussian;
     events.rest_predictions(i, group.first, |j| group.prediction(prev_u[j]));
-    let mut node = 1usize;
-    for bit in (0..bits).rev() {
-        let freq = layer.rest_count_freq.get(node - 1).copied().unwrap_or(1);
-        let b = events.bit(u32::from(freq), i, BitEvent::RestCount { bit })?;
-        node = 2 * node + usize::from(b);
-    }
-    let n = node - (1 << bits);
+    let n = read_rest_count(events, &layer.rest_count_freq, bits, i)?;
     if n > row.len() {
         return Err(Error::ValueInvalid {
             tensor: "GATT.rest_count",

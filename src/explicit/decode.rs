@@ -11,7 +11,7 @@ use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
 use crate::explicit::attributes::{TileSymbols, TileSymbolsRef};
-use crate::explicit::gatt::{decode_and_reconstruct, read_gatt, refine_tile, DecodedTiles};
+use crate::explicit::gatt::{decode_and_reconstruct, read_gatt, DecodedTiles};
 use crate::explicit::groups::{read_gqua, Group};
 use crate::explicit::header::GaussianHeader;
 use crate::explicit::layer::Layer;
@@ -23,6 +23,8 @@ use crate::limits::Limits;
 use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
 use crate::DecodeOptions;
+
+mod progressive;
 
 /// A decoded explicit-profile stream: the Gaussians of the selected layer and the integer
 /// results conformance compares (§11).
@@ -479,47 +481,6 @@ impl ExplicitDecoder {
         })
     }
 
-    /// §3.6: every decoded tile's Gaussians from its symbols at the present precision (a
-    /// progressive stream cut before the selected layer, §3.8).
-    fn reconstruct_all(&mut self) -> Result<()> {
-        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-        let precision = self.precision.as_ref().ok_or(missing(ChunkTag::GATT))?;
-        let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
-        let g = self.groups.as_deref().ok_or(missing(ChunkTag::GQUA))?;
-        let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-        let voxels = self.voxels.as_deref().ok_or(missing(ChunkTag::APOS))?;
-        let decoded = self.decoded.as_mut().ok_or(missing(ChunkTag::GATT))?;
-        if !decoded.keep_symbols {
-            return Ok(());
-        }
-        let kept = decoded.symbols.size_class.len();
-        if decoded.gaussians.len() != kept {
-            decoded.gaussians = Gaussians::zeroed(h.sh_degree, kept);
-        }
-        let values = g.iter().map(|g| g.dim).sum();
-        let jobs = decoded.outputs(tiles, values);
-        let size = |t: usize| tiles.range(t).len();
-        let (origin, matrices) = (h.origin, &self.matrices[..]);
-        map_largest_first(jobs, size, |t, output| {
-            if let Some((Some(symbols), gaussians)) = output {
-                let v = &voxels[tiles.range(t)];
-                let s = symbols.as_ref();
-                reconstruct_tile_into(
-                    origin,
-                    l.voxel_size,
-                    precision,
-                    g,
-                    matrices,
-                    v,
-                    s,
-                    gaussians,
-                );
-            }
-        });
-        self.gaussians_at = self.layers_done.checked_sub(1);
-        Ok(())
-    }
-
     /// The stream's preflight, once `GHED` is decoded.
     pub(crate) fn header(&self) -> Option<&GaussianHeader> {
         self.header.as_ref()
@@ -566,111 +527,6 @@ impl ExplicitDecoder {
             keep_symbols: true,
         });
         self.layer_decoded();
-    }
-
-    /// The rate of the stream's first layer, the one `GLAY` … `GATT` code: the selected
-    /// rate, or in a progressive stream the coarsest coded rate (§3.8).
-    fn layer_rate(&self) -> u8 {
-        match self.progressive {
-            true => self
-                .stream_rates
-                .first()
-                .copied()
-                .unwrap_or(self.rate_chosen),
-            false => self.rate_chosen,
-        }
-    }
-
-    /// Whether the stream so far is a progressive stream's prefix holding a complete layer
-    /// (§3.8).
-    pub(crate) fn prefix_decodes(&self) -> bool {
-        self.progressive && self.layers_done > 0
-    }
-
-    /// Records that the layer of the chunk just decoded (`GATT` or `GRSY`) is complete:
-    /// its symbols are decoded and the precision is the layer's.
-    fn layer_decoded(&mut self) {
-        let Some(l) = self
-            .next
-            .checked_sub(1)
-            .and_then(|p| layer_of(p, self.layers, self.progressive))
-        else {
-            return;
-        };
-        if let Some(r) = self.refinement.take() {
-            self.precision = self.precision.as_ref().map(|p| p.refined(&r));
-        } else if let (Some(layer), Some(groups)) = (&self.layer, &self.groups) {
-            self.precision = Some(Precision::of_layer(layer, groups, self.layer_rate()));
-            self.gaussians_at = Some(l);
-        }
-        self.layers_done = l + 1;
-    }
-
-    /// §3.8: the selected tiles' symbols refined by `GRSY` (`bytes`) in place, each tile in
-    /// its own task; at the selected layer, its Gaussians reconstructed in the same task.
-    fn refine(&mut self, bytes: &[u8], tables: &GaussianTables) -> Result<()> {
-        let h = self.header.as_ref().ok_or(missing(ChunkTag::GHED))?;
-        let r = self.refinement.as_ref().ok_or(missing(ChunkTag::GREF))?;
-        let before = self.precision.as_ref().ok_or(missing(ChunkTag::GATT))?;
-        let l = self.layer.as_ref().ok_or(missing(ChunkTag::GLAY))?;
-        let g = self.groups.as_deref().ok_or(missing(ChunkTag::GQUA))?;
-        let tiles = self.tiles.as_ref().ok_or(missing(ChunkTag::TILS))?;
-        let voxels = self.voxels.as_deref().ok_or(missing(ChunkTag::APOS))?;
-        let decoded = self.decoded.as_mut().ok_or(missing(ChunkTag::GATT))?;
-        // Where the first layer's tiles were reconstructed by the caller (a stream decoded
-        // as it arrives), the refined Gaussians get their own room.
-        let kept = decoded.symbols.size_class.len();
-        if decoded.gaussians.len() != kept {
-            decoded.gaussians = Gaussians::zeroed(h.sh_degree, kept);
-        }
-        let words = body(ChunkTag::GRSY, bytes, METHOD_CODED)?;
-        let bodies = split_bodies(ChunkTag::GRSY, 1, words, tiles.len())?;
-        let layer = self
-            .next
-            .checked_sub(1)
-            .and_then(|p| layer_of(p, self.layers, self.progressive));
-        let last = layer == Some(self.selected_layer);
-        let after = before.refined(r);
-        let values = g.iter().map(|g| g.dim).sum();
-        let outputs = decoded.outputs(tiles, values);
-        let jobs: Vec<_> = bodies.into_iter().zip(outputs).collect();
-        let size = |t: usize| tiles.range(t).len();
-        let (origin, matrices) = (h.origin, &self.matrices[..]);
-        let results = map_largest_first(jobs, size, |t, (b, output)| {
-            let Some((Some(mut symbols), gaussians)) = output else {
-                return Ok(());
-            };
-            let tile_voxels = &voxels[tiles.range(t)];
-            refine_tile(r, g, tile_voxels, b, tables, &mut symbols)?;
-            if last {
-                let s = symbols.as_ref();
-                reconstruct_tile_into(
-                    origin,
-                    l.voxel_size,
-                    &after,
-                    g,
-                    matrices,
-                    tile_voxels,
-                    s,
-                    gaussians,
-                );
-            }
-            Ok(())
-        });
-        // §10.3: the lowest tile's error is reported.
-        results.into_iter().collect::<Result<()>>()?;
-        if last {
-            self.gaussians_at = layer;
-        }
-        Ok(())
-    }
-
-    /// §3.8: a progressive stream that ended before `SEND`: the Gaussians of its last
-    /// complete layer, marked as truncated.
-    pub(crate) fn finish_prefix(mut self) -> Result<DecodedGaussians> {
-        self.refinement = None;
-        self.truncated = true;
-        self.finish()
     }
 
     /// §3.6, after `SEND`: the Gaussians of every decoded tile, in stream order.

@@ -66,10 +66,23 @@ fn decode_tile_into(
     tables: &GaussianTables,
     out: &mut TileSymbolsMut,
 ) -> Result<()> {
+    read_body(ChunkTag::GATT, body, tables, |reader| {
+        walk_into(layer, groups, voxels, reader, out)
+    })
+}
+
+/// Decodes one tile's ANS body of chunk `tag` with `walk`, then checks that the body ends
+/// where its events do (§6.2.6 step 5).
+fn read_body(
+    tag: ChunkTag,
+    body: &[u8],
+    tables: &GaussianTables,
+    walk: impl FnOnce(&mut Reader) -> Result<()>,
+) -> Result<()> {
     let mut reader = Reader {
-        symbols: SymbolReader::new(ChunkTag::GATT, body, tables)?,
+        symbols: SymbolReader::new(tag, body, tables)?,
     };
-    walk_into(layer, groups, voxels, &mut reader, out)?;
+    walk(&mut reader)?;
     reader.symbols.finish()
 }
 
@@ -83,11 +96,9 @@ pub(crate) fn refine_tile(
     tables: &GaussianTables,
     out: &mut TileSymbolsMut,
 ) -> Result<()> {
-    let mut reader = Reader {
-        symbols: SymbolReader::new(ChunkTag::GRSY, body, tables)?,
-    };
-    refine_walk(refinement, groups, voxels, &mut reader, out)?;
-    reader.symbols.finish()
+    read_body(ChunkTag::GRSY, body, tables, |reader| {
+        refine_walk(refinement, groups, voxels, reader, out)
+    })
 }
 
 /// The selected tiles of a layer's `GATT`, decoded: their symbols (§3.5) and Gaussians

@@ -80,6 +80,69 @@ pub fn rest_count_nodes(rest_values: usize) -> usize {
     (1usize << rest_count_bits(rest_values)) - 1
 }
 
+/// The prior every layer and refinement ends with (§3.4, §3.8.1): `predict` per group, the
+/// `sh_rest` count's tree, and the scale table.
+pub(crate) type Prior = (Vec<bool>, Vec<u16>, Vec<[u8; CONTEXT_CLASSES]>);
+
+/// Writes the prior's fields ([`Prior`]) as §3.4 orders them.
+pub(crate) fn write_prior(
+    w: &mut PayloadWriter,
+    predict: &[bool],
+    rest_count_freq: &[u16],
+    scale_table: &[[u8; CONTEXT_CLASSES]],
+) {
+    for &p in predict {
+        w.u8(u8::from(p));
+    }
+    for &f in rest_count_freq {
+        w.u16(f);
+    }
+    for row in scale_table {
+        w.buf.extend_from_slice(row);
+    }
+}
+
+/// Reads and checks the prior's fields ([`Prior`]) of `groups` groups and `values` coded
+/// values, each as it is read (§3.4 rules 9 – 11, §3.8.1 rules 5 – 7).
+pub(crate) fn read_prior(r: &mut PayloadReader, groups: usize, values: usize) -> Result<Prior> {
+    let out_of_range = |field, value: u64, min: u64, max: u64| Error::FieldOutOfRange {
+        field,
+        value,
+        min,
+        max,
+    };
+    let mut predict = Vec::with_capacity(groups);
+    for _ in 0..groups {
+        match r.u8()? {
+            0 => predict.push(false),
+            1 => predict.push(true),
+            v => return Err(out_of_range(Field::PredictFlag, v.into(), 0, 1)),
+        }
+    }
+    let nodes = rest_count_nodes(rest_values(groups, values));
+    let mut rest_count_freq = Vec::with_capacity(nodes);
+    for _ in 0..nodes {
+        let f = r.u16()?;
+        if f == 0 {
+            return Err(out_of_range(Field::RestCountFreq, 0, 1, 65535));
+        }
+        rest_count_freq.push(f);
+    }
+    let mut scale_table = Vec::with_capacity(values);
+    for _ in 0..values {
+        let mut row = [0u8; CONTEXT_CLASSES];
+        for k in &mut row {
+            *k = r.u8()?;
+            if usize::from(*k) >= SCALE_INDEX_COUNT {
+                let max = SCALE_INDEX_COUNT as u64 - 1;
+                return Err(out_of_range(Field::ScaleTable, (*k).into(), 0, max));
+            }
+        }
+        scale_table.push(row);
+    }
+    Ok((predict, rest_count_freq, scale_table))
+}
+
 /// `GLAY`'s payload length for `groups` groups and `values` coded values per Gaussian.
 pub fn glay_len(groups: usize, values: usize) -> u64 {
     let fixed = 1 + 1 + 4 + 1 + 6 + 4 * (SIZE_CLASSES - 1) + SIZE_CLASSES;
@@ -105,15 +168,12 @@ impl Layer {
         for row in self.shift.iter().chain(&self.scale_offset) {
             w.buf.extend(row.iter().map(|&s| s as u8));
         }
-        for &p in &self.predict {
-            w.u8(u8::from(p));
-        }
-        for &f in &self.rest_count_freq {
-            w.u16(f);
-        }
-        for row in &self.scale_table {
-            w.buf.extend_from_slice(row);
-        }
+        write_prior(
+            &mut w,
+            &self.predict,
+            &self.rest_count_freq,
+            &self.scale_table,
+        );
         w.buf
     }
 
@@ -221,39 +281,7 @@ impl Layer {
             }
             scale_offset.push(row);
         }
-        let mut predict = Vec::with_capacity(groups);
-        for _ in 0..groups {
-            match r.u8()? {
-                0 => predict.push(false),
-                1 => predict.push(true),
-                v => return Err(out_of_range(Field::PredictFlag, v.into(), 0, 1)),
-            }
-        }
-        let nodes = rest_count_nodes(rest_values(groups, values));
-        let mut rest_count_freq = Vec::with_capacity(nodes);
-        for _ in 0..nodes {
-            let f = r.u16()?;
-            if f == 0 {
-                return Err(out_of_range(Field::RestCountFreq, 0, 1, 65535));
-            }
-            rest_count_freq.push(f);
-        }
-        let mut scale_table = Vec::with_capacity(values);
-        for _ in 0..values {
-            let mut row = [0u8; CONTEXT_CLASSES];
-            for k in &mut row {
-                *k = r.u8()?;
-                if usize::from(*k) >= SCALE_INDEX_COUNT {
-                    return Err(out_of_range(
-                        Field::ScaleTable,
-                        (*k).into(),
-                        0,
-                        SCALE_INDEX_COUNT as i64 - 1,
-                    ));
-                }
-            }
-            scale_table.push(row);
-        }
+        let (predict, rest_count_freq, scale_table) = read_prior(&mut r, groups, values)?;
         r.finish()?;
         Ok(Layer {
             coord_bits,

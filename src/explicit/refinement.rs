@@ -7,15 +7,15 @@
 use crate::container::bytes::{PayloadReader, PayloadWriter};
 use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, expect_len, METHOD_RAW};
-use crate::entropy::SCALE_INDEX_COUNT;
 use crate::error::{Error, Field, Result};
 use crate::explicit::attributes::{
-    has_reference, offset_scale, BitEvent, Events, TileSymbolsMut, MAX_COORDINATE, REFINE_FREQ,
+    has_reference, offset_scale, read_rest_count, BitEvent, Events, TileSymbolsMut, MAX_COORDINATE,
+    REFINE_FREQ,
 };
 use crate::explicit::groups::{Group, GroupKind};
 use crate::explicit::layer::{
-    rest_count_bits, rest_count_nodes, rest_values, Layer, CONTEXT_CLASSES, MAX_POSITION_BITS,
-    MAX_SCALE_OFFSET, SIZE_CLASSES,
+    read_prior, rest_count_bits, rest_count_nodes, rest_values, write_prior, Layer,
+    CONTEXT_CLASSES, MAX_POSITION_BITS, MAX_SCALE_OFFSET, SIZE_CLASSES,
 };
 use crate::explicit::reconstruct::pow2;
 
@@ -104,15 +104,12 @@ impl Refinement {
         for row in &self.scale_offset {
             w.buf.extend(row.iter().map(|&s| s as u8));
         }
-        for &p in &self.predict {
-            w.u8(u8::from(p));
-        }
-        for &f in &self.rest_count_freq {
-            w.u16(f);
-        }
-        for row in &self.scale_table {
-            w.buf.extend_from_slice(row);
-        }
+        write_prior(
+            &mut w,
+            &self.predict,
+            &self.rest_count_freq,
+            &self.scale_table,
+        );
         w.buf
     }
 
@@ -175,35 +172,7 @@ impl Refinement {
             }
             scale_offset.push(row);
         }
-        let mut predict = Vec::with_capacity(groups);
-        for _ in 0..groups {
-            match r.u8()? {
-                0 => predict.push(false),
-                1 => predict.push(true),
-                v => return Err(out_of_range(Field::PredictFlag, v.into(), 0, 1)),
-            }
-        }
-        let nodes = rest_count_nodes(rest_values(groups, values));
-        let mut rest_count_freq = Vec::with_capacity(nodes);
-        for _ in 0..nodes {
-            let f = r.u16()?;
-            if f == 0 {
-                return Err(out_of_range(Field::RestCountFreq, 0, 1, 65535));
-            }
-            rest_count_freq.push(f);
-        }
-        let mut scale_table = Vec::with_capacity(values);
-        for _ in 0..values {
-            let mut row = [0u8; CONTEXT_CLASSES];
-            for k in &mut row {
-                *k = r.u8()?;
-                if usize::from(*k) >= SCALE_INDEX_COUNT {
-                    let max = SCALE_INDEX_COUNT as u64 - 1;
-                    return Err(out_of_range(Field::ScaleTable, (*k).into(), 0, max));
-                }
-            }
-            scale_table.push(row);
-        }
+        let (predict, rest_count_freq, scale_table) = read_prior(&mut r, groups, values)?;
         r.finish()?;
         Ok(Refinement {
             pred_level,
@@ -287,14 +256,7 @@ pub fn refine_walk(
                 events.rest_predictions(i, range.start, |j| {
                     prediction(range.start + j, i64::from(row[range.start + j]))
                 });
-                let mut node = 1usize;
-                for bit in (0..rest_bits).rev() {
-                    let freq = refinement.rest_count_freq.get(node - 1).copied();
-                    let freq = u32::from(freq.unwrap_or(1));
-                    let b = events.bit(freq, i, BitEvent::RestCount { bit })?;
-                    node = 2 * node + usize::from(b);
-                }
-                coded = node - (1 << rest_bits);
+                coded = read_rest_count(events, &refinement.rest_count_freq, rest_bits, i)?;
                 if coded > g.dim {
                     return Err(Error::ValueInvalid {
                         tensor: "GRSY.rest_count",

@@ -32,6 +32,11 @@ pub struct EncodeArgs {
     /// model's gains (default 0), or into `--psnr`'s targets for a PLY (default: all).
     #[arg(long, value_delimiter = ',')]
     pub(crate) rates: Option<Vec<u8>>,
+    /// A PLY's rates each coded alone (spec §3.7), as files before format 0.15 were, rather
+    /// than nested, the coarsest first and each finer one refining it (§3.8, the default:
+    /// one file that costs about what its finest rate costs, and streams coarse to fine).
+    #[arg(long)]
+    pub(crate) layered: bool,
     /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views
     /// at 512x384, as `salvq compare` measures), e.g. `62,56,50,45,40,35` (the default); sorted
     /// so that rate 0 is the finest.

@@ -69,6 +69,9 @@ struct Summary {
     /// Targets as given, when they were sorted to put the finest first.
     targets_given: Option<Vec<f64>>,
     klt: Vec<(String, bool)>,
+    /// Whether the rates nest (spec §3.8): each rate's bytes are then the stream's prefix up
+    /// to it.
+    progressive: bool,
     layers: Vec<LayerLine>,
 }
 
@@ -177,7 +180,7 @@ pub fn run(
         tile_gaussians: a.tile_anchors.unwrap_or(0),
         note: a.note.clone(),
         variant: Default::default(),
-        progressive: true,
+        progressive: !a.layered,
     };
     let encoded = explicit::encode_gaussians(&g, &options, &|p| {
         progress.step(p.step, Some((p.done, p.total)))
@@ -190,6 +193,7 @@ pub fn run(
     let lines = layer_lines(&g, &encoded, Some(&targets))?;
     progress.done();
     let summary = Summary {
+        progressive: encoded.header.progressive,
         output: output.shown(),
         gaussians: g.len() as u64,
         sh_degree: g.sh_degree,
@@ -236,12 +240,12 @@ pub fn layer_lines(
 ) -> Result<Vec<LayerLine>, Error> {
     let target = RingTarget::new(g, QUALITY_VIEWS, QUALITY_WIDTH, QUALITY_HEIGHT)?;
     let n = g.len().max(1) as f64;
-    e.layers
+    let mut lines = e
+        .layers
         .iter()
-        .map(|(rep, layer_bytes, expected)| {
-            let bytes =
-                (salvq::container::signature::SIGNATURE_LEN + e.shared_bytes + layer_bytes + 12)
-                    as u64;
+        .zip(e.rate_stream_bytes())
+        .map(|((rep, _, expected), bytes)| {
+            let bytes = bytes as u64;
             let target_db = targets.and_then(|t| t.get(usize::from(rep.rate)).copied());
             let (psnr_db, ssim) = target.psnr_ssim(expected)?;
             Ok(LayerLine {
@@ -263,7 +267,10 @@ pub fn layer_lines(
                 refine: rep.refine,
             })
         })
-        .collect()
+        .collect::<Result<Vec<_>, Error>>()?;
+    // Finest first, whatever the stream's order.
+    lines.sort_by_key(|l| l.rate);
+    Ok(lines)
 }
 
 /// The summary as text.
@@ -285,8 +292,12 @@ fn report(s: &Summary, names: &[&str]) -> String {
     if !fitted.is_empty() {
         t.push_str(&format!("KLT basis fitted for: {}\n", fitted.join(", ")));
     }
+    let (bytes_head, bits_head) = match s.progressive {
+        true => ("bytes to rate", "bits/Gaussian of the layer"),
+        false => ("bytes (alone)", "bits/Gaussian"),
+    };
     t.push_str(&format!(
-        "rate  target dB  PSNR dB     SSIM  bytes (alone)  B/Gaussian  bits/Gaussian: position {}\n",
+        "rate  target dB  PSNR dB     SSIM  {bytes_head}  B/Gaussian  {bits_head}: position {}\n",
         names.join(" ")
     ));
     for l in &s.layers {
@@ -321,8 +332,15 @@ fn report(s: &Summary, names: &[&str]) -> String {
             "{missed} of {rates} rates missed their target by more than {TARGET_TOLERANCE_DB} dB\n"
         ));
     }
+    let extract = match s.progressive {
+        true => {
+            "the rates nest: a rate's bytes are the stream's prefix up to it, and `salvq \
+                 extract --rate I` writes that prefix"
+        }
+        false => "`salvq extract --rate I` writes one rate alone",
+    };
     t.push_str(&format!(
-        "(rate 0 is the finest; `salvq extract --rate I` writes one rate alone; PSNR and SSIM \
+        "(rate 0 is the finest; {extract}; PSNR and SSIM \
          against the input from {QUALITY_VIEWS} ring views at {QUALITY_WIDTH}x{QUALITY_HEIGHT}, \
          what `salvq compare INPUT STREAM --rate-b I` prints)\n"
     ));
@@ -352,6 +370,7 @@ mod tests {
     #[test]
     fn a_missed_target_is_flagged_in_the_summary() {
         let s = Summary {
+            progressive: false,
             output: "x.salvq".into(),
             gaussians: 10,
             sh_degree: 0,

@@ -114,7 +114,7 @@ enum Command {
     /// (spec §11.5). The decoder command gets `{in}`, `{out}` and `{rate}` substituted, or
     /// the three appended.
     Conformance {
-        /// The decoder under test (default: this program's `decode --canonical`).
+        /// The decoder under test (default: this program's `decode --canonical --strict`).
         #[arg(long)]
         decoder: Option<String>,
         /// The command for region decodes (spec §11.7): as `--decoder`, with `{region}`

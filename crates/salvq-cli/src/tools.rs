@@ -27,7 +27,7 @@ pub(crate) fn conformance(
         None => {
             let exe = std::env::current_exe().map_err(|e| e.to_string())?;
             let reference = format!(
-                "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical",
+                "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical --strict",
                 exe.display()
             );
             let region = region_decoder.unwrap_or(format!("{reference} --region {{region}}"));

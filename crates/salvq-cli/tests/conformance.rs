@@ -19,7 +19,7 @@ fn vectors() -> PathBuf {
 /// The reference decoder under the §11.5 contract, with extra decode arguments.
 fn decoder(extra: &str) -> String {
     format!(
-        "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical {extra}",
+        "{} decode {{in}} -o {{out}} --rate {{rate}} --canonical --strict {extra}",
         env!("CARGO_BIN_EXE_salvq")
     )
 }

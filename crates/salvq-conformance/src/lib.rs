@@ -11,6 +11,7 @@
 //! | what the fuzz targets (`fuzz/`) check | §9 | [`fuzzing`] |
 
 pub mod canonical;
+pub mod explicit_must_fail;
 pub mod explicit_vectors;
 pub mod fuzzing;
 pub mod generate;

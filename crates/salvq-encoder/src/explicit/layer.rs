@@ -214,13 +214,25 @@ pub fn grid(p: &PreparedGaussians, origin: [f32; 3], step: f64) -> Grid {
 }
 
 /// One group's lattice coordinates (`dim` per Gaussian, canonical `order`) with step
-/// `delta · 2^shift[k]` for the k-th Gaussian: `round(B⁻¹ (x − mean) / Δ)`, the nearest
-/// lattice point for the identity and for `B = U·diag(s)` with orthogonal columns.
+/// `delta · 2^shift[k]` for the k-th Gaussian ([`group_coordinates_at`]).
 pub fn group_coordinates(
     values: &[f64],
     g: &Group,
     delta: f32,
     shift: &dyn Fn(usize) -> i8,
+    order: &[usize],
+) -> Vec<i32> {
+    let step = |k: usize| delta * salvq::explicit::reconstruct::pow2(shift(k).into());
+    group_coordinates_at(values, g, &step, order)
+}
+
+/// One group's lattice coordinates (`dim` per Gaussian, canonical `order`) with the step
+/// `step(k)` for the k-th Gaussian: `round(B⁻¹ (x − mean) / Δ)`, the nearest lattice point
+/// for the identity and for `B = U·diag(s)` with orthogonal columns.
+pub fn group_coordinates_at(
+    values: &[f64],
+    g: &Group,
+    step: &dyn Fn(usize) -> f32,
     order: &[usize],
 ) -> Vec<i32> {
     let d = g.dim;
@@ -232,10 +244,10 @@ pub fn group_coordinates(
     let mut out = Vec::with_capacity(order.len() * d);
     let mut t = vec![0.0f64; d];
     for (k, &i) in order.iter().enumerate() {
-        let step = f64::from(delta * salvq::explicit::reconstruct::pow2(shift(k).into()));
+        let s = f64::from(step(k));
         let x = &values[i * d..(i + 1) * d];
         for j in 0..d {
-            t[j] = (x[j] - f64::from(g.mean[j])) / step;
+            t[j] = (x[j] - f64::from(g.mean[j])) / s;
         }
         for j in 0..d {
             let w = match &inverse {

@@ -134,6 +134,31 @@ pub struct EncodedGaussians {
     pub layers: Vec<(LayerReport, usize, Gaussians)>,
 }
 
+impl EncodedGaussians {
+    /// Per coded layer (in [`Self::layers`]' order, the stream's): the bytes of the stream a
+    /// decoder of that rate reads, signature, shared chunks and `SEND` included: the layer
+    /// alone in a layered stream (what `extract` writes), the prefix up to the layer in a
+    /// progressive one (§3.8).
+    pub fn rate_stream_bytes(&self) -> Vec<usize> {
+        let fixed = salvq::container::signature::SIGNATURE_LEN + self.shared_bytes + SEND_BYTES;
+        let mut prefix = 0;
+        self.layers
+            .iter()
+            .map(|(_, bytes, _)| {
+                prefix = if self.header.progressive {
+                    prefix + bytes
+                } else {
+                    *bytes
+                };
+                fixed + prefix
+            })
+            .collect()
+    }
+}
+
+/// A framed `SEND` chunk: length, tag and CRC, no payload (§1.5).
+const SEND_BYTES: usize = 12;
+
 /// The KLT of a group's values: `U` (row-major, columns the eigenvectors by decreasing
 /// eigenvalue, each signed so its largest component is positive), in binary16.
 pub fn klt_basis(values: &[f64], d: usize, mean: &[f32]) -> Vec<f16> {

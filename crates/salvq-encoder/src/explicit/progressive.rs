@@ -3,10 +3,9 @@
 //! against the present ones; the prior (reference level, prediction per group, tables and
 //! per-class offsets) is fitted to the exact coded cost, as for a full layer.
 
-use nalgebra::DMatrix;
 use rustc_hash::FxHashMap;
 
-use super::layer::{CodedLayer, LayerReport, LayerState, RatePlan};
+use super::layer::{group_coordinates_at, CodedLayer, LayerReport, LayerState, RatePlan};
 use super::prepare::PreparedGaussians;
 use super::prior::{entropy_bits, fit_prior, BitCost, Histograms, PRED_LEVEL_CANDIDATES};
 use super::writer::{rest_count_freq, Writer};
@@ -14,7 +13,7 @@ use crate::error::Result;
 use salvq::container::chunk::{write_chunk, ChunkTag};
 use salvq::container::payload::METHOD_CODED;
 use salvq::entropy::GaussianTables;
-use salvq::explicit::attributes::{rest_count_of, BitEvent, Events, TileSymbols, MAX_COORDINATE};
+use salvq::explicit::attributes::{rest_count_of, BitEvent, Events, TileSymbols};
 use salvq::explicit::groups::{Group, GroupKind};
 use salvq::explicit::layer::{
     rest_count_nodes, rest_values, CONTEXT_CLASSES, MAX_POSITION_BITS, SIZE_CLASSES,
@@ -44,40 +43,6 @@ pub fn step_factor(from: f64, to: f64) -> u8 {
 fn plan_step(plan: &RatePlan, gi: usize, c: usize) -> f64 {
     let shift = if gi == 0 { 0 } else { plan.shift[gi - 1][c] };
     plan.steps[gi] * f64::from(shift).exp2()
-}
-
-/// One group's lattice coordinates (`dim` per Gaussian, canonical `order`) with the step
-/// `step(k)` for the k-th Gaussian: the nearest lattice point, as
-/// [`super::layer::group_coordinates`].
-fn coordinates_at(
-    values: &[f64],
-    g: &Group,
-    step: &dyn Fn(usize) -> f32,
-    order: &[usize],
-) -> Vec<i32> {
-    let d = g.dim;
-    let inverse = g.basis.as_ref().map(|_| {
-        let b = DMatrix::from_row_slice(d, d, &g.matrix().to_f64());
-        b.try_inverse().unwrap_or_else(|| DMatrix::identity(d, d))
-    });
-    let limit = MAX_COORDINATE as f64;
-    let mut out = Vec::with_capacity(order.len() * d);
-    let mut t = vec![0.0f64; d];
-    for (k, &i) in order.iter().enumerate() {
-        let s = f64::from(step(k));
-        let x = &values[i * d..(i + 1) * d];
-        for j in 0..d {
-            t[j] = (x[j] - f64::from(g.mean[j])) / s;
-        }
-        for j in 0..d {
-            let w = match &inverse {
-                None => t[j],
-                Some(inv) => (0..d).map(|c| inv[(j, c)] * t[c]).sum(),
-            };
-            out.push(w.round().clamp(-limit, limit) as i32);
-        }
-    }
-    out
 }
 
 /// Records a refinement's residuals by value, context class and size class: the walk is
@@ -234,7 +199,7 @@ pub fn encode_refinement(
     for (gi, g) in groups.iter().enumerate() {
         if refinement.factor[gi].iter().any(|&f| f > 1) {
             let step = |k: usize| after.delta[gi][usize::from(state.size_class[k])];
-            let c = coordinates_at(&p.values[gi], g, &step, &grid.order);
+            let c = group_coordinates_at(&p.values[gi], g, &step, &grid.order);
             for k in 0..n {
                 let class = usize::from(state.size_class[k]);
                 if refinement.factor[gi][class] > 1 {
