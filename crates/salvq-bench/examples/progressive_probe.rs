@@ -13,15 +13,18 @@ fn main() {
     let path = std::env::args().nth(1).expect("a PLY");
     let g = salvq_render::ply::read_ply(&std::fs::read(&path).unwrap()).unwrap();
     let p = PreparedGaussians::new(&g).unwrap();
-    let (plans, klt) = rate_plans(
-        &g,
-        &p,
-        &RateControl::Psnr(DEFAULT_PSNR_TARGETS.to_vec()),
-        Default::default(),
-        None,
-        &|_| {},
-    )
-    .unwrap();
+    let fit = |nested: bool| {
+        rate_plans(
+            &g,
+            &p,
+            &RateControl::Psnr(DEFAULT_PSNR_TARGETS.to_vec()),
+            Default::default(),
+            None,
+            nested,
+            &|_| {},
+        )
+        .unwrap()
+    };
     let q = RingTarget::new(
         &g,
         ratios::QUALITY_VIEWS,
@@ -32,6 +35,7 @@ fn main() {
     let psnr = |x: &salvq::explicit::Gaussians| -10.0 * q.mse(x).unwrap().max(1e-30).log10();
     let mut lines = Vec::new();
     for progressive in [false, true] {
+        let (plans, klt) = fit(progressive);
         let options = ExplicitOptions {
             rates: RateControl::Plans(plans.clone()),
             klt: klt.clone(),

@@ -253,6 +253,7 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
                 &RateControl::Psnr(o.targets.clone()),
                 variant,
                 klt.as_deref(),
+                true,
                 &|m| {
                     if *last_step.borrow() != m.step {
                         m.step.clone_into(&mut last_step.borrow_mut());

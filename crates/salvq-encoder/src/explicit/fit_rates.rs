@@ -9,6 +9,7 @@ use super::{fit_groups, ratios, RateControl};
 use crate::error::{Error, Result};
 use salvq::entropy::GaussianTables;
 use salvq::explicit::groups::{write_gqua, Group, GroupKind};
+use salvq::explicit::layer::SIZE_CLASSES;
 use salvq::explicit::Gaussians;
 use salvq_render::compare::RingTarget;
 
@@ -111,16 +112,37 @@ pub fn choose_klt(
     Ok(klt)
 }
 
+/// The plan of a rate coarser than `finer` that nests in it (§3.8): each group's step the
+/// finer one's times its odd `factors`, each size class's position cell the finer one's
+/// times `2^up[c]`. Shifts are kept, so the ratio of two nested plans' steps is the factor.
+pub fn nested_plan(finer: &RatePlan, factors: &[u8], up: &[u8; SIZE_CLASSES]) -> RatePlan {
+    let most = up.iter().copied().max().unwrap_or(0);
+    RatePlan {
+        voxel: finer.voxel * f64::from(most).exp2(),
+        refine: std::array::from_fn(|c| finer.refine[c] + most - up[c]),
+        steps: finer
+            .steps
+            .iter()
+            .zip(factors)
+            .map(|(s, &m)| s * f64::from(m))
+            .collect(),
+        shift: finer.shift.clone(),
+    }
+}
+
 /// Each rate's plan, given or fitted to its PSNR target by rendering (Annex A.8.2), and the
 /// groups with a KLT basis (`klt` if given; else chosen on the middle target's first
 /// allocation, so that every rate is fitted with the quantizers it will be coded with).
-/// Targets above what the scene reaches fail at once ([`Error::TargetUnreachable`]).
+/// With `nested` (a progressive stream, §3.8), each rate after the finest is fitted as a
+/// [`nested_plan`] of the one before it. Targets above what the scene reaches fail at once
+/// ([`Error::TargetUnreachable`]).
 pub fn rate_plans(
     g: &Gaussians,
     p: &PreparedGaussians,
     rates: &RateControl,
     variant: Variant,
     klt: Option<&[bool]>,
+    nested: bool,
     progress: &dyn Fn(Progress<'_>),
 ) -> Result<(Vec<RatePlan>, Option<Vec<bool>>)> {
     let targets = match rates {
@@ -199,20 +221,27 @@ pub fn rate_plans(
         let want = 10f64.powf(-db / 10.0);
         // The allocation is on a grid of steps; a common factor f on every step then lands
         // on the target (secant on log f against log MSE, which at high rate rises by 2
-        // per unit of log f).
-        let plan = ratios::allocate(p, &curves, want);
+        // per unit of log f). A nested rate has no common factor: f scales the MSE the
+        // allocation aims at (MSE rises by about 1 per unit of its log), and the plan nests
+        // in the finer rate's.
+        let alloc = ratios::allocate(p, &curves, want);
+        let finer = out.last().filter(|_| nested);
+        let plan_at = |f: f64| match finer {
+            Some(finer) => ratios::allocate_nested(p, &curves, finer, want * f),
+            None => alloc.scaled(f),
+        };
         let measured = std::cell::Cell::new(0u64);
         let measure = |f: f64| -> Result<f64> {
             say(&step, done + measured.get() * QUALITY_RENDER_UNITS);
             measured.set(measured.get() + 1);
-            let scaled = plan.scaled(f);
+            let scaled = plan_at(f);
             let groups = fit_groups(p, std::slice::from_ref(&scaled), &klt);
             let coded = code(&groups, &scaled)?;
             Ok(quality.mse(&coded.expected)?.max(1e-30))
         };
         let (mut lf, mut got) = (0.0f64, measure(1.0)?);
         let mut best = (((got / want).log2()).abs(), lf);
-        let mut slope = 2.0;
+        let mut slope = if finer.is_some() { 1.0 } else { 2.0 };
         for _ in 0..CORRECTIONS {
             if best.0 < 0.05 {
                 break;
@@ -229,7 +258,7 @@ pub fn rate_plans(
             }
         }
         done += (1 + CORRECTIONS as u64) * QUALITY_RENDER_UNITS;
-        out.push(plan.scaled(best.1.exp()));
+        out.push(plan_at(best.1.exp()));
     }
     Ok((out, Some(klt)))
 }
@@ -237,6 +266,27 @@ pub fn rate_plans(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_nested_plan_multiplies_steps_by_its_factors_and_cells_by_octaves() {
+        let finer = RatePlan {
+            voxel: 0.5,
+            refine: [3, 2, 1, 0],
+            steps: vec![0.1, 0.2, 0.3],
+            shift: vec![[1, 0, 0, -1], [2, 1, 0, 0]],
+        };
+        let coarser = nested_plan(&finer, &[1, 3, 5], &[2, 0, 1, 0]);
+        assert_eq!(coarser.steps, [0.1, 0.2 * 3.0, 0.3 * 5.0]);
+        assert_eq!(coarser.shift, finer.shift);
+        let cell = |p: &RatePlan, c: usize| p.voxel * (-f64::from(p.refine[c])).exp2();
+        for (c, k) in [2, 0, 1, 0].into_iter().enumerate() {
+            assert_eq!(
+                cell(&coarser, c),
+                cell(&finer, c) * f64::from(k).exp2(),
+                "class {c}"
+            );
+        }
+    }
 
     #[test]
     fn targets_fall_from_the_finest() {

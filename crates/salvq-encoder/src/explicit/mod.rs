@@ -371,6 +371,7 @@ pub fn encode_gaussians(
         &options.rates,
         options.variant,
         options.klt.as_deref(),
+        options.progressive,
         progress,
     )?;
     let options = ExplicitOptions {

@@ -355,3 +355,132 @@ pub fn allocate(p: &PreparedGaussians, curves: &[(Part, Curve)], target_mse: f64
         shift,
     }
 }
+
+/// A part's (MSE, bits) at `x` (log2 of its step over the default), linear between the
+/// curve's points and clamped at its ends.
+fn curve_at(curve: &Curve, x: f64) -> (f64, f64) {
+    let mut points: Vec<&(f64, f64, f64)> = curve.iter().collect();
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (Some(first), Some(last)) = (points.first(), points.last()) else {
+        return (0.0, 0.0);
+    };
+    if x <= first.0 {
+        return (first.1, first.2);
+    }
+    if x >= last.0 {
+        return (last.1, last.2);
+    }
+    let k = points.partition_point(|q| q.0 <= x);
+    let (a, b) = (points[k - 1], points[k]);
+    let t = (x - a.0) / (b.0 - a.0).max(1e-12);
+    (a.1 + t * (b.1 - a.1), a.2 + t * (b.2 - a.2))
+}
+
+/// Odd step factors a nested rate chooses among per group, and octaves its position cells
+/// may grow by per size class (Annex A.8.2).
+const NESTED_FACTORS: [u8; 3] = [1, 3, 5];
+const NESTED_OCTAVES: [u8; 3] = [0, 1, 2];
+
+/// The plan of a rate coarser than `finer` that nests in it (§3.8) whose render error, as
+/// the parts' curves predict it, is at most `target_mse` at the fewest predicted bits:
+/// every choice of an odd factor per group ([`NESTED_FACTORS`]) and of more octaves per
+/// size class's position cell ([`NESTED_OCTAVES`]) is weighed; none within the target
+/// gives the one of least error.
+pub fn allocate_nested(
+    p: &PreparedGaussians,
+    curves: &[(Part, Curve)],
+    finer: &RatePlan,
+    target_mse: f64,
+) -> RatePlan {
+    let start = TrialSteps::default_for(p);
+    let groups = p.kinds.len();
+    // Per unit (each group, then each size class's positions), per option: (MSE, bits).
+    let mut units: Vec<Vec<(f64, f64)>> = Vec::with_capacity(groups + SIZE_CLASSES);
+    for gi in 0..groups {
+        let options = NESTED_FACTORS.iter().map(|&m| {
+            let plan = super::fit_rates::nested_plan(finer, &factors_for(groups, gi, m), &[0; 4]);
+            predicted(curves, &start, &plan, |part| match part {
+                Part::Scale => gi == 0,
+                Part::Group(g, _) => g == gi,
+                Part::Position(_) => false,
+            })
+        });
+        units.push(options.collect());
+    }
+    for c in 0..SIZE_CLASSES {
+        let options = NESTED_OCTAVES.iter().map(|&k| {
+            let mut up = [0u8; SIZE_CLASSES];
+            up[c] = k;
+            let plan = super::fit_rates::nested_plan(finer, &vec![1; groups], &up);
+            predicted(curves, &start, &plan, |part| {
+                part == Part::Position(c as u8)
+            })
+        });
+        units.push(options.collect());
+    }
+    // Every combination, as mixed-radix digits.
+    let radix = 3usize;
+    let combos = radix.pow(units.len() as u32);
+    let mut best: Option<(bool, f64, usize)> = None;
+    for combo in 0..combos {
+        let (mut mse, mut bits, mut rest) = (0.0, 0.0, combo);
+        for unit in &units {
+            let (m, b) = unit[rest % radix];
+            mse += m;
+            bits += b;
+            rest /= radix;
+        }
+        let fits = mse <= target_mse;
+        let key = if fits { bits } else { mse };
+        let better = match best {
+            None => true,
+            Some((f, k, _)) => (fits && !f) || (fits == f && key < k),
+        };
+        if better {
+            best = Some((fits, key, combo));
+        }
+    }
+    let mut rest = best.map_or(0, |b| b.2);
+    let mut factors = Vec::with_capacity(groups);
+    for _ in 0..groups {
+        factors.push(NESTED_FACTORS[rest % radix]);
+        rest /= radix;
+    }
+    let up: [u8; SIZE_CLASSES] = std::array::from_fn(|_| {
+        let k = NESTED_OCTAVES[rest % radix];
+        rest /= radix;
+        k
+    });
+    super::fit_rates::nested_plan(finer, &factors, &up)
+}
+
+/// Factor `m` for group `gi` and 1 for the others.
+fn factors_for(groups: usize, gi: usize, m: u8) -> Vec<u8> {
+    (0..groups).map(|g| if g == gi { m } else { 1 }).collect()
+}
+
+/// The curves' (MSE, bits) of `plan`, summed over the parts `chosen` keeps.
+fn predicted(
+    curves: &[(Part, Curve)],
+    start: &TrialSteps,
+    plan: &RatePlan,
+    chosen: impl Fn(Part) -> bool,
+) -> (f64, f64) {
+    let mut sum = (0.0, 0.0);
+    for (part, curve) in curves.iter().filter(|(part, _)| chosen(*part)) {
+        let x = match *part {
+            Part::Position(c) => {
+                let cell = plan.voxel * (-f64::from(plan.refine[usize::from(c)])).exp2();
+                (cell / start.position).log2()
+            }
+            Part::Scale => (plan.steps[0] / start.groups[0]).log2(),
+            Part::Group(gi, c) => {
+                let shift = plan.shift[gi - 1][usize::from(c)];
+                (plan.steps[gi] * f64::from(shift).exp2() / start.groups[gi]).log2()
+            }
+        };
+        let (m, b) = curve_at(curve, x);
+        sum = (sum.0 + m, sum.1 + b);
+    }
+    sum
+}
