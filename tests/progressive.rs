@@ -136,3 +136,36 @@ fn a_cut_stream_decodes_to_its_last_complete_rate() {
     }
     assert_eq!(last, Some(0));
 }
+
+#[test]
+fn info_gives_each_rates_prefix_and_where_it_ends() {
+    let e = encode(None);
+    let info =
+        salvq_encoder::info::explicit::inspect_explicit(&e.stream, &Limits::default()).unwrap();
+    assert!(info.progressive);
+    let rates: Vec<u8> = info.layers.iter().map(|l| l.rate).collect();
+    assert_eq!(rates, [0, 1, 2], "finest first");
+    for l in &info.layers {
+        let extracted = salvq::extract_rate(&e.stream, l.rate, &Limits::default()).unwrap();
+        assert_eq!(
+            l.single_rate_bytes as usize,
+            extracted.len(),
+            "rate {}",
+            l.rate
+        );
+        let d = decode_any(
+            &e.stream[..l.stream_end as usize],
+            &DecodeOptions::default().with_accept_prefix(true),
+        )
+        .unwrap();
+        assert_eq!(
+            decoded(d).rate,
+            l.rate,
+            "a prefix ending at {}",
+            l.stream_end
+        );
+    }
+    assert_eq!(info.layers[0].stream_end as usize, e.stream.len() - 12);
+    // The refinements pay no octree: the voxels are the first layer's.
+    assert!(info.layers[0].octree_bits == 0.0 && info.layers[2].octree_bits > 0.0);
+}

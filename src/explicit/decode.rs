@@ -41,6 +41,9 @@ pub struct DecodedGaussians {
     pub layer: Layer,
     /// The precision of the decoded Gaussians (§3.6, §3.8).
     pub precision: Precision,
+    /// A progressive stream's refinements decoded after the first layer, in stream order
+    /// (§3.8.1).
+    pub refinements: Vec<Refinement>,
     /// Whether the stream ended before `SEND` (a progressive stream's prefix accepted with
     /// [`DecodeOptions::accept_prefix`], §3.8): the Gaussians are those of its last complete
     /// layer, which [`Self::rate`] names.
@@ -192,6 +195,8 @@ pub(crate) struct ExplicitDecoder {
     precision: Option<Precision>,
     /// The refinement whose `GRSY` comes next.
     refinement: Option<Refinement>,
+    /// The refinements decoded, in stream order.
+    refinements: Vec<Refinement>,
     /// Layers whose symbols are decoded.
     layers_done: usize,
     /// The layer (in stream order) whose precision the Gaussians decoded so far are at.
@@ -239,6 +244,7 @@ impl ExplicitDecoder {
             layer: None,
             precision: None,
             refinement: None,
+            refinements: Vec::new(),
             layers_done: 0,
             gaussians_at: None,
             truncated: false,
@@ -578,6 +584,7 @@ impl ExplicitDecoder {
             rate,
             layer: self.layer.ok_or(missing_part(ChunkTag::GLAY))?,
             precision: self.precision.ok_or(missing_part(ChunkTag::GATT))?,
+            refinements: self.refinements,
             truncated: self.truncated,
             voxels: kept,
             symbols: decoded.symbols,

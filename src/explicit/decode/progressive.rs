@@ -87,6 +87,7 @@ impl ExplicitDecoder {
         };
         if let Some(r) = self.refinement.take() {
             self.precision = self.precision.as_ref().map(|p| p.refined(&r));
+            self.refinements.push(r);
         } else if let (Some(layer), Some(groups)) = (&self.layer, &self.groups) {
             self.precision = Some(Precision::of_layer(layer, groups, self.layer_rate()));
             self.gaussians_at = Some(l);

@@ -6,11 +6,12 @@
 use serde::Serialize;
 
 use crate::error::Result;
-use salvq::container::chunk::ChunkReader;
+use salvq::container::chunk::{ChunkReader, ChunkTag};
 use salvq::container::signature::{Signature, SIGNATURE_LEN};
 use salvq::entropy::{wide_scale, GaussianTables, SCALE_COUNT, SCALE_INDEX_COUNT};
-use salvq::explicit::attributes::{rest_count_of, walk, BitEvent, Events};
+use salvq::explicit::attributes::{rest_count_of, walk, BitEvent, Events, TileSymbols};
 use salvq::explicit::decode_gaussians;
+use salvq::explicit::refinement::refine_walk;
 use salvq::explicit::{DecodedGaussians, GroupKind};
 use salvq::limits::Limits;
 
@@ -29,8 +30,13 @@ pub struct ExplicitLayerInfo {
     pub tiles: usize,
     /// Framed bytes of the layer's chunks (its section, §3.7).
     pub layer_bytes: u64,
-    /// Bytes of the single-rate stream (`salvq extract`).
+    /// Bytes of the stream that decodes this rate (what `salvq extract` writes): the layer
+    /// alone, or in a progressive stream the prefix up to it (§3.8), shared chunks and `SEND`
+    /// included.
     pub single_rate_bytes: u64,
+    /// Byte offset where the layer's section ends in the stream: in a progressive stream,
+    /// a prefix of this many bytes decodes to this rate (§3.8.4).
+    pub stream_end: u64,
     /// Bits per Gaussian: the octree (`APOS` payload) and the refinement bits.
     pub octree_bits: f64,
     /// Bits per Gaussian of the position refinement.
@@ -76,7 +82,9 @@ pub struct ExplicitInfo {
     pub shared_bytes: u64,
     /// Per group: its name and whether it has a KLT basis (lattice code 4).
     pub lattices: Vec<(String, bool)>,
-    /// Its layers, in stream order.
+    /// Whether the rates nest (§3.8).
+    pub progressive: bool,
+    /// Its layers, finest first.
     pub layers: Vec<ExplicitLayerInfo>,
 }
 
@@ -187,10 +195,10 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut sections: Vec<u64> = vec![0];
     while let Some(c) = reader.next_chunk()? {
-        if c.tag == salvq::container::chunk::ChunkTag::GLAY {
+        if matches!(c.tag, ChunkTag::GLAY | ChunkTag::GREF) {
             sections.push(0);
         }
-        if c.tag != salvq::container::chunk::ChunkTag::SEND {
+        if c.tag != ChunkTag::SEND {
             *sections.last_mut().unwrap_or(&mut 0) += c.payload.len() as u64 + 12;
         }
     }
@@ -199,8 +207,10 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
     let tables = GaussianTables::standard();
     let n = f64::from(h.count.max(1));
     let mut layers = Vec::new();
-    for (li, rate) in h.coded_rates().into_iter().enumerate() {
-        let d = if li == 0 {
+    // In stream order, each layer's decode and the one before it (what a refinement refines).
+    let mut before: Option<salvq::explicit::DecodedGaussians> = None;
+    for (li, rate) in h.stream_rates().into_iter().enumerate() {
+        let d = if rate == first.rate {
             first.clone()
         } else {
             decode_gaussians(data, limits, Some(rate))?
@@ -208,10 +218,26 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
         let values: usize = d.groups.iter().map(|g| g.dim).sum();
         let group_of = group_of(&d);
         let mut cost = Cost::new(&d, &group_of, tables);
+        let refinement = before
+            .as_ref()
+            .filter(|_| h.progressive)
+            .zip(d.refinements.last());
         for t in 0..d.tiles.len() {
             let range = d.tiles.range(t);
             cost.coords = &d.symbols.coords[range.start * values..range.end * values];
-            walk(&d.layer, &d.groups, &d.voxels[range.clone()], &mut cost)?;
+            let voxels = &d.voxels[range.clone()];
+            if let Some((b, r)) = refinement {
+                // §3.8.2: the tile's symbols before the refinement, refined in place.
+                let mut tile = TileSymbols {
+                    coords: b.symbols.coords[range.start * values..range.end * values].to_vec(),
+                    rotation_index: b.symbols.rotation_index[range.clone()].to_vec(),
+                    size_class: b.symbols.size_class[range.clone()].to_vec(),
+                    refinement: b.symbols.refinement[range.clone()].to_vec(),
+                };
+                refine_walk(r, &d.groups, voxels, &mut cost, &mut tile.as_mut())?;
+                continue;
+            }
+            walk(&d.layer, &d.groups, voxels, &mut cost)?;
             // The rotation index: two binary events per Gaussian at the layer's frequencies.
             for &r in &d.symbols.rotation_index[range] {
                 let f = d.layer.rotation_freq;
@@ -223,15 +249,25 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
             }
         }
         let layer_bytes = sections.get(li + 1).copied().unwrap_or(0);
-        let apos = octree_bytes(data, li, limits)?;
+        // A progressive rate is read as the stream's prefix up to its layer.
+        let read: u64 = match h.progressive {
+            true => sections[1..=li + 1].iter().sum(),
+            false => layer_bytes,
+        };
+        let apos = match refinement {
+            Some(_) => 0,
+            None => octree_bytes(data, li, limits)?,
+        };
+        let stream_end = SIGNATURE_LEN as u64 + sections[..=li + 1].iter().sum::<u64>();
         layers.push(ExplicitLayerInfo {
             rate,
             coord_bits: d.layer.coord_bits,
             voxel_size: d.layer.voxel_size,
-            refine: d.layer.refine,
+            refine: d.precision.refine,
             tiles: d.tiles.len(),
             layer_bytes,
-            single_rate_bytes: SIGNATURE_LEN as u64 + sections[0] + layer_bytes + 12,
+            single_rate_bytes: SIGNATURE_LEN as u64 + sections[0] + read + 12,
+            stream_end,
             octree_bits: apos as f64 * 8.0 / n,
             refine_bits: cost.refine / n,
             group_bits: d
@@ -255,8 +291,12 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
                 })
                 .collect(),
         });
+        before = Some(d);
     }
+    // Finest first, whatever the stream's order.
+    layers.sort_by_key(|l| l.rate);
     Ok(ExplicitInfo {
+        progressive: h.progressive,
         format_version: format!("{}.{}", sig.major, sig.minor),
         gaussians: h.count,
         sh_degree: h.sh_degree,
@@ -279,7 +319,7 @@ fn octree_bytes(data: &[u8], li: usize, limits: &Limits) -> Result<u64> {
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
     let mut seen = 0usize;
     while let Some(c) = reader.next_chunk()? {
-        if c.tag == salvq::container::chunk::ChunkTag::APOS {
+        if c.tag == ChunkTag::APOS {
             if seen == li {
                 return Ok(c.payload.len() as u64);
             }
@@ -324,22 +364,38 @@ impl ExplicitInfo {
             .first()
             .map(|l| l.group_bits.iter().map(|g| g.0.as_str()).collect())
             .unwrap_or_default();
+        if self.progressive {
+            let _ = writeln!(
+                s,
+                "progressive (spec §3.8): the coarsest rate first, each finer one refining it; a \
+                 rate's bytes are the stream's prefix up to the end of its layer (plus SEND), \
+                 its bits/Gaussian those of its own layer"
+            );
+        }
+        let bytes_head = if self.progressive {
+            "bytes to rate  ends at"
+        } else {
+            "bytes alone"
+        };
         let _ = writeln!(
             s,
-            "rate  coord_bits  refine     tiles  bytes alone  B/Gaussian  bits/Gaussian: octree refine {}",
+            "rate  coord_bits  refine     tiles  {bytes_head}  B/Gaussian  bits/Gaussian: octree refine {}",
             names.join(" ")
         );
         let n = f64::from(self.gaussians.max(1));
         for l in &self.layers {
             let g: Vec<String> = l.group_bits.iter().map(|x| format!("{:.2}", x.1)).collect();
+            let bytes = match self.progressive {
+                true => format!("{:>13}  {:>7}", l.single_rate_bytes, l.stream_end),
+                false => format!("{:>11}", l.single_rate_bytes),
+            };
             let _ = writeln!(
                 s,
-                "{:>4}  {:>10}  {:<9}  {:>5}  {:>11}  {:>10.3}  {:.2} {:.2} {}",
+                "{:>4}  {:>10}  {:<9}  {:>5}  {bytes}  {:>10.3}  {:.2} {:.2} {}",
                 l.rate,
                 l.coord_bits,
                 format!("{:?}", l.refine),
                 l.tiles,
-                l.single_rate_bytes,
                 l.single_rate_bytes as f64 / n,
                 l.octree_bits,
                 l.refine_bits,
