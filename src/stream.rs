@@ -66,6 +66,8 @@ pub struct StreamDecoder {
     tiles: Vec<DecodedTile>,
     /// Tiles already returned by [`Self::new_tiles`].
     handed_out: usize,
+    /// How many of `tiles` are the first layer's (set when its `GATT` is complete).
+    first_layer_tiles: usize,
     /// The error reported, kept so that later calls report it again.
     error: Option<Error>,
     /// Offset just past `SEND`, once it is decoded.
@@ -80,6 +82,9 @@ pub struct DecodedTile {
     pub index: usize,
     /// Its Gaussians in [`StreamDecoder::gaussians`].
     pub gaussians: Range<usize>,
+    /// The rate they are at: in a progressive stream (§3.8), the coarsest first, and the
+    /// same tile again, at the same place, as each refinement takes it to a finer rate.
+    pub rate: u8,
 }
 
 enum Profile {
@@ -123,6 +128,7 @@ impl StreamDecoder {
             gaussians: Gaussians::default(),
             tiles: Vec::new(),
             handed_out: 0,
+            first_layer_tiles: 0,
             error: None,
             end: None,
         }
@@ -149,7 +155,8 @@ impl StreamDecoder {
         self.tiles[from..].to_vec()
     }
 
-    /// Every tile completed so far, in stream order.
+    /// Every tile completed so far, in stream order (a progressive stream's tiles again
+    /// after each refinement, §3.8).
     pub fn tiles(&self) -> &[DecodedTile] {
         &self.tiles
     }
@@ -261,8 +268,11 @@ impl StreamDecoder {
                     self.profile = Profile::Anchors;
                     return Ok(());
                 }
+                let mut decoder = ExplicitDecoder::new(&self.options);
+                // A viewer shows each rate of a progressive stream as it completes.
+                decoder.reconstruct_each_layer = true;
                 self.profile = Profile::Explicit(Box::new(Explicit {
-                    decoder: ExplicitDecoder::new(&self.options),
+                    decoder,
                     gatt: None,
                 }));
                 reader = ChunkReader::new(&rest[..complete], self.at as u64, &self.options.limits);
@@ -278,6 +288,15 @@ impl StreamDecoder {
                 self.end = Some(self.at + complete);
             }
             self.at += complete;
+            // §3.8: a refinement took every decoded tile to a finer rate, in place.
+            if let Some((rate, refined)) = e.decoder.refined_gaussians() {
+                if chunk.tag == ChunkTag::GRSY {
+                    self.gaussians.clone_from(refined);
+                    let first: Vec<DecodedTile> = self.tiles[..self.first_layer_tiles].to_vec();
+                    self.tiles
+                        .extend(first.into_iter().map(|t| DecodedTile { rate, ..t }));
+                }
+            }
         }
         Ok(())
     }
@@ -394,6 +413,7 @@ impl StreamDecoder {
         } else {
             e.decoder.gatt_decoded(g.per_tile);
         }
+        self.first_layer_tiles = self.tiles.len();
         self.at = at + complete;
         Ok(true)
     }
@@ -412,6 +432,7 @@ fn hand_out(
     tiles.push(DecodedTile {
         index: t,
         gaussians: from..gaussians.len(),
+        rate: decoder.layer_rate(),
     });
     Ok(())
 }

@@ -169,3 +169,36 @@ fn info_gives_each_rates_prefix_and_where_it_ends() {
     // The refinements pay no octree: the voxels are the first layer's.
     assert!(info.layers[0].octree_bits == 0.0 && info.layers[2].octree_bits > 0.0);
 }
+
+#[test]
+fn a_stream_shows_the_coarsest_rate_first_then_refines_it_in_place() {
+    let e = encode(None);
+    let whole = |rate: u8| {
+        decode_gaussians(&e.stream, &Limits::default(), Some(rate))
+            .unwrap()
+            .gaussians
+    };
+    let mut decoder = salvq::StreamDecoder::new(DecodeOptions::default());
+    let mut seen: Vec<u8> = Vec::new();
+    for piece in e.stream.chunks(300) {
+        decoder.feed(piece).unwrap();
+        let tiles = decoder.new_tiles();
+        if let Some(t) = tiles.last() {
+            if seen.last() != Some(&t.rate) {
+                seen.push(t.rate);
+            }
+            if t.rate != 2 {
+                // A refinement hands out every tile again, at the refined rate.
+                assert!(tiles.iter().all(|x| x.rate == t.rate));
+                assert!(*decoder.gaussians() == whole(t.rate), "rate {}", t.rate);
+            }
+        }
+    }
+    assert_eq!(seen, [2, 1, 0], "coarse first, then each refinement");
+    let tiles = decoder.tiles().len();
+    let Decoded::Gaussians(d) = decoder.finish().unwrap() else {
+        panic!("an explicit stream");
+    };
+    assert!(d.gaussians == whole(0));
+    assert_eq!(tiles % 3, 0, "each tile once per rate");
+}

@@ -203,6 +203,9 @@ pub(crate) struct ExplicitDecoder {
     gaussians_at: Option<usize>,
     /// Whether the stream ended before `SEND` (a progressive stream's prefix, §3.8).
     truncated: bool,
+    /// Whether each refinement's Gaussians are reconstructed, not only the selected
+    /// rate's (a viewer shows each rate as it arrives).
+    pub(crate) reconstruct_each_layer: bool,
     tiles: Option<TileTable>,
     voxels: Option<Vec<[u32; 3]>>,
     /// Which tiles the region keeps (set with the selected layer's `GATT`).
@@ -248,6 +251,7 @@ impl ExplicitDecoder {
             layers_done: 0,
             gaussians_at: None,
             truncated: false,
+            reconstruct_each_layer: false,
             tiles: None,
             voxels: None,
             selected: Vec::new(),

@@ -40,6 +40,9 @@ pub struct Batch {
     /// (explicit profile, and an anchors stream's part; empty for a whole anchors stream).
     tile_indices: Vec<u32>,
     tile_counts: Vec<u32>,
+    /// Whether the batch holds every Gaussian shown so far at a finer rate, to replace them
+    /// (a progressive stream's refinement, spec §3.8), rather than Gaussians to add.
+    replaces: bool,
 }
 
 #[wasm_bindgen]
@@ -69,6 +72,13 @@ impl Batch {
     #[wasm_bindgen(getter, js_name = tileCounts)]
     pub fn tile_counts(&self) -> Vec<u32> {
         self.tile_counts.clone()
+    }
+
+    /// Whether the batch replaces every Gaussian taken before it with the same Gaussians at
+    /// a finer rate (a progressive stream's refinement, spec §3.8) instead of adding to them.
+    #[wasm_bindgen(getter)]
+    pub fn replaces(&self) -> bool {
+        self.replaces
     }
 
     /// SH degree, 0 … 3.
@@ -217,6 +227,7 @@ fn batch_of(decoded: Decoded, part: Option<TilePart>) -> Result<Batch, JsError> 
         tiles: 0,
         tile_indices,
         tile_counts,
+        replaces: false,
     })
 }
 
@@ -270,6 +281,7 @@ fn anchors_part(bytes: &[u8], m: &SceneModel, part: TilePart) -> Result<Batch, J
         tiles: 0,
         tile_indices,
         tile_counts,
+        replaces: false,
     })
 }
 
@@ -306,6 +318,22 @@ impl Stream {
     pub fn take(&mut self) -> Result<Batch, JsError> {
         let inner = self.inner.as_mut().ok_or_else(finished)?;
         let new_tiles = &inner.tiles()[self.tiles_taken..];
+        // §3.8: a refinement hands out the first layer's tiles again, at a finer rate: every
+        // Gaussian, to replace those shown.
+        let first_rate = inner.tiles().first().map(|t| t.rate);
+        if new_tiles.iter().any(|t| Some(t.rate) != first_rate) {
+            let all = inner.gaussians();
+            let batch = Batch {
+                gaussians: slice(all, 0),
+                tiles: new_tiles.len(),
+                tile_indices: new_tiles.iter().map(|t| t.index as u32).collect(),
+                tile_counts: new_tiles.iter().map(|t| t.gaussians.len() as u32).collect(),
+                replaces: true,
+            };
+            self.tiles_taken = inner.tiles().len();
+            self.taken = all.len();
+            return Ok(batch);
+        }
         let tile_indices = new_tiles.iter().map(|t| t.index as u32).collect();
         let tile_counts = new_tiles.iter().map(|t| t.gaussians.len() as u32).collect();
         let tiles = new_tiles.len();
@@ -318,6 +346,7 @@ impl Stream {
             tiles,
             tile_indices,
             tile_counts,
+            replaces: false,
         })
     }
 
@@ -345,6 +374,7 @@ impl Stream {
             tiles: 0,
             tile_indices,
             tile_counts,
+            replaces: false,
         })
     }
 }
@@ -437,5 +467,45 @@ mod tests {
         )
         .unwrap();
         check_parts(&explicit.stream, "explicit");
+    }
+
+    #[test]
+    fn a_stream_replaces_the_coarse_rate_with_each_refinement() {
+        let plan = |f: f64| salvq_encoder::explicit::RatePlan {
+            voxel: 0.05 * f,
+            refine: [3, 2, 1, 0],
+            steps: [0.1, 0.25, 0.03, 0.03, 0.04].map(|s| s * f).to_vec(),
+            shift: vec![[1, 0, 0, -1]; 4],
+        };
+        let e = salvq_conformance::explicit_vectors::encode_synthetic(
+            &salvq_gen::gaussians::GaussianParams::new(500, 1, 9),
+            vec![plan(1.0), plan(4.0)],
+            salvq_encoder::explicit::ExplicitOptions {
+                tile_gaussians: 60,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut stream = Stream::new(None);
+        // What a page shows: batches added, and replaced by a refinement.
+        let mut shown: Vec<Batch> = Vec::new();
+        let mut replaced = 0;
+        for piece in e.stream.chunks(200) {
+            stream.feed(piece).unwrap();
+            let b = stream.take().unwrap();
+            if b.replaces() {
+                replaced += 1;
+                shown.clear();
+            }
+            shown.push(b);
+        }
+        shown.push(stream.finish().unwrap());
+        assert_eq!(replaced, 1, "one refinement");
+        let whole = decode(&e.stream, None).unwrap();
+        let positions: Vec<f32> = shown.iter().flat_map(|b| b.positions()).collect();
+        assert!(
+            positions == whole.positions(),
+            "the finest rate, each Gaussian once"
+        );
     }
 }

@@ -2,13 +2,15 @@
 // the Gaussians of each batch of completed tiles to the page as transferable typed arrays.
 // Messages from the page:
 //   { kind: 'stream', url, rate, slice }  decode the stream at `url` as it arrives: 'tiles'
-//                                         messages, then 'done' (or 'error')
+//                                         messages (a batch with `replaces` holds every
+//                                         Gaussian at a finer rate: a progressive stream's
+//                                         refinement), then 'done' (or 'error')
 //   { kind: 'time', url, rate, runs }     decode the stream whole `runs` times (decode()):
 //                                         'timed' with each run's milliseconds, sorted
 import init, { Stream, decode } from './pkg/salvq_wasm.js';
 
 const arrays = (b) => ({
-  count: b.count, tiles: b.tiles, shDegree: b.shDegree,
+  count: b.count, tiles: b.tiles, shDegree: b.shDegree, replaces: b.replaces,
   positions: b.positions, logScales: b.logScales, rotations: b.rotations,
   opacityLogits: b.opacityLogits, shDc: b.shDc, shRest: b.shRest,
 });

@@ -58,7 +58,7 @@ impl ExplicitDecoder {
 
     /// The rate of the stream's first layer, the one `GLAY` … `GATT` code: the selected
     /// rate, or in a progressive stream the coarsest coded rate (§3.8).
-    pub(super) fn layer_rate(&self) -> u8 {
+    pub(crate) fn layer_rate(&self) -> u8 {
         match self.progressive {
             true => self
                 .stream_rates
@@ -118,7 +118,7 @@ impl ExplicitDecoder {
             .next
             .checked_sub(1)
             .and_then(|p| layer_of(p, self.layers, self.progressive));
-        let last = layer == Some(self.selected_layer);
+        let last = layer == Some(self.selected_layer) || self.reconstruct_each_layer;
         let after = before.refined(r);
         let values = g.iter().map(|g| g.dim).sum();
         let outputs = decoded.outputs(tiles, values);
@@ -152,6 +152,15 @@ impl ExplicitDecoder {
             self.gaussians_at = layer;
         }
         Ok(())
+    }
+
+    /// The Gaussians at the last refinement decoded and its rate, where they were
+    /// reconstructed (the selected rate's, or each one's with `reconstruct_each_layer`).
+    pub(crate) fn refined_gaussians(&self) -> Option<(u8, &Gaussians)> {
+        let last = self.layers_done.checked_sub(1).filter(|&l| l > 0)?;
+        let rate = *self.stream_rates.get(last)?;
+        let decoded = self.decoded.as_ref()?;
+        (self.gaussians_at == Some(last)).then_some((rate, &decoded.gaussians))
     }
 
     /// §3.8: a progressive stream that ended before `SEND`: the Gaussians of its last
