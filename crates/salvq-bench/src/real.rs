@@ -85,7 +85,8 @@ fn salvq_rows(
 ) -> Result<Vec<Row>> {
     let n = f64::from(e.header.count.max(1));
     let mut rows = Vec::new();
-    for (report, layer_bytes, expected) in &e.layers {
+    // Each rate's bytes: what `salvq extract` writes (a progressive rate's prefix, §3.8).
+    for ((report, _, expected), read) in e.layers.iter().zip(e.rate_stream_bytes()) {
         let t = Instant::now();
         let d = decode_gaussians(&e.stream, &Limits::default(), Some(report.rate))?;
         let decode_s = t.elapsed().as_secs_f64();
@@ -99,8 +100,7 @@ fn salvq_rows(
             });
         }
         let (p, s) = reference.psnr_ssim(&d.gaussians)?;
-        let bytes =
-            (salvq::container::signature::SIGNATURE_LEN + e.shared_bytes + layer_bytes + 12) as u64;
+        let bytes = read as u64;
         rows.push(Row {
             scene: scene.into(),
             codec: codec.into(),
