@@ -383,8 +383,8 @@ const NESTED_OCTAVES: [u8; 3] = [0, 1, 2];
 
 /// The plan of a rate coarser than `finer` that nests in it (§3.8) whose render error, as
 /// the parts' curves predict it, is at most `target_mse` at the fewest predicted bits:
-/// every choice of an odd factor per group ([`NESTED_FACTORS`]) and of more octaves per
-/// size class's position cell ([`NESTED_OCTAVES`]) is weighed; none within the target
+/// every choice of an odd factor per group (1, 3 or 5) and of 0 to 2 more octaves per
+/// size class's position cell is weighed; none within the target
 /// gives the one of least error.
 pub fn allocate_nested(
     p: &PreparedGaussians,
