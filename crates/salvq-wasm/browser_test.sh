@@ -38,20 +38,14 @@ mkdir -p "$WORK/www/data" "$WORK/out"
 # Runs a command with its output kept in a log, shown if it fails.
 quiet() { "$@" > "$WORK/out/last.log" 2>&1 || { cat "$WORK/out/last.log"; exit 1; }; }
 
-echo "-- the package: cargo build --target wasm32-unknown-unknown, then wasm-bindgen --target web"
-(cd "$REPO" && cargo build -q --release -p salvq-wasm --target wasm32-unknown-unknown)
-wasm=$TARGET/wasm32-unknown-unknown/release/salvq_wasm.wasm
-wasm-bindgen --target web --out-dir "$WORK/www/pkg" "$wasm"
+source "$REPO/crates/salvq-wasm/page_setup.sh"
+page_setup "$WORK/www"
 raw=$(stat -c %s "$WORK/www/pkg/salvq_wasm_bg.wasm")
 gz=$(gzip -9 -c "$WORK/www/pkg/salvq_wasm_bg.wasm" | wc -c)
 echo "wasm: $raw bytes ($gz gzipped), budget $WASM_BUDGET bytes"
 if [ "$raw" -gt "$WASM_BUDGET" ]; then
   echo "the wasm file is over its budget of $WASM_BUDGET bytes (docs/web/README.md)"; exit 1
 fi
-
-cp "$REPO"/crates/salvq-wasm/www/{index.html,worker.js,part_worker.js} "$WORK/www/"
-cp "$REPO"/tools/viewer_check/{package.json,package-lock.json,shoot.mjs,compare.py,ring_camera.py} "$WORK/www/"
-(cd "$WORK/www" && npm ci --no-audit --no-fund --loglevel=error > /dev/null)
 
 echo "-- the stream: $(basename "$SCENE") at --psnr $PSNR; the reference renders and camera"
 tiles=()
