@@ -233,6 +233,30 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             }),
         ),
         must_fail(
+            "x-g-basis-zero-then-nan",
+            "NonFiniteValue",
+            &["§3.3"],
+            "GQUA sh_dc basis_s = [0, NaN, …]: each value's finiteness is checked as it is read, \
+             the zero only after the last",
+            gqua(&|p| {
+                let s0 = gqua_dc_lattice + 1 + 4 + 12 + 12 + 18;
+                p[s0..s0 + 2].copy_from_slice(&[0, 0]);
+                p[s0 + 2..s0 + 4].copy_from_slice(&0x7e00u16.to_le_bytes());
+            }),
+        ),
+        must_fail(
+            "x-g-gain-zero-then-nan",
+            "ValueNotPositive",
+            &["§3.3"],
+            "GQUA scale gains = [0, NaN, …]: each gain is checked whole (finite, then > 0) \
+             before the next is read",
+            gqua(&|p| {
+                let g = gqua_group0_gain0;
+                p[g..g + 4].copy_from_slice(&0f32.to_le_bytes());
+                p[g + 4..g + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+            }),
+        ),
+        must_fail(
             "x-g-gqua-length",
             "ChunkSizeMismatch",
             &["§3.3"],
@@ -353,6 +377,18 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             &["§3.7"],
             "an anchors-profile AFEA chunk after GQUA",
             unknown,
+        ),
+        must_fail(
+            "x-g-first-gqua",
+            "UnknownCriticalChunk",
+            &["§1.5", "§3.7"],
+            "GHED removed: the first chunk, GQUA, makes the stream one of the anchors profile, \
+             which does not define it (rule 0 before rule 1)",
+            {
+                let mut cs = chunks(&base);
+                cs.retain(|(t, _)| *t != ChunkTag::GHED);
+                surgery::assemble(&base, &cs)
+            },
         ),
         must_fail(
             "x-g-chunk-order",
