@@ -46,6 +46,14 @@ const FINDINGS: &[Finding] = &[
         target: "decode",
         expect: Some("ok"),
     },
+    // §3.8.4: a progressive stream cut inside GQUA, before any layer. The extractor took a
+    // truncation with no layer due as a cut after the selected layer and wrote GHED and SEND
+    // alone, a stream that does not extract again (found by libFuzzer, target `extract`).
+    Finding {
+        file: "tests/fuzz_regressions/extract-progressive-cut-in-gqua.bin",
+        target: "extract",
+        expect: None,
+    },
 ];
 
 /// What the reference decoder answers for a whole stream, as [`Finding::expect`] spells it.
