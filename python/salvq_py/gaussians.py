@@ -57,17 +57,15 @@ def group_values(grp: GGroup, rate: int, lay: GLayer, sym: GattSymbols, offset: 
 
 
 def rotations(abc: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """Step 3: t = 1 ⊖ (((a⊗a) ⊕ (b⊗b)) ⊕ (c⊗c)), m = sqrt(t) if t > 0 else +0; the
-    quaternion (w, x, y, z) has m at the rotation index and a, b, c elsewhere, in order."""
-    a, b, c = abc[:, 0], abc[:, 1], abc[:, 2]
-    one = np.float32(1)
+    """Step 3, in binary64: t = 1 − ((a·a + b·b) + c·c), m = float32(sqrt(t)) if t > 0 else
+    +0; the quaternion (w, x, y, z) has m at the rotation index and a, b, c elsewhere, in
+    order."""
+    a, b, c = (abc[:, k].astype(np.float64) for k in range(3))
     with np.errstate(over="ignore", invalid="ignore"):
-        ss = ((a * a).astype(np.float32) + (b * b).astype(np.float32)).astype(np.float32)
-        ss = (ss + (c * c).astype(np.float32)).astype(np.float32)
-        t = (one - ss).astype(np.float32)
+        t = 1.0 - ((a * a + b * b) + c * c)           # binary64: the squares are exact
         pos = t > 0                                   # False for a NaN t
         m = np.zeros(t.shape, np.float32)             # +0
-        m[pos] = np.sqrt(t[pos])                      # IEEE square root, correctly rounded
+        m[pos] = np.sqrt(t[pos]).astype(np.float32)   # binary64 square root, then rounded
     q = np.empty((abc.shape[0], 4), np.float32)
     for k in range(4):
         sel = index == k

@@ -29,13 +29,17 @@ pub fn pow2(k: i32) -> f32 {
 
 /// §3.6 step 3: the quaternion (w, x, y, z) from its three smallest components `small` (in
 /// increasing component order, the largest left out) and the largest's index.
+///
+/// In binary64 the squares of binary32 values are exact, so a compiler that fuses a multiply
+/// and an add gets the same `t` (near the unit sphere a binary32 `t` loses every bit to one
+/// such fusion, and the square root magnifies it).
 #[inline]
 pub fn quaternion(small: [f32; 3], largest: u8) -> [f32; 4] {
-    let s = small[0] * small[0] + small[1] * small[1] + small[2] * small[2];
-    let t = 1.0 - s;
+    let [a, b, c] = small.map(f64::from);
+    let t = 1.0 - ((a * a + b * b) + c * c);
     // max(t, +0), with a NaN t (from a non-finite component) taken as +0.
     let t = if t > 0.0 { t } else { 0.0 };
-    let big = t.sqrt();
+    let big = t.sqrt() as f32;
     let mut q = [0.0f32; 4];
     let mut k = 0;
     for (c, out) in q.iter_mut().enumerate() {
@@ -128,4 +132,33 @@ fn group_values<const D: usize>(
     };
     let z: [f32; D] = matrix.apply_fixed(u);
     std::array::from_fn(|j| canonical_nan(mean[j] + delta * z[j]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::quaternion;
+
+    /// Near the unit sphere a binary32 evaluation of §3.6 step 3 loses `m` to one fused
+    /// multiply-add; the binary64 one gives the same bits fused or not.
+    #[test]
+    fn a_fused_multiply_add_leaves_the_rotation_unchanged() {
+        let (a, b, c) = (0.577_296_9_f32, 0.577_369_15_f32, 0.577_384_7_f32);
+        let m32 = |t: f32| if t > 0.0 { t.sqrt() } else { 0.0 };
+        let plain32 = m32(1.0 - ((a * a + b * b) + c * c));
+        let fused32 = m32(1.0 - c.mul_add(c, a.mul_add(a, b * b)));
+        assert!(
+            (plain32 - fused32).abs() > 1e-4,
+            "binary32: {plain32} unfused, {fused32} fused"
+        );
+        let m = quaternion([a, b, c], 0)[0];
+        let (a, b, c) = (f64::from(a), f64::from(b), f64::from(c));
+        for t in [
+            1.0 - c.mul_add(c, a.mul_add(a, b * b)),
+            1.0 - c.mul_add(c, b.mul_add(b, a * a)),
+            1.0 - (c * c + (a * a + b * b)),
+        ] {
+            let fused = if t > 0.0 { t.sqrt() as f32 } else { 0.0 };
+            assert_eq!(fused.to_bits(), m.to_bits(), "t = {t:e}");
+        }
+    }
 }
