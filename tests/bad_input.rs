@@ -437,3 +437,45 @@ fn head_checks_follow_the_spec_order() {
     let bad = edit_payload(&s, ChunkTag::HEAD, |p| p[14] = 2);
     assert!(matches!(err(&bad), Error::LatticeDimension { .. }));
 }
+
+/// §9.1: a stream of a few bytes whose header claims 2^24 Gaussians of SH degree 3 in one
+/// voxel asks for 3.96 GB of output, within the default 4 GiB, but a decode that keeps the
+/// symbols would hold 4.13 GB more: the allocation limit refuses it at `GHED`, before anything
+/// is allocated. Decoding Gaussians only it holds 0.2 GB more and passes that check.
+#[test]
+fn the_allocation_limit_counts_what_an_explicit_decode_holds() {
+    let h = salvq::explicit::header::GaussianHeader {
+        count: 1 << 24,
+        sh_degree: 3,
+        rate_count: 1,
+        rate_mask: 1,
+        origin: [0.0; 3],
+        progressive: false,
+    };
+    let limit = Limits::default().max_alloc_bytes;
+    assert!(h.decoded_bytes() <= limit);
+    let stream = salvq::container::surgery::assemble(
+        &salvq::container::signature::Signature::current().to_bytes(),
+        &[(ChunkTag::GHED, h.to_payload()), (ChunkTag::SEND, vec![])],
+    );
+    let decode = |gaussians_only: bool| {
+        salvq::decoder::decode_any(
+            &stream,
+            &salvq::DecodeOptions::default().with_gaussians_only(gaussians_only),
+        )
+        .err()
+    };
+    match decode(false) {
+        Some(Error::LimitExceeded {
+            limit: LimitKind::AllocationBytes,
+            requested,
+            ..
+        }) => assert!(requested > limit, "{requested}"),
+        other => panic!("keeping the symbols: {other:?}"),
+    }
+    assert!(
+        !matches!(decode(true), Some(Error::LimitExceeded { .. })),
+        "Gaussians only: {:?}",
+        decode(true)
+    );
+}

@@ -117,9 +117,13 @@ def parse_ghed(payload: bytes, limits: Limits) -> GHead:
                          f"GHED decoded_bytes = {h.decoded_bytes}, the fields imply {size} [§3.2]")
     if h.N > limits.anchors:                                                       # step 6
         raise SalvqError("LimitExceeded", f"anchors (Gaussians): requested {h.N}, allowed {limits.anchors} [§9.1]")
-    if size > limits.allocation_bytes:
+    # §9.1: what the decode holds besides its output; this decoder always keeps the symbols
+    # (the canonical form): voxels, D coded values, rotation index, size class, refinement.
+    d = 10 + 3 * ((h.sh_degree + 1) ** 2 - 1)
+    held = size + h.N * (12 + 4 * d + 14)
+    if held > limits.allocation_bytes:
         raise SalvqError("LimitExceeded",
-                         f"allocation bytes: requested {size}, allowed {limits.allocation_bytes} [§9.1]")
+                         f"allocation bytes: requested {held}, allowed {limits.allocation_bytes} [§9.1]")
     return h
 
 

@@ -19,7 +19,7 @@ use crate::explicit::reconstruct::reconstruct_tile_into;
 use crate::explicit::refinement::{Precision, Refinement};
 use crate::explicit::Gaussians;
 use crate::geometry::WalkScratch;
-use crate::limits::Limits;
+use crate::limits::{LimitKind, Limits};
 use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
 use crate::DecodeOptions;
@@ -311,6 +311,12 @@ impl ExplicitDecoder {
                 self.progressive = h.progressive;
                 // A refinement refines the symbols in place.
                 self.keep_symbols |= h.progressive && self.selected_layer > 0;
+                // §9.1: the allocation limit bounds what the decode holds, not only its output.
+                let held = h.working_bytes(self.keep_symbols);
+                self.limits.check(
+                    LimitKind::AllocationBytes,
+                    h.decoded_bytes().saturating_add(held),
+                )?;
                 self.header = Some(h);
             }
             ChunkTag::GQUA => {

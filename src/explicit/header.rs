@@ -43,6 +43,15 @@ impl GaussianHeader {
         u64::from(self.count) * 4 * values_per_gaussian(self.sh_degree)
     }
 
+    /// §9.1: bytes a decode holds besides the decoded Gaussians: each Gaussian's voxel
+    /// (three `u32`) and, where the symbols are kept, its D coded values (`i32`), rotation
+    /// index and size class (a byte each) and position refinement (three `u32`).
+    pub fn working_bytes(&self, symbols: bool) -> u64 {
+        let coded = values_per_gaussian(self.sh_degree) - 4;
+        let per = 12 + if symbols { 4 * coded + 2 + 12 } else { 0 };
+        u64::from(self.count) * per
+    }
+
     /// The layers the stream carries, lowest rate first.
     pub fn coded_rates(&self) -> Vec<u8> {
         (0..self.rate_count)
