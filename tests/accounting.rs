@@ -1,4 +1,4 @@
-//! `salvq info`'s byte accounting (issue 10): the model parts add up to the model chunks'
+//! `salvq info`'s byte accounting: the model parts add up to the model chunks'
 //! payloads, and each rate's "stream bits per anchor" is the size of what `extract` writes.
 
 use std::path::Path;

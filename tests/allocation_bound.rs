@@ -1,4 +1,4 @@
-//! The decoder allocates no more than its preflight allows (spec §9.1, issue 8): peak heap
+//! The decoder allocates no more than its preflight allows (spec §9.1): peak heap
 //! during a decode, counted by a capping global allocator, against
 //! `salvq_conformance::fuzzing::allocation_bound` — the same bound the fuzz targets enforce. Each decode
 //! runs in a child process of this test so its peak is its own.

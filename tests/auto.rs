@@ -1,4 +1,4 @@
-//! `--auto` (issue 10, Annex A.5.3): the feature quantizer chosen by total bytes at equal
+//! `--auto` (Annex A.5.3): the feature quantizer chosen by total bytes at equal
 //! distortion, on two differently structured generated scenes.
 
 use salvq::SceneModel;

@@ -1,4 +1,4 @@
-//! The context MLP's weight storage (issue 10, §1.6.2 Table 1-7, Annex A.5.4): i8 when it is
+//! The context MLP's weight storage (§1.6.2 Table 1-7, Annex A.5.4): i8 when it is
 //! smaller at equal distortion, with the base steps refined to hold the distortion.
 
 use salvq::container::payload::ContextPrecision;

@@ -1,4 +1,4 @@
-//! Least sufficient structure (issue 10): removing a hash-grid level from a model.
+//! Least sufficient structure: removing a hash-grid level from a model.
 
 use salvq::model::validate::validate_model;
 use salvq_encoder::parsimony::{grid_levels, prune_grid_levels, without_level, GridLevel};

@@ -1,4 +1,4 @@
-//! Two ANS states decoded in turn against one (research for issue 22; not a format feature).
+//! Two ANS states decoded in turn against one (not a format feature).
 //!
 //! `cargo bench --bench ans_interleave` asks how much of the symbol decode is the latency of
 //! one ANS state's chain (each symbol's state depends on the one before): the same symbols

@@ -1,4 +1,4 @@
-//! Decode throughput of a generated 100 k-anchor scene (issue 4's measurement), and where the
+//! Decode throughput of a generated 100 k-anchor scene, and where the
 //! time goes: full decode vs the integer prior (grid features, MLP, scale indices) vs entropy
 //! decoding with per-symbol tables vs the bare constriction coder with one static model on the
 //! same symbols. Run: `cargo bench --bench decode_throughput [-- ANCHORS]`.
@@ -303,7 +303,7 @@ fn main() {
     );
     println!(
         "ratio full decode / bare coder = {:.2} (medians above); per-round median {:.2} \
-         (min {:.2}, max {:.2}, {rounds} rounds; goal <= 3.0, issue 22); prior / full = {:.2}",
+         (min {:.2}, max {:.2}, {rounds} rounds; goal <= 3.0); prior / full = {:.2}",
         t_full / t_bare,
         ratios[rounds / 2],
         ratios[0],

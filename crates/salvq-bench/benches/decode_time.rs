@@ -1,4 +1,4 @@
-//! In-process decode time of stream files, for comparing two builds in turn (issue 22): each
+//! In-process decode time of stream files, for comparing two builds in turn: each
 //! file decoded `--runs` times per round by `salvq::Decoder::builder().threads(n)`, for each
 //! thread count, rounds interleaving the files and thread counts; prints each round's median
 //! and minimum, then the median over the rounds of both. Checks what it measures: every decode

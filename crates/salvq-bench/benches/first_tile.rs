@@ -1,4 +1,4 @@
-//! Time to first tile (issue 20): an explicit-profile stream of N generated Gaussians fed to
+//! Time to first tile: an explicit-profile stream of N generated Gaussians fed to
 //! `salvq::stream::StreamDecoder` in 64 KiB pieces, as a viewer receives it, against the
 //! whole-buffer decode of the same bytes on one thread and on rayon's pool. Prints the bytes
 //! and the decode time at which the first tile is handed out, and the whole decode's time.

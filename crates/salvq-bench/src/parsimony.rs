@@ -1,4 +1,4 @@
-//! `salvq bench parsimony` (issue 10): the model's share of the stream and the total bits per
+//! `salvq bench parsimony`: the model's share of the stream and the total bits per
 //! anchor against scene size, as the encoder stores the model plainly, with grid-level pruning
 //! (Annex A.5.1), and with pruning and binary16 Scaffold-GS MLPs (§1.6.2). Writes
 //! parsimony.svg, parsimony.csv and parsimony.txt; then [`super::precision`]'s total bytes vs

@@ -1,4 +1,4 @@
-//! `salvq bench parsimony`, second part (issue 10): total stream bytes against the precision
+//! `salvq bench parsimony`, second part: total stream bytes against the precision
 //! each model tensor group is stored at, on one generated scene. Writes precision.svg,
 //! precision.csv and precision.txt.
 //!

@@ -1,4 +1,4 @@
-//! `salvq bench real` (issue 19, Annex A.8.4): the explicit profile on real 3DGS scenes
+//! `salvq bench real` (Annex A.8.4): the explicit profile on real 3DGS scenes
 //! against the formats people use. For each scene, one multi-rate salvq stream (each rate
 //! decoded from it) and PlayCanvas splat-transform's SPZ, SOG and compressed PLY, all
 //! rendered from the same ring cameras as the input PLY (PSNR and SSIM), with encode and

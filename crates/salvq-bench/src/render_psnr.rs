@@ -1,4 +1,4 @@
-//! Render-domain accuracy for the R-D bench (issue 11, Annex C.5): a decoded scene is
+//! Render-domain accuracy for the R-D bench (Annex C.5): a decoded scene is
 //! rendered from the same ring cameras as the uncompressed model, and compared by PSNR (of
 //! the mean squared error over all views) and SSIM (mean over views). This is what a 3DGS
 //! user sees; feature SNR is what the codec controls.

@@ -1,6 +1,6 @@
 //! `salvq encode`: options, the encoder's choices (`--auto`, `--prune-grid`, Scaffold-GS
 //! precision) printed with their reasons, progress on long work, and the final summary as
-//! text or JSON (issues 10 and 12).
+//! text or JSON.
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -1,4 +1,4 @@
-//! `--auto` (issue 10; DESIGN P7; Annex A.5.3): the feature group's quantizer — its kind
+//! `--auto` (Annex A.5.3): the feature group's quantizer — its kind
 //! (identity or a general basis) and its number of spatial regions (Sp-SALVQ, §7.6) — chosen
 //! by **total stream bytes at equal distortion**.
 //!

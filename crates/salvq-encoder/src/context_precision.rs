@@ -1,4 +1,4 @@
-//! Least sufficient precision for the integer context MLP (issue 10; Annex A.5.4): its
+//! Least sufficient precision for the integer context MLP (Annex A.5.4): its
 //! weights stored as i8 instead of i16 (§1.6.2 Table 1-7) when the symbol bytes that costs,
 //! measured, are fewer than the model bytes it saves, at equal distortion. The MLP's outputs
 //! are the coder's scales, but also the means values are quantized around and the step

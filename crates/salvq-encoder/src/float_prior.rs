@@ -1,7 +1,7 @@
 //! The float model the integer prior replaces (measurement only, never on a decoding path):
 //! multilinear grid interpolation in f64, the stored f32 MLP evaluated in f64, HAC's step
 //! `G (1 + tanh(adj))`, and the exact discretized Gaussian. It answers "what would the
-//! trained float model have spent", the baseline of the conversion cost (spec §5, issue 4).
+//! trained float model have spent", the baseline of the conversion cost (spec §5).
 
 use crate::float_grid::Interp;
 use salvq::hyperprior::prior::Group;

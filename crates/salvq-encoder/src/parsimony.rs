@@ -1,4 +1,4 @@
-//! Least sufficient structure (issue 10; DESIGN P7): hash-grid levels that do not pay for
+//! Least sufficient structure: hash-grid levels that do not pay for
 //! themselves. A level costs `C` bits per touched entry in `GRID` (§1.6.1) on every plane it
 //! has; it pays through the context MLP's predictions. The encoder removes a level from the
 //! model — its entries, and its inputs to `mlp_grid`, whose mean over the anchors is folded

@@ -1,4 +1,4 @@
-//! Least sufficient precision (issue 10; DESIGN P7) for the Scaffold-GS MLPs (Annex A.5.2):
+//! Least sufficient precision for the Scaffold-GS MLPs (Annex A.5.2):
 //! stored in binary16 (§1.6.2 Table 1-6) when every value fits binary16 and the renders of
 //! the scene's neural Gaussians with binary16 MLPs match those with binary32 MLPs at
 //! [`PSNR_THRESHOLD_DB`] or more (the PSNR that rounding a render to 8 bits already costs).

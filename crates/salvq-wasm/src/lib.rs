@@ -1,4 +1,4 @@
-//! The SALVQ decoder for the web (issue 20): a stream of either profile decoded into typed
+//! The SALVQ decoder for the web: a stream of either profile decoded into typed
 //! arrays of standard 3DGS Gaussians, laid out as the Inria PLY stores them (log-scales,
 //! opacity logits, quaternions w x y z, SH channel-major), whole ([`decode`]) or as its
 //! bytes arrive ([`Stream`]).

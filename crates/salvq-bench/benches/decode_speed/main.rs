@@ -1,5 +1,5 @@
-//! Decode speed against scene size, both profiles, native and WebAssembly (issue 22, items 3
-//! and 4). For each real scene (explicit profile): the stream `salvq encode` writes with its
+//! Decode speed against scene size, both profiles, native and WebAssembly. For each real
+//! scene (explicit profile): the stream `salvq encode` writes with its
 //! default settings, rate 0 extracted (`salvq extract --rate 0`, what a viewer receives for
 //! the best rate), decoded in process with `salvq::Decoder::builder().threads(1 | 2)
 //! .gaussians_only()` (what a viewer needs; the wasm package decodes so too), the 2-thread
@@ -51,7 +51,7 @@ use salvq::explicit::Gaussians;
 use salvq::Decoder;
 use salvq_bench::coder::{bare_coder_decode_ns, median};
 
-/// The link a viewer receives the stream over (issue 22): 50 Mbit/s.
+/// The link a viewer receives the stream over: 50 Mbit/s.
 mod anchors;
 mod output;
 mod wasm;

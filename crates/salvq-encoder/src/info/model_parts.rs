@@ -6,7 +6,7 @@ use salvq::container::chunk::ChunkTag;
 use salvq::container::preflight::Preflight;
 
 /// Bytes of one stored tensor (or header) of the shared model (`salvq info --json`:
-/// `model_parts`; issue 10's accounting).
+/// `model_parts`; the byte accounting).
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelPart {
     /// The tensor (Table 2-1 names where the stream stores one) or header.
