@@ -6,6 +6,7 @@ use salvq::container::surgery;
 use salvq_encoder::explicit::ExplicitOptions;
 use salvq_gen::gaussians::GaussianParams;
 
+use super::explicit_must_fail_bodies;
 use super::explicit_vectors::{base_plan, encode_synthetic, rates};
 use super::must_fail::{vector as must_fail, MustFailVector};
 
@@ -433,6 +434,8 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             )
         },
     ];
+    out.extend(explicit_must_fail_bodies::tile_vectors(&base));
+    out.extend(explicit_must_fail_bodies::body_vectors(&base));
     out.extend(progressive_vectors);
     out
 }

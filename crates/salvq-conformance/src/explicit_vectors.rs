@@ -2,8 +2,6 @@
 //! synthetic Gaussians (Annex B.6) coded with fixed plans (no rendering, so regenerating
 //! gives the same bytes), and must-fail streams that each break one rule of §3.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::surgery;
 use salvq::explicit::Gaussians;
 use salvq_encoder::explicit::{
     encode_prepared, EncodedGaussians, ExplicitOptions, PreparedGaussians, RateControl, RatePlan,
@@ -71,7 +69,7 @@ pub fn encode_synthetic(
     encode_prepared(&p, &plans, &options)
 }
 
-fn vector(
+pub(crate) fn vector(
     name: &'static str,
     description: &'static str,
     sections: &'static [&'static str],
@@ -237,76 +235,5 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                 },
             )?,
         ),
-        rotation_near_sphere()?,
     ])
-}
-
-/// The rotation group's three values of `g-rotation-near-sphere`: a·a + b·b + c·c is 1 to
-/// within a few binary32 units, where §3.6 step 3 evaluated in binary32 changes by 3.45e-4
-/// when a multiply and an add are fused.
-const NEAR_SPHERE: [f32; 3] = [0.577_296_9, 0.577_369_15, 0.577_384_7];
-
-/// A valid stream whose decoded rotations sit where a decoder that evaluates §3.6 step 3 in
-/// binary32 with a fused multiply-add fails §11.3's tolerance: `g-sh0`'s kind of stream with
-/// the rotation group's mean moved onto the unit sphere and its step made tiny (`GQUA`
-/// edited; every field stays valid). Its oracle is the reference decode, checked here to
-/// differ from the fused binary32 form beyond the tolerance for most Gaussians.
-fn rotation_near_sphere() -> Result<ExplicitVector> {
-    let e = encode_synthetic(
-        &GaussianParams::new(60, 0, 31),
-        vec![base_plan(false)],
-        ExplicitOptions {
-            klt: Some(vec![false; 4]),
-            progressive: false,
-            ..Default::default()
-        },
-    )?;
-    // GQUA (§3.3), SH degree 0, one rate, identity lattices: coding_method, then per group
-    // lattice, step, one gain, d means: scale (d = 3) at 1, opacity (d = 1) at 22, rotation
-    // (d = 3) at 35: its step at 36, its means at 44.
-    let stream = surgery::edit_payload(&e.stream, ChunkTag::GQUA, |p| {
-        assert_eq!(p[35], 0, "the rotation group's lattice is the identity");
-        p[36..40].copy_from_slice(&1e-9f32.to_le_bytes());
-        for (j, v) in NEAR_SPHERE.iter().enumerate() {
-            p[44 + 4 * j..48 + 4 * j].copy_from_slice(&v.to_le_bytes());
-        }
-    })
-    .expect("the stream has a GQUA");
-    let decoded = salvq::explicit::decode_gaussians(&stream, &Default::default(), None)?;
-    let g = decoded.gaussians;
-    let beyond = g
-        .rotations
-        .iter()
-        .filter(|q| {
-            // m, near 0, is the component of least magnitude; a, b, c are the others in order.
-            let k = (0..4)
-                .min_by(|&i, &j| q[i].abs().total_cmp(&q[j].abs()))
-                .unwrap_or(0);
-            let mut abc = (0..4).filter(|&i| i != k).map(|i| q[i]);
-            let (a, b, c) = (abc.next(), abc.next(), abc.next());
-            let (Some(a), Some(b), Some(c)) = (a, b, c) else {
-                return false;
-            };
-            let t = 1.0 - c.mul_add(c, a.mul_add(a, b * b));
-            let fused32 = if t > 0.0 { t.sqrt() } else { 0.0 };
-            let tolerance = 2f32.powi(-14) * (1.0 + q[k].abs());
-            (fused32 - q[k]).abs() > tolerance
-        })
-        .count();
-    assert!(
-        2 * beyond > g.rotations.len(),
-        "only {beyond} of {} rotations tell a fused binary32 evaluation apart",
-        g.rotations.len()
-    );
-    Ok(ExplicitVector {
-        name: "g-rotation-near-sphere",
-        description: "60 synthetic Gaussians, SH degree 0, whose rotation values sit on the \
-                      unit sphere to within a few binary32 units (GQUA's rotation mean moved \
-                      there, its step 1e-9): §3.6 step 3 in binary64, which a fused \
-                      multiply-add cannot change",
-        sections: &[],
-        rates: vec![0],
-        oracle: vec![g],
-        stream,
-    })
 }

@@ -24,6 +24,7 @@ use salvq::explicit::decode::decode_gaussians_in;
 use salvq::explicit::decode_gaussians;
 
 use super::canonical::{explicit_canonical_tensors, EXPLICIT_INTEGER_TENSORS};
+use super::explicit_edited::edited_valid_vectors;
 use super::explicit_vectors::{
     explicit_must_fail_vectors, explicit_valid_vectors, EXPLICIT_SECTIONS,
 };
@@ -127,7 +128,13 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         });
         files.insert(file, v.stream);
     }
-    for v in explicit_valid_vectors().map_err(|e| format!("building the explicit vectors: {e}"))? {
+    let explicit = explicit_valid_vectors()
+        .and_then(|mut v| {
+            v.extend(edited_valid_vectors()?);
+            Ok(v)
+        })
+        .map_err(|e| format!("building the explicit vectors: {e}"))?;
+    for v in explicit {
         let file = format!("{}.salvq", v.name);
         let mut decodes = Vec::new();
         for (i, &rate) in v.rates.iter().enumerate() {
