@@ -14,16 +14,12 @@ fn main() {
     let g = salvq_render::ply::read_ply(&std::fs::read(&path).unwrap()).unwrap();
     let p = PreparedGaussians::new(&g).unwrap();
     let fit = |nested: bool| {
-        rate_plans(
-            &g,
-            &p,
-            &RateControl::Psnr(DEFAULT_PSNR_TARGETS.to_vec()),
-            Default::default(),
-            None,
-            nested,
-            &|_| {},
-        )
-        .unwrap()
+        let fit = ExplicitOptions {
+            rates: RateControl::Psnr(DEFAULT_PSNR_TARGETS.to_vec()),
+            progressive: nested,
+            ..Default::default()
+        };
+        rate_plans(&g, &p, &fit, &|_| {}).unwrap()
     };
     let q = RingTarget::new(
         &g,

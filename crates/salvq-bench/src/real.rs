@@ -247,20 +247,18 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
         let encode = |variant: Variant, klt: Option<bool>| -> Result<(EncodedGaussians, f64)> {
             let t = Instant::now();
             let klt = klt.map(|k| vec![k; p.kinds.len()]);
-            let (plans, klt) = rate_plans(
-                &g,
-                &p,
-                &RateControl::Psnr(o.targets.clone()),
+            let fit = ExplicitOptions {
+                rates: RateControl::Psnr(o.targets.clone()),
                 variant,
-                klt.as_deref(),
-                true,
-                &|m| {
-                    if *last_step.borrow() != m.step {
-                        m.step.clone_into(&mut last_step.borrow_mut());
-                        progress(&format!("{scene}: {}", m.step));
-                    }
-                },
-            )?;
+                klt: klt.clone(),
+                ..Default::default()
+            };
+            let (plans, klt) = rate_plans(&g, &p, &fit, &|m| {
+                if *last_step.borrow() != m.step {
+                    m.step.clone_into(&mut last_step.borrow_mut());
+                    progress(&format!("{scene}: {}", m.step));
+                }
+            })?;
             let options = ExplicitOptions {
                 rates: RateControl::Plans(plans.clone()),
                 klt,

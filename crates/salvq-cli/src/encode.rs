@@ -37,6 +37,11 @@ pub struct EncodeArgs {
     /// one file that costs about what its finest rate costs, and streams coarse to fine).
     #[arg(long)]
     pub(crate) layered: bool,
+    /// PLY input: how hard the rate control searches (Annex A.8.2): `default` renders every
+    /// third trial step of each part's rate-distortion curve and interpolates the others;
+    /// `best` renders every one (about twice the encode time).
+    #[arg(long, value_enum, default_value_t = EffortArg::Default)]
+    pub(crate) effort: EffortArg,
     /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views
     /// at 512x384, as `salvq compare` measures), e.g. `62,56,50,45,40,35` (the default); sorted
     /// so that rate 0 is the finest.
@@ -364,4 +369,11 @@ fn auto_lines(c: &AutoChoice) -> Vec<String> {
         ));
     }
     out
+}
+
+/// `--effort`'s levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum EffortArg {
+    Default,
+    Best,
 }

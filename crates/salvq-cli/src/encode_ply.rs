@@ -181,6 +181,10 @@ pub fn run(
         note: a.note.clone(),
         variant: Default::default(),
         progressive: !a.layered,
+        effort: match a.effort {
+            crate::encode::EffortArg::Default => explicit::ratios::Effort::Default,
+            crate::encode::EffortArg::Best => explicit::ratios::Effort::Best,
+        },
     };
     let encoded = explicit::encode_gaussians(&g, &options, &|p| {
         progress.step(p.step, Some((p.done, p.total)))

@@ -3,7 +3,7 @@
 //! measured at the curves' size, an allocation per target, and each rate landed on its
 //! target at the quality yardstick ([`ratios::QUALITY_WIDTH`]).
 
-use super::layer::{self, RatePlan, SizeClasses, Variant};
+use super::layer::{self, RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
 use super::{fit_groups, ratios, RateControl};
 use crate::error::{Error, Result};
@@ -130,21 +130,20 @@ pub fn nested_plan(finer: &RatePlan, factors: &[u8], up: &[u8; SIZE_CLASSES]) ->
     }
 }
 
-/// Each rate's plan, given or fitted to its PSNR target by rendering (Annex A.8.2), and the
-/// groups with a KLT basis (`klt` if given; else chosen on the middle target's first
-/// allocation, so that every rate is fitted with the quantizers it will be coded with).
-/// With `nested` (a progressive stream, §3.8), each rate after the finest is fitted as a
-/// [`nested_plan`] of the one before it. Targets above what the scene reaches fail at once
+/// Each rate of `options.rates`, given or fitted to its PSNR target by rendering with
+/// `options.effort` (Annex A.8.2), and the groups with a KLT basis (`options.klt` if given;
+/// else chosen on the middle target's first allocation, so that every rate is fitted with
+/// the quantizers it will be coded with). For a progressive stream (§3.8), each rate after
+/// the finest is fitted as a [`nested_plan`] of the one before it. Targets above what the scene reaches fail at once
 /// ([`Error::TargetUnreachable`]).
 pub fn rate_plans(
     g: &Gaussians,
     p: &PreparedGaussians,
-    rates: &RateControl,
-    variant: Variant,
-    klt: Option<&[bool]>,
-    nested: bool,
+    options: &super::ExplicitOptions,
     progress: &dyn Fn(Progress<'_>),
 ) -> Result<(Vec<RatePlan>, Option<Vec<bool>>)> {
+    let (rates, variant, effort) = (&options.rates, options.variant, options.effort);
+    let (klt, nested) = (options.klt.as_deref(), options.progressive);
     let targets = match rates {
         RateControl::Plans(s) => return Ok((s.clone(), klt.map(<[bool]>::to_vec))),
         RateControl::Psnr(t) => t,
@@ -180,6 +179,7 @@ pub fn rate_plans(
         p,
         &classes,
         variant,
+        effort,
         &curve_target,
         &|number, what, done| {
             say(

@@ -104,6 +104,8 @@ pub struct ExplicitOptions {
     /// Whether the rates nest (§3.8): the coarsest coded rate a full layer, each finer one
     /// a refinement of the one before; else each rate's layer is coded alone.
     pub progressive: bool,
+    /// How hard the rate control searches (Annex A.8.2).
+    pub effort: ratios::Effort,
 }
 
 impl Default for ExplicitOptions {
@@ -116,6 +118,7 @@ impl Default for ExplicitOptions {
             note: None,
             variant: Variant::default(),
             progressive: true,
+            effort: ratios::Effort::default(),
         }
     }
 }
@@ -365,15 +368,7 @@ pub fn encode_gaussians(
     progress: &dyn Fn(Progress<'_>),
 ) -> Result<EncodedGaussians> {
     let p = PreparedGaussians::new(g)?;
-    let (plans, klt) = rate_plans(
-        g,
-        &p,
-        &options.rates,
-        options.variant,
-        options.klt.as_deref(),
-        options.progressive,
-        progress,
-    )?;
+    let (plans, klt) = rate_plans(g, &p, options, progress)?;
     let options = ExplicitOptions {
         klt,
         ..options.clone()

@@ -186,6 +186,7 @@ pub fn measure_curves(
     p: &PreparedGaussians,
     classes: &SizeClasses,
     variant: super::Variant,
+    effort: Effort,
     target: &RingTarget,
     progress: &dyn Fn(usize, &str, u64),
 ) -> Result<Vec<(Part, Curve)>> {
@@ -240,19 +241,27 @@ pub fn measure_curves(
             members.iter().map(|&i| reference.voxels[at[i]]).collect()
         };
         let tiles = TileTable::cut(&subset_voxels, DEFAULT_TILE_ANCHORS);
+        let last = ks.len() - 1;
+        // Each trial's bits, and its render error where it is rendered (None: interpolated).
+        let mut trials: Vec<(f64, Option<f64>, f64)> = Vec::with_capacity(ks.len());
         for (k_at, k) in ks.into_iter().enumerate() {
             if k_at > 0 {
                 progress(number + 1, &what, before + k_at as u64);
             }
             let log2 = f64::from(k) * scale;
             let step = base * log2.exp2();
-            let mse = target.mse(&quantized(
-                g,
-                p,
-                group,
-                class.map(|c| (c, class_of.as_slice())),
-                step,
-            ))?;
+            let rendered = k_at % effort.render_every() == 0 || k_at == last;
+            let mse = if rendered {
+                Some(target.mse(&quantized(
+                    g,
+                    p,
+                    group,
+                    class.map(|c| (c, class_of.as_slice())),
+                    step,
+                ))?)
+            } else {
+                None
+            };
             let bits = match group {
                 None => {
                     let key = k as i64;
@@ -293,14 +302,75 @@ pub fn measure_curves(
                     ) * share
                 }
             };
-            curve.push((log2, mse, bits));
-            if mse < 1e-10 {
+            trials.push((log2, mse, bits));
+            if mse.is_some_and(|m| m < 1e-10) {
                 break;
             }
         }
+        // Trials after the last rendered one (none where every trial is rendered) are dropped.
+        while trials.last().is_some_and(|t| t.1.is_none()) {
+            trials.pop();
+        }
+        curve.extend(interpolated(&trials));
         out.push((part, curve));
     }
     Ok(out)
+}
+
+/// How hard the encoder searches (Annex A.8.2): which trial steps of a curve are rendered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Effort {
+    /// Every third trial step rendered (and the finest), the render error of the others
+    /// interpolated: the curves cost about a third of the renders.
+    #[default]
+    Default,
+    /// Every trial step rendered.
+    Best,
+}
+
+impl Effort {
+    fn render_every(self) -> usize {
+        match self {
+            Effort::Default => 3,
+            Effort::Best => 1,
+        }
+    }
+}
+
+/// `trials` (log2 step, render error if rendered, bits) with each error that was not
+/// rendered interpolated between the rendered ones around it, linearly in log error
+/// against log step: the error of a quantizer grows as a power of its step.
+fn interpolated(trials: &[(f64, Option<f64>, f64)]) -> Curve {
+    let rendered: Vec<usize> = (0..trials.len())
+        .filter(|&i| trials[i].1.is_some())
+        .collect();
+    let ln = |m: f64| m.max(1e-30).ln();
+    trials
+        .iter()
+        .enumerate()
+        .map(|(i, &(x, mse, bits))| {
+            let mse = mse.unwrap_or_else(|| {
+                let after = rendered.partition_point(|&r| r < i);
+                let (a, b) = (
+                    rendered[after.saturating_sub(1)],
+                    rendered[after.min(rendered.len() - 1)],
+                );
+                let (xa, ma, xb, mb) = (
+                    trials[a].0,
+                    trials[a].1.unwrap_or(0.0),
+                    trials[b].0,
+                    trials[b].1.unwrap_or(0.0),
+                );
+                let t = if (xb - xa).abs() > 1e-12 {
+                    (x - xa) / (xb - xa)
+                } else {
+                    0.0
+                };
+                (ln(ma) + t * (ln(mb) - ln(ma))).exp()
+            });
+            (x, mse, bits)
+        })
+        .collect()
 }
 
 /// The plan whose summed render error is `target_mse` at the least total bits (Annex
@@ -483,4 +553,32 @@ fn predicted(
         sum = (sum.0 + m, sum.1 + b);
     }
     sum
+}
+
+#[cfg(test)]
+mod tests {
+    use super::interpolated;
+
+    /// A render error that is a power of the step is interpolated exactly between rendered
+    /// trials; rendered trials and every trial's bits are kept as they are.
+    #[test]
+    fn an_error_that_is_a_power_of_the_step_is_interpolated_exactly() {
+        let mse = |x: f64| 0.01 * (2.0 * x).exp2();
+        let trials: Vec<(f64, Option<f64>, f64)> = (0..10)
+            .map(|i| {
+                let x = 8.0 - f64::from(i);
+                (x, (i % 3 == 0).then(|| mse(x)), 10.0 - x)
+            })
+            .collect();
+        let curve = interpolated(&trials);
+        assert_eq!(curve.len(), trials.len());
+        for ((x, m, b), t) in curve.iter().zip(&trials) {
+            assert_eq!((*x, *b), (t.0, t.2));
+            assert!(
+                (m / mse(*x) - 1.0).abs() < 1e-12,
+                "at {x}: {m} against {}",
+                mse(*x)
+            );
+        }
+    }
 }
