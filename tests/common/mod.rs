@@ -69,11 +69,16 @@ pub fn chunk_offset(stream: &[u8], tag: ChunkTag) -> usize {
 }
 
 /// A file of `../shared/data` (the real scenes beside the checkout), or `None` with a
-/// "skipped" note when it is not there.
+/// "skipped" note when it is not there (a panic where `SALVQ_REQUIRE_DATA` is set).
 pub fn shared_data(name: &str) -> Option<Vec<u8>> {
     let path = repo_root().join("../shared/data").join(name);
     match std::fs::read(&path) {
         Ok(b) => Some(b),
+        // Where the scenes are known to be present (CI sets SALVQ_REQUIRE_DATA), a missing
+        // one is a failure, not a test that passes by doing nothing.
+        Err(e) if std::env::var_os("SALVQ_REQUIRE_DATA").is_some() => {
+            panic!("{}: {e} (SALVQ_REQUIRE_DATA is set)", path.display())
+        }
         Err(_) => {
             eprintln!("skipped: {} not found", path.display());
             None
