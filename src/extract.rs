@@ -56,10 +56,6 @@ const EXPLICIT: Profile = Profile {
     },
 };
 
-/// The position in the chunk order of an explicit stream's first layer chunk (`GLAY`, after
-/// `GHED GQUA`; §3.7).
-const FIRST_LAYER_CHUNK: usize = 2;
-
 /// The single-rate stream of rate `rate` taken from `data` (§7.5). The container is checked
 /// as a decoder checks it (signature, framing, CRC-32C, chunk order, the preflight); the
 /// payloads of the other chunks are copied without being parsed.
@@ -93,7 +89,7 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
             Err(e)
                 if progressive
                     && e.is_truncation()
-                    && next_critical >= FIRST_LAYER_CHUNK
+                    && next_critical >= crate::explicit::order::FIRST_LAYER_CHUNK
                     && crate::explicit::decode::layer_of(next_critical, layers, true)
                         .map_or(true, |l| l > selected) =>
             {
