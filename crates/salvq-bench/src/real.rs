@@ -116,17 +116,31 @@ fn salvq_rows(
     Ok(rows)
 }
 
-/// One peer format through splat-transform: encode (timed), decode back to PLY (timed),
-/// render.
-fn peer_row(
+/// What one peer format did to a scene.
+#[derive(Debug, Clone, Copy)]
+pub struct PeerResult {
+    /// The encoded file's bytes.
+    pub bytes: u64,
+    /// Render PSNR of it decoded, against the reference.
+    pub psnr_db: f64,
+    /// SSIM of it decoded.
+    pub ssim: f64,
+    /// Wall seconds of splat-transform writing it, and of reading it back to PLY.
+    pub encode_s: f64,
+    pub decode_s: f64,
+}
+
+/// One peer format through splat-transform `st` (a command line, e.g. a path to its
+/// `.bin/splat-transform`): encode (timed), decode back to PLY (timed), render against
+/// `reference`. Files go to `work`; `None` when splat-transform cannot write the format.
+pub fn peer_encode(
     st: &str,
     scene: &str,
     input: &Path,
     format: &str,
     work: &Path,
-    n: usize,
     reference: &RingTarget,
-) -> Result<Option<Row>> {
+) -> Result<Option<PeerResult>> {
     let encoded = work.join(format!("{scene}.{format}"));
     let decoded = work.join(format!("{scene}.{format}.ply"));
     let run = |args: &[&std::ffi::OsStr]| -> Result<(bool, f64)> {
@@ -166,18 +180,39 @@ fn peer_row(
         .map_err(|e| Error::io(IoOp::Read, &encoded, e))?
         .len();
     let g = read_ply(&salvq_render::io::read_file(&decoded)?)?;
-    let (p, s) = reference.psnr_ssim(&g)?;
-    Ok(Some(Row {
-        scene: scene.into(),
-        codec: format.into(),
-        rate: None,
+    let (psnr_db, ssim) = reference.psnr_ssim(&g)?;
+    Ok(Some(PeerResult {
         bytes,
-        bytes_per_gaussian: bytes as f64 / n.max(1) as f64,
-        psnr_db: p,
-        ssim: s,
+        psnr_db,
+        ssim,
         encode_s,
         decode_s,
     }))
+}
+
+/// [`peer_encode`] as a row of this bench.
+fn peer_row(
+    st: &str,
+    scene: &str,
+    input: &Path,
+    format: &str,
+    work: &Path,
+    n: usize,
+    reference: &RingTarget,
+) -> Result<Option<Row>> {
+    Ok(
+        peer_encode(st, scene, input, format, work, reference)?.map(|p| Row {
+            scene: scene.into(),
+            codec: format.into(),
+            rate: None,
+            bytes: p.bytes,
+            bytes_per_gaussian: p.bytes as f64 / n.max(1) as f64,
+            psnr_db: p.psnr_db,
+            ssim: p.ssim,
+            encode_s: p.encode_s,
+            decode_s: p.decode_s,
+        }),
+    )
 }
 
 /// salvq's bytes at `db`, interpolated (log bytes linear in PSNR) between its two nearest

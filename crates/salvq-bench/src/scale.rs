@@ -29,6 +29,18 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// CPU time (user and system, all threads) the process has used so far, in seconds, from
+/// `/proc/self/stat` (in the kernel's `USER_HZ` of 100 ticks a second), where the system
+/// reports it.
+pub fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) in parentheses.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |k: usize| fields.get(k)?.parse::<u64>().ok();
+    Some((ticks(11)? + ticks(12)?) as f64 / 100.0)
+}
+
 /// One child decode's report.
 #[derive(Debug, Clone, Copy, Default)]
 struct Measured {

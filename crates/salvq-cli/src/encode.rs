@@ -37,9 +37,11 @@ pub struct EncodeArgs {
     /// one file that costs about what its finest rate costs, and streams coarse to fine).
     #[arg(long)]
     pub(crate) layered: bool,
-    /// PLY input: how hard the rate control searches (Annex A.8.2): `default` renders every
-    /// third trial step of each part's rate-distortion curve and interpolates the others;
-    /// `best` renders every one (about twice the encode time).
+    /// PLY input: how hard the rate control searches (Annex A.8.2): `fast` predicts each
+    /// part's render error from one pass of per-Gaussian sensitivities and renders nothing
+    /// else; `default` calibrates that prediction on a few renders of a sample of the scene
+    /// and lands each rate on its target by rendering; `best` renders every trial step of
+    /// every part's rate-distortion curve, the whole scene (many times slower).
     #[arg(long, value_enum, default_value_t = EffortArg::Default)]
     pub(crate) effort: EffortArg,
     /// PLY input: the render-PSNR target of each rate in dB against the input (8 ring views
@@ -374,6 +376,7 @@ fn auto_lines(c: &AutoChoice) -> Vec<String> {
 /// `--effort`'s levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum EffortArg {
+    Fast,
     Default,
     Best,
 }

@@ -60,7 +60,14 @@ struct Summary {
     sh_degree: u8,
     bytes: u64,
     input_bytes: u64,
+    /// Wall seconds from the start to the written stream.
     seconds: f64,
+    /// Wall seconds then spent measuring each rate for this summary.
+    measure_seconds: f64,
+    /// CPU seconds (all threads) to the written stream, where the system reports them.
+    cpu_seconds: Option<f64>,
+    /// Peak resident memory to the written stream, where the system reports it.
+    peak_rss_bytes: Option<u64>,
     psnr_measured_at: Yardstick,
     /// Values changed on input (opacity logits clamped).
     input_changes: Vec<ValueChange>,
@@ -182,8 +189,9 @@ pub fn run(
         variant: Default::default(),
         progressive: !a.layered,
         effort: match a.effort {
-            crate::encode::EffortArg::Default => explicit::ratios::Effort::Default,
-            crate::encode::EffortArg::Best => explicit::ratios::Effort::Best,
+            crate::encode::EffortArg::Fast => explicit::curves::Effort::Fast,
+            crate::encode::EffortArg::Default => explicit::curves::Effort::Default,
+            crate::encode::EffortArg::Best => explicit::curves::Effort::Best,
         },
     };
     let encoded = explicit::encode_gaussians(&g, &options, &|p| {
@@ -191,6 +199,9 @@ pub fn run(
     })?;
     progress.stage(&format!("writing {}", output.shown()));
     output.write_bytes(&encoded.stream)?;
+    let (seconds, cpu_seconds) = (secs(t), salvq_bench::scale::cpu_seconds());
+    let peak_rss_bytes = salvq_bench::scale::peak_rss_bytes();
+    let measuring = Instant::now();
     progress.stage(&format!(
         "measuring each rate as `salvq compare` does ({QUALITY_VIEWS} views at {QUALITY_WIDTH}x{QUALITY_HEIGHT})"
     ));
@@ -203,7 +214,10 @@ pub fn run(
         sh_degree: g.sh_degree,
         bytes: encoded.stream.len() as u64,
         input_bytes: bytes.len() as u64,
-        seconds: secs(t),
+        seconds,
+        measure_seconds: secs(measuring),
+        cpu_seconds,
+        peak_rss_bytes,
         psnr_measured_at: Yardstick {
             views: QUALITY_VIEWS,
             width: QUALITY_WIDTH,
@@ -282,7 +296,7 @@ fn report(s: &Summary, names: &[&str]) -> String {
     let rates = s.layers.len();
     let mut t = format!(
         "encoded {} Gaussians (SH degree {}) at {rates} rate{} into {} ({} bytes, {:.1} % of the \
-         input's {}) in {:.2} s\n",
+         input's {}) in {:.2} s{}; measured the rates in {:.2} s\n",
         s.gaussians,
         s.sh_degree,
         if rates == 1 { "" } else { "s" },
@@ -290,7 +304,15 @@ fn report(s: &Summary, names: &[&str]) -> String {
         s.bytes,
         100.0 * s.bytes as f64 / s.input_bytes.max(1) as f64,
         s.input_bytes,
-        s.seconds
+        s.seconds,
+        match (s.cpu_seconds, s.peak_rss_bytes) {
+            (Some(cpu), Some(rss)) => format!(
+                " ({cpu:.2} s of CPU, peak memory {:.0} MB)",
+                rss as f64 / 1e6
+            ),
+            _ => String::new(),
+        },
+        s.measure_seconds
     );
     let fitted: Vec<&str> = s.klt.iter().filter(|k| k.1).map(|k| k.0.as_str()).collect();
     if !fitted.is_empty() {
@@ -381,6 +403,9 @@ mod tests {
             bytes: 100,
             input_bytes: 1000,
             seconds: 1.0,
+            measure_seconds: 0.5,
+            cpu_seconds: Some(1.5),
+            peak_rss_bytes: Some(64_000_000),
             psnr_measured_at: Yardstick {
                 views: QUALITY_VIEWS,
                 width: QUALITY_WIDTH,

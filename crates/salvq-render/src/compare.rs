@@ -7,7 +7,7 @@ use std::borrow::Cow;
 
 use super::camera::{Bounds, Camera, Ring};
 use super::metrics::{psnr, ssim};
-use super::raster::render;
+use super::raster::{render, sensitivities, Sensitivities};
 use super::{Gaussians, Image};
 use crate::error::Result;
 
@@ -154,5 +154,33 @@ impl RingTarget {
     pub fn psnr_ssim(&self, g: &Gaussians) -> Result<(f64, f64)> {
         let (mse, s) = self.measure(true, |_| Ok(Cow::Borrowed(g)))?;
         Ok((psnr_of(mse), s))
+    }
+
+    /// [`Sensitivities`] of `g` summed over the cameras and divided by their pixels in all:
+    /// so that a change `δ` of Gaussian `i`'s RGB alone moves [`RingTarget::mse`] by about
+    /// `colour[i] · |δ|² / 3`.
+    pub fn sensitivities(&self, g: &Gaussians) -> Sensitivities {
+        let mut sum = Sensitivities::default();
+        let mut pixels = 0f64;
+        for c in &self.cameras {
+            let s = sensitivities(g, c);
+            pixels += f64::from(c.width) * f64::from(c.height);
+            if sum.colour.is_empty() {
+                sum = s;
+                continue;
+            }
+            for (a, b) in [
+                (&mut sum.colour, &s.colour),
+                (&mut sum.position, &s.position),
+                (&mut sum.magnification, &s.magnification),
+            ] {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+            }
+        }
+        let scale = (1.0 / pixels.max(1.0)) as f32;
+        for v in [&mut sum.colour, &mut sum.position, &mut sum.magnification] {
+            v.iter_mut().for_each(|x| *x *= scale);
+        }
+        sum
     }
 }

@@ -36,12 +36,16 @@ pub const MIN_TRANSMITTANCE: f32 = 1e-4;
 /// A Gaussian projected to the image.
 #[derive(Debug, Clone, Copy)]
 struct Splat {
+    /// The Gaussian's index in the scene.
+    index: u32,
     mean: [f32; 2],
     /// Inverse 2D covariance (a, b, c) of `[[a, b], [b, c]]`.
     conic: [f32; 3],
     opacity: f32,
     colour: [f32; 3],
     depth: f32,
+    /// Pixels per scene unit at its depth (`f_x / z`).
+    pixels_per_unit: f32,
     /// `power` below this gives `alpha < 1/255` for sure (with a margin for rounding).
     skip_below: f32,
     /// Half-extents in pixels of the ellipse `power ≥ skip_below` (plus a margin): pixels
@@ -170,11 +174,13 @@ fn preprocess(g: &Gaussians, i: usize, cam: &Camera, grid: [u32; 2]) -> Option<S
     let k = (-2.0 * skip_below).max(0.0);
     let reach = [ca, cc].map(|v| (k * v).sqrt() * 1.001 + 0.01);
     Some(Splat {
+        index: i as u32,
         mean,
         conic,
         opacity,
         colour,
         depth: tz,
+        pixels_per_unit: cam.fx / tz,
         skip_below,
         reach,
         tiles,
@@ -186,6 +192,83 @@ pub fn render(g: &Gaussians, cam: &Camera, background: [f32; 3]) -> Image {
     render_with_stats(g, cam, background).0
 }
 
+/// Steps 1 and 2 for `cam`: the splats, and per 16 × 16 tile (row-major) the indices of the
+/// splats touching it sorted front to back.
+struct Binned {
+    splats: Vec<Splat>,
+    grid: [u32; 2],
+    start: Vec<usize>,
+    entries: Vec<u32>,
+}
+
+impl Binned {
+    fn new(g: &Gaussians, cam: &Camera) -> Binned {
+        let grid = [cam.width.div_ceil(TILE), cam.height.div_ceil(TILE)];
+        let n = [
+            g.positions.len(),
+            g.f_dc.len(),
+            g.opacity_logit.len(),
+            g.log_scales.len(),
+            g.rotations.len(),
+        ]
+        .into_iter()
+        .min()
+        .unwrap_or(0);
+        let splats: Vec<Splat> = (0..n)
+            .into_par_iter()
+            .filter_map(|i| preprocess(g, i, cam, grid))
+            .collect();
+        // Bin (Gaussian, tile) pairs by tile, Gaussians in index order within a tile.
+        let tiles = grid[0] as usize * grid[1] as usize;
+        let mut start = vec![0usize; tiles + 1];
+        for s in &splats {
+            for ty in s.tiles[1]..s.tiles[3] {
+                for tx in s.tiles[0]..s.tiles[2] {
+                    start[ty as usize * grid[0] as usize + tx as usize + 1] += 1;
+                }
+            }
+        }
+        for t in 0..tiles {
+            start[t + 1] += start[t];
+        }
+        let mut fill = start.clone();
+        let mut entries = vec![0u32; start[tiles]];
+        for (i, s) in splats.iter().enumerate() {
+            for ty in s.tiles[1]..s.tiles[3] {
+                for tx in s.tiles[0]..s.tiles[2] {
+                    let t = ty as usize * grid[0] as usize + tx as usize;
+                    entries[fill[t]] = i as u32;
+                    fill[t] += 1;
+                }
+            }
+        }
+        let mut lists: Vec<&mut [u32]> = Vec::with_capacity(tiles);
+        let mut rest = entries.as_mut_slice();
+        for t in 0..tiles {
+            let (list, tail) = rest.split_at_mut(start[t + 1] - start[t]);
+            lists.push(list);
+            rest = tail;
+        }
+        lists.into_par_iter().for_each(|list| {
+            // Depths are > NEAR > 0, so their bit patterns sort as the numbers do.
+            list.sort_unstable_by_key(|&i| (splats[i as usize].depth.to_bits(), i));
+        });
+        Binned {
+            splats,
+            grid,
+            start,
+            entries,
+        }
+    }
+
+    /// Tile `t`'s list and its top-left pixel.
+    fn tile(&self, t: usize) -> (&[u32], [u32; 2]) {
+        let x0 = (t % self.grid[0] as usize) as u32 * TILE;
+        let y0 = (t / self.grid[0] as usize) as u32 * TILE;
+        (&self.entries[self.start[t]..self.start[t + 1]], [x0, y0])
+    }
+}
+
 /// [`render`], and what it drew. Gaussians whose vectors are shorter than `positions` are
 /// not drawn.
 pub fn render_with_stats(
@@ -194,71 +277,27 @@ pub fn render_with_stats(
     background: [f32; 3],
 ) -> (Image, RenderStats) {
     let (w, h) = (cam.width, cam.height);
-    let grid = [w.div_ceil(TILE), h.div_ceil(TILE)];
-    let n = [
-        g.positions.len(),
-        g.f_dc.len(),
-        g.opacity_logit.len(),
-        g.log_scales.len(),
-        g.rotations.len(),
-    ]
-    .into_iter()
-    .min()
-    .unwrap_or(0);
-    let splats: Vec<Splat> = (0..n)
-        .into_par_iter()
-        .filter_map(|i| preprocess(g, i, cam, grid))
-        .collect();
-
-    // Step 2: bin (Gaussian, tile) pairs by tile, Gaussians in index order within a tile.
-    let tiles = grid[0] as usize * grid[1] as usize;
-    let mut start = vec![0usize; tiles + 1];
-    for s in &splats {
-        for ty in s.tiles[1]..s.tiles[3] {
-            for tx in s.tiles[0]..s.tiles[2] {
-                start[ty as usize * grid[0] as usize + tx as usize + 1] += 1;
-            }
-        }
-    }
-    for t in 0..tiles {
-        start[t + 1] += start[t];
-    }
-    let mut fill = start.clone();
-    let mut entries = vec![0u32; start[tiles]];
-    for (i, s) in splats.iter().enumerate() {
-        for ty in s.tiles[1]..s.tiles[3] {
-            for tx in s.tiles[0]..s.tiles[2] {
-                let t = ty as usize * grid[0] as usize + tx as usize;
-                entries[fill[t]] = i as u32;
-                fill[t] += 1;
-            }
-        }
-    }
-    let mut lists: Vec<&mut [u32]> = Vec::with_capacity(tiles);
-    let mut rest = entries.as_mut_slice();
-    for t in 0..tiles {
-        let (list, tail) = rest.split_at_mut(start[t + 1] - start[t]);
-        lists.push(list);
-        rest = tail;
-    }
-
+    let binned = Binned::new(g, cam);
+    let tiles = binned.start.len() - 1;
     // Step 3: composite each tile.
-    let tile_pixels: Vec<Vec<f32>> = lists
+    let tile_pixels: Vec<Vec<f32>> = (0..tiles)
         .into_par_iter()
-        .enumerate()
-        .map(|(t, list)| {
-            // Depths are > NEAR > 0, so their bit patterns sort as the numbers do.
-            list.sort_unstable_by_key(|&i| (splats[i as usize].depth.to_bits(), i));
-            let x0 = (t % grid[0] as usize) as u32 * TILE;
-            let y0 = (t / grid[0] as usize) as u32 * TILE;
-            composite_tile(&splats, list, [x0, y0], [w, h], background)
+        .map(|t| {
+            let (list, origin) = binned.tile(t);
+            composite_tile(
+                &binned.splats,
+                list,
+                origin,
+                [w, h],
+                background,
+                &mut |_, _| {},
+            )
         })
         .collect();
 
     let mut image = Image::filled(w, h, background);
     for (t, pixels) in tile_pixels.iter().enumerate() {
-        let x0 = (t % grid[0] as usize) as u32 * TILE;
-        let y0 = (t / grid[0] as usize) as u32 * TILE;
+        let (_, [x0, y0]) = binned.tile(t);
         for dy in 0..TILE.min(h - y0) {
             for dx in 0..TILE.min(w - x0) {
                 let src = 3 * (dy * TILE + dx) as usize;
@@ -268,20 +307,76 @@ pub fn render_with_stats(
         }
     }
     let stats = RenderStats {
-        splats: splats.len(),
-        tile_entries: start[tiles],
+        splats: binned.splats.len(),
+        tile_entries: binned.entries.len(),
     };
     (image, stats)
 }
 
+/// How much `cam`'s image depends on each Gaussian, to first order: sums over the pixels it
+/// shades of its squared blending weight `(α·T)²`, after occlusion, each times a factor.
+#[derive(Debug, Clone, Default)]
+pub struct Sensitivities {
+    /// `Σ (α·T)²`: a change `δ` of its RGB changes a pixel by `α·T·δ`.
+    pub colour: Vec<f32>,
+    /// `Σ (α·T)² · (f/z)² · tr(Σ'⁻¹)/2`: a move of its footprint's edge by `δ` (scene
+    /// units: of its mean, or of an axis' end by a change of its scale or rotation) moves
+    /// it by `δ·f/z` pixels, which changes a pixel by about `α·T` times that over the
+    /// footprint's width (low-pass filter included).
+    pub position: Vec<f32>,
+    /// `Σ (α·T)² · (f/z)²`: over [`Sensitivities::colour`], the mean square of the pixels
+    /// per scene unit at its depth, which says which of its axes the image resolves.
+    pub magnification: Vec<f32>,
+}
+
+/// The [`Sensitivities`] of `g` in `cam`'s image. Gaussians not drawn weigh 0.
+pub fn sensitivities(g: &Gaussians, cam: &Camera) -> Sensitivities {
+    let binned = Binned::new(g, cam);
+    let tiles = binned.start.len() - 1;
+    let per_tile: Vec<Vec<(u32, f32)>> = (0..tiles)
+        .into_par_iter()
+        .map(|t| {
+            let (list, origin) = binned.tile(t);
+            let mut sums: Vec<(u32, f32)> = list.iter().map(|&i| (i, 0.0)).collect();
+            composite_tile(
+                &binned.splats,
+                list,
+                origin,
+                [cam.width, cam.height],
+                [0.0; 3],
+                &mut |k, w| sums[k].1 += w * w,
+            );
+            sums
+        })
+        .collect();
+    let n = g.positions.len();
+    let mut out = Sensitivities {
+        colour: vec![0.0; n],
+        position: vec![0.0; n],
+        magnification: vec![0.0; n],
+    };
+    for (i, w) in per_tile.into_iter().flatten() {
+        let s = &binned.splats[i as usize];
+        let at = s.index as usize;
+        let inverse_width = 0.5 * (s.conic[0] + s.conic[2]);
+        out.colour[at] += w;
+        let squared = s.pixels_per_unit * s.pixels_per_unit;
+        out.position[at] += w * squared * inverse_width;
+        out.magnification[at] += w * squared;
+    }
+    out
+}
+
 /// `renderCUDA` for one tile: front-to-back alpha compositing of the depth-sorted `list`.
-/// Returns TILE × TILE RGB values (pixels outside the image are left at 0).
+/// Returns TILE × TILE RGB values (pixels outside the image are left at 0); `weight` hears
+/// each splat's blending weight `α·T` (with its place in `list`) at each pixel it shades.
 fn composite_tile(
     splats: &[Splat],
     list: &[u32],
     origin: [u32; 2],
     size: [u32; 2],
     background: [f32; 3],
+    weight: &mut dyn FnMut(usize, f32),
 ) -> Vec<f32> {
     const N: usize = (TILE * TILE) as usize;
     let mut transmittance = [1f32; N];
@@ -293,7 +388,7 @@ fn composite_tile(
         *a = x < size[0] && y < size[1];
         remaining += usize::from(*a);
     }
-    for &i in list {
+    for (k, &i) in list.iter().enumerate() {
         if remaining == 0 {
             break;
         }
@@ -337,6 +432,7 @@ fn composite_tile(
             for (sum, c) in colour[p].iter_mut().zip(s.colour) {
                 *sum += c * alpha * t;
             }
+            weight(k, alpha * t);
             transmittance[p] = next;
         }
     }

@@ -3,8 +3,10 @@
 //! measured at the curves' size, an allocation per target, and each rate landed on its
 //! target at the quality yardstick ([`ratios::QUALITY_WIDTH`]).
 
+use super::curves::{self, Effort};
 use super::layer::{self, RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
+use super::sample::{spatial_sample, SAMPLE_GAUSSIANS};
 use super::{fit_groups, ratios, RateControl};
 use crate::error::{Error, Result};
 use salvq::entropy::GaussianTables;
@@ -13,8 +15,10 @@ use salvq::explicit::layer::SIZE_CLASSES;
 use salvq::explicit::Gaussians;
 use salvq_render::compare::RingTarget;
 
-/// Allocations tried per rate before the closest to its target is kept (Annex A.8.2).
+/// Allocations tried per rate after the first, before the closest to its target is kept
+/// (Annex A.8.2), at [`Effort::Best`] and at [`Effort::Default`].
 const CORRECTIONS: usize = 4;
+const DEFAULT_CORRECTIONS: usize = 3;
 
 /// A render at the yardstick's size counts as this many at the curves' (its pixels).
 const QUALITY_RENDER_UNITS: u64 = 4;
@@ -39,18 +43,29 @@ pub fn coding_units(rates: usize) -> u64 {
     2 * rates as u64
 }
 
-/// Work units of a whole encode of `p` under `rates` ([`Progress::total`]).
-pub fn work_units(p: &PreparedGaussians, rates: &RateControl) -> u64 {
-    let coding = coding_units(rates.rate_count());
-    match rates {
+/// Allocations tried per rate under `effort` (Annex A.8.2): none rendered at `Fast`.
+fn landing_tries(effort: Effort) -> u64 {
+    match effort {
+        Effort::Fast => 0,
+        Effort::Default => 1 + DEFAULT_CORRECTIONS as u64,
+        Effort::Best => 1 + CORRECTIONS as u64,
+    }
+}
+
+/// Work units of a whole encode of `p` under `options` ([`Progress::total`]).
+pub fn work_units(p: &PreparedGaussians, options: &super::ExplicitOptions) -> u64 {
+    let coding = coding_units(options.rates.rate_count());
+    let effort = options.effort;
+    match &options.rates {
         RateControl::Plans(_) => coding,
         RateControl::Psnr(t) => {
-            let landing = (1 + CORRECTIONS as u64) * QUALITY_RENDER_UNITS;
-            QUALITY_RENDER_UNITS
-                + ratios::curve_trials(p)
-                + KLT_UNITS
-                + t.len() as u64 * landing
-                + coding
+            let landing = landing_tries(effort) * QUALITY_RENDER_UNITS;
+            let ceiling = if effort == Effort::Fast {
+                0
+            } else {
+                QUALITY_RENDER_UNITS
+            };
+            ceiling + curves::curve_units(p, effort) + KLT_UNITS + t.len() as u64 * landing + coding
         }
     }
 }
@@ -79,6 +94,41 @@ fn check_order(targets: &[f64]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The input's renders at the yardstick, after checking that the scene reaches the first
+/// target; `None` at [`Effort::Fast`], which renders nothing there.
+fn yardstick(
+    g: &Gaussians,
+    p: &PreparedGaussians,
+    effort: Effort,
+    targets: &[f64],
+    say: &dyn Fn(&str),
+) -> Result<Option<RingTarget>> {
+    if effort == Effort::Fast {
+        return Ok(None);
+    }
+    say("checking what the scene can reach");
+    let quality = RingTarget::new(
+        g,
+        ratios::QUALITY_VIEWS,
+        ratios::QUALITY_WIDTH,
+        ratios::QUALITY_HEIGHT,
+    )?;
+    check_ceiling(targets, ceiling_db(g, p, &quality)?)?;
+    Ok(Some(quality))
+}
+
+/// Refuses a first target above `ceiling` (dB), what the scene reaches at best.
+fn check_ceiling(targets: &[f64], ceiling: f64) -> Result<()> {
+    match targets.first() {
+        Some(&db) if db > ceiling => Err(Error::TargetUnreachable {
+            rate: 0,
+            target_db: db,
+            ceiling_db: ceiling,
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// The render PSNR of `g` with every part at the finest step the curves try, at the
@@ -149,23 +199,14 @@ pub fn rate_plans(
         RateControl::Psnr(t) => t,
     };
     check_order(targets)?;
-    let total = work_units(p, rates);
+    let total = work_units(p, options);
     let say = |step: &str, done: u64| progress(Progress { step, done, total });
-    say("checking what the scene can reach", 0);
-    let quality = RingTarget::new(
-        g,
-        ratios::QUALITY_VIEWS,
-        ratios::QUALITY_WIDTH,
-        ratios::QUALITY_HEIGHT,
-    )?;
-    let ceiling = ceiling_db(g, p, &quality)?;
-    if let Some(&db) = targets.first().filter(|&&db| db > ceiling) {
-        return Err(Error::TargetUnreachable {
-            rate: 0,
-            target_db: db,
-            ceiling_db: ceiling,
-        });
-    }
+    let quality = yardstick(g, p, effort, targets, &|step| say(step, 0))?;
+    let mut done = if quality.is_some() {
+        QUALITY_RENDER_UNITS
+    } else {
+        0
+    };
     let classes = SizeClasses::for_variant(p, variant);
     let curve_target = RingTarget::new(
         g,
@@ -174,42 +215,69 @@ pub fn rate_plans(
         ratios::CURVE_HEIGHT,
     )?;
     let parts = ratios::parts(p).len();
-    let curves = ratios::measure_curves(
+    let sample = spatial_sample(g, p, SAMPLE_GAUSSIANS);
+    let curves = curves::measure_curves(
         g,
         p,
+        sample.as_ref(),
         &classes,
         variant,
         effort,
         &curve_target,
-        &|number, what, done| {
+        &|number, what, units| {
             say(
                 &format!("measuring what precision costs, part {number} of {parts}: {what}"),
-                QUALITY_RENDER_UNITS + done,
+                done + units,
             )
         },
     )?;
-    let mut done = QUALITY_RENDER_UNITS + ratios::curve_trials(p);
-    // Each rate: allocate for the target, code the layer alone, render what the decoder
-    // will output, and correct the allocation's target by the error it missed by (the
-    // parts' errors do not add up exactly, and the curves were measured at another size).
-    let tables = GaussianTables::standard();
-    let origin = p.min.map(|v| v as f32);
-    let code = |groups: &[Group], plan: &RatePlan| {
+    done += curves::curve_units(p, effort);
+    if quality.is_none() {
+        // No render at the yardstick: the ceiling is the curves' finest points, summed.
+        let finest: f64 = curves
+            .iter()
+            .filter_map(|(_, c)| c.last())
+            .map(|t| t.1)
+            .sum();
+        check_ceiling(targets, -10.0 * finest.max(1e-30).log10())?;
+    }
+    // Each rate: allocate for the target, render what the decoder will output, and
+    // correct the allocation's target by the error it missed by (the parts' errors do not
+    // add up exactly, and the curves were found at another size).
+    let code_in = |p: &PreparedGaussians, groups: &[Group], plan: &RatePlan| {
+        let classes = SizeClasses::for_variant(p, variant);
+        let origin = p.min.map(|v| v as f32);
+        let tables = GaussianTables::standard();
         layer::encode_layer(p, groups, &classes, plan, origin, 0, 0, variant, tables)
     };
     let klt = match klt {
         Some(k) => k.to_vec(),
         None => {
             say("choosing a KLT basis for the colours", done);
+            // On the middle target's allocation, coded on the sample of a large scene.
             let middle = targets[targets.len() / 2];
             let plan = ratios::allocate(p, &curves, 10f64.powf(-middle / 10.0));
-            choose_klt(p, std::slice::from_ref(&plan), &|groups: &[Group]| {
-                Ok(write_gqua(groups).len() + code(groups, &plan)?.chunks.len())
+            let on = sample.as_ref().map_or(p, |s| &s.prepared);
+            choose_klt(on, std::slice::from_ref(&plan), &|groups: &[Group]| {
+                Ok(write_gqua(groups).len() + code_in(on, groups, &plan)?.chunks.len())
             })?
         }
     };
     done += KLT_UNITS;
-    let mut out = Vec::with_capacity(targets.len());
+    // The quantizers' means and bases, whose steps each plan sets.
+    let quantizers = fit_groups(p, &[ratios::allocate(p, &curves, 1e-5)], &klt);
+    // `Best` renders each try's layer as coded; `Default` what its quantizers give without
+    // coding it.
+    let output = |plan: &RatePlan| -> Result<Gaussians> {
+        Ok(match effort {
+            Effort::Best => {
+                let groups = fit_groups(p, std::slice::from_ref(plan), &klt);
+                code_in(p, &groups, plan)?.expected
+            }
+            _ => ratios::plan_output(g, p, &quantizers, &classes.thresholds, plan),
+        })
+    };
+    let mut out: Vec<RatePlan> = Vec::with_capacity(targets.len());
     for (r, &db) in targets.iter().enumerate() {
         let step = format!(
             "fitting rate {r} of {} to {db} dB ({} views at {}x{})",
@@ -218,49 +286,89 @@ pub fn rate_plans(
             ratios::QUALITY_WIDTH,
             ratios::QUALITY_HEIGHT
         );
-        let want = 10f64.powf(-db / 10.0);
-        // The allocation is on a grid of steps; a common factor f on every step then lands
-        // on the target (secant on log f against log MSE, which at high rate rises by 2
-        // per unit of log f). A nested rate has no common factor: f scales the MSE the
-        // allocation aims at (MSE rises by about 1 per unit of its log), and the plan nests
-        // in the finer rate's.
-        let alloc = ratios::allocate(p, &curves, want);
         let finer = out.last().filter(|_| nested);
-        let plan_at = |f: f64| match finer {
-            Some(finer) => ratios::allocate_nested(p, &curves, finer, want * f),
-            None => alloc.scaled(f),
-        };
-        let measured = std::cell::Cell::new(0u64);
-        let measure = |f: f64| -> Result<f64> {
-            say(&step, done + measured.get() * QUALITY_RENDER_UNITS);
-            measured.set(measured.get() + 1);
-            let scaled = plan_at(f);
-            let groups = fit_groups(p, std::slice::from_ref(&scaled), &klt);
-            let coded = code(&groups, &scaled)?;
-            Ok(quality.mse(&coded.expected)?.max(1e-30))
-        };
-        let (mut lf, mut got) = (0.0f64, measure(1.0)?);
-        let mut best = (((got / want).log2()).abs(), lf);
-        let mut slope = if finer.is_some() { 1.0 } else { 2.0 };
-        for _ in 0..CORRECTIONS {
-            if best.0 < 0.05 {
-                break;
-            }
-            let next = (lf + (want.ln() - got.ln()) / slope).clamp(lf - 3.0, lf + 3.0);
-            let g2 = measure(next.exp())?;
-            if (next - lf).abs() > 1e-6 && g2 != got {
-                slope = ((g2.ln() - got.ln()) / (next - lf)).clamp(0.5, 4.0);
-            }
-            (lf, got) = (next, g2);
-            let miss = (got / want).log2().abs();
-            if miss < best.0 {
-                best = (miss, lf);
-            }
-        }
-        done += (1 + CORRECTIONS as u64) * QUALITY_RENDER_UNITS;
-        out.push(plan_at(best.1.exp()));
+        let on_try = |tries: u64| say(&step, done + tries * QUALITY_RENDER_UNITS);
+        let plan = fit_rate(
+            p,
+            &curves,
+            db,
+            finer,
+            quality.as_ref(),
+            effort,
+            &output,
+            &on_try,
+        )?;
+        done += landing_tries(effort) * QUALITY_RENDER_UNITS;
+        out.push(plan);
     }
     Ok((out, Some(klt)))
+}
+
+/// The plan of the rate whose target is `db` (nested in `finer` if given): allocated on the
+/// curves, then landed on `quality` (when given) by rendering `output` of the tries.
+#[allow(clippy::too_many_arguments)]
+fn fit_rate(
+    p: &PreparedGaussians,
+    curves: &[(ratios::Part, ratios::Curve)],
+    db: f64,
+    finer: Option<&RatePlan>,
+    quality: Option<&RingTarget>,
+    effort: Effort,
+    output: &dyn Fn(&RatePlan) -> Result<Gaussians>,
+    on_try: &dyn Fn(u64),
+) -> Result<RatePlan> {
+    let want = 10f64.powf(-db / 10.0);
+    // The allocation is on a grid of steps; a common factor f on every step then lands on
+    // the target (secant on log f against log MSE, which at high rate rises by 2 per unit
+    // of log f). A nested rate has no common factor: f scales the MSE the allocation aims
+    // at (MSE rises by about 1 per unit of its log), and the plan nests in the finer rate's.
+    let alloc = ratios::allocate(p, curves, want);
+    let plan_at = |f: f64| match finer {
+        Some(finer) => ratios::allocate_nested(p, curves, finer, want * f),
+        None => alloc.scaled(f),
+    };
+    let Some(quality) = quality else {
+        return Ok(plan_at(1.0));
+    };
+    let tries = std::cell::Cell::new(0u64);
+    let measure = |f: f64| -> Result<f64> {
+        on_try(tries.get());
+        tries.set(tries.get() + 1);
+        Ok(quality.mse(&output(&plan_at(f))?)?.max(1e-30))
+    };
+    let slope = if finer.is_some() { 1.0 } else { 2.0 };
+    let f = land(&measure, want, slope, landing_tries(effort) as usize - 1)?;
+    Ok(plan_at(f))
+}
+
+/// The factor `f` whose `measure(f)` (an MSE) is nearest `want` after at most
+/// `corrections` secant steps on log f from 1 (`slope`: the first guess of d log MSE /
+/// d log f); it stops within 0.05 in log2 of the MSE.
+fn land(
+    measure: &dyn Fn(f64) -> Result<f64>,
+    want: f64,
+    slope: f64,
+    corrections: usize,
+) -> Result<f64> {
+    let (mut lf, mut got) = (0.0f64, measure(1.0)?);
+    let mut best = (((got / want).log2()).abs(), lf);
+    let mut slope = slope;
+    for _ in 0..corrections {
+        if best.0 < 0.05 {
+            break;
+        }
+        let next = (lf + (want.ln() - got.ln()) / slope).clamp(lf - 3.0, lf + 3.0);
+        let g2 = measure(next.exp())?;
+        if (next - lf).abs() > 1e-6 && g2 != got {
+            slope = ((g2.ln() - got.ln()) / (next - lf)).clamp(0.5, 4.0);
+        }
+        (lf, got) = (next, g2);
+        let miss = (got / want).log2().abs();
+        if miss < best.0 {
+            best = (miss, lf);
+        }
+    }
+    Ok(best.1.exp())
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@
 //! steps per group) are fitted to it, then each rate's layer is coded with its own voxel
 //! grid and prior tables.
 
+pub mod curves;
 pub mod fit_rates;
 pub mod input;
 pub mod layer;
@@ -11,6 +12,8 @@ pub mod prepare;
 pub mod prior;
 pub mod progressive;
 pub mod ratios;
+pub mod sample;
+pub mod sensitivity;
 mod writer;
 
 use half::f16;
@@ -105,7 +108,7 @@ pub struct ExplicitOptions {
     /// a refinement of the one before; else each rate's layer is coded alone.
     pub progressive: bool,
     /// How hard the rate control searches (Annex A.8.2).
-    pub effort: ratios::Effort,
+    pub effort: curves::Effort,
 }
 
 impl Default for ExplicitOptions {
@@ -118,7 +121,7 @@ impl Default for ExplicitOptions {
             note: None,
             variant: Variant::default(),
             progressive: true,
-            effort: ratios::Effort::default(),
+            effort: curves::Effort::default(),
         }
     }
 }
@@ -373,7 +376,7 @@ pub fn encode_gaussians(
         klt,
         ..options.clone()
     };
-    let total = fit_rates::work_units(&p, &options.rates);
+    let total = fit_rates::work_units(&p, &options);
     let coding = fit_rates::coding_units(plans.len());
     let step = format!("coding {} rates", plans.len());
     progress(Progress {

@@ -151,6 +151,31 @@ impl PreparedGaussians {
             extent,
         })
     }
+
+    /// The Gaussians at `indices`, in that order, in the same box (`min`, `extent`).
+    pub fn subset(&self, indices: &[usize]) -> PreparedGaussians {
+        let values = self
+            .values
+            .iter()
+            .enumerate()
+            .map(|(gi, v)| {
+                let d = self.dim(gi);
+                indices
+                    .iter()
+                    .flat_map(|&i| v[i * d..(i + 1) * d].iter().copied())
+                    .collect()
+            })
+            .collect();
+        PreparedGaussians {
+            sh_degree: self.sh_degree,
+            positions: indices.iter().map(|&i| self.positions[i]).collect(),
+            kinds: self.kinds.clone(),
+            values,
+            rotation_index: indices.iter().map(|&i| self.rotation_index[i]).collect(),
+            min: self.min,
+            extent: self.extent,
+        }
+    }
 }
 
 /// Values the encoder changes on input (Annex A.8.1), one entry per property and kind of

@@ -5,14 +5,12 @@
 //! target error each part takes the step minimising `D + λ·R`, the equal-slope condition of
 //! rate-distortion theory, with λ bisected until the parts' errors add up to the target.
 
-use super::layer::{RatePlan, SizeClasses};
+use super::layer::RatePlan;
 use super::prepare::PreparedGaussians;
 use super::TrialSteps;
-use crate::error::Result;
 use salvq::explicit::groups::GroupKind;
 use salvq::explicit::layer::SIZE_CLASSES;
 use salvq::explicit::Gaussians;
-use salvq_render::compare::RingTarget;
 
 /// Views of the curves' renders.
 pub const CURVE_VIEWS: u32 = 8;
@@ -35,7 +33,7 @@ pub const QUALITY_WIDTH: u32 = 512;
 pub const QUALITY_HEIGHT: u32 = 384;
 
 /// Trial steps of a part's curve: octaves, half octaves for the scale group.
-fn trial_exponents(part: Part) -> (Vec<i32>, f64) {
+pub(crate) fn trial_exponents(part: Part) -> (Vec<i32>, f64) {
     match part {
         Part::Scale => ((-16..=10).rev().collect(), 0.5),
         _ => ((-10..=8).rev().collect(), 1.0),
@@ -50,27 +48,24 @@ pub fn finest(g: &Gaussians, p: &PreparedGaussians) -> Gaussians {
         let (ks, scale) = trial_exponents(part);
         base * (f64::from(ks.iter().copied().min().unwrap_or(0)) * scale).exp2()
     };
-    let mut out = quantized(
-        g,
-        p,
-        None,
-        None,
-        finest_step(Part::Position(0), start.position),
-    );
+    let mut out = g.clone();
+    let position = finest_step(Part::Position(0), start.position);
+    quantize_part(&mut out, p, None, &|_| Some(position));
     for gi in 0..p.kinds.len() {
         let part = if gi == 0 {
             Part::Scale
         } else {
             Part::Group(gi, 0)
         };
-        out = quantized(&out, p, Some(gi), None, finest_step(part, start.groups[gi]));
+        let step = finest_step(part, start.groups[gi]);
+        quantize_part(&mut out, p, Some(gi), &|_| Some(step));
     }
     out
 }
 
 /// `g` with one part of the Gaussians of class `class` (all when `None`) uniformly
 /// quantized at `step`: group `group`, or the positions (voxel centres) when `None`.
-fn quantized(
+pub(crate) fn quantized(
     g: &Gaussians,
     p: &PreparedGaussians,
     group: Option<usize>,
@@ -78,23 +73,144 @@ fn quantized(
     step: f64,
 ) -> Gaussians {
     let mut out = g.clone();
-    let q = |x: f64| (step * (x / step).round()) as f32;
     let chosen = |i: usize| class.is_none_or(|(c, classes)| classes[i] == c);
-    let Some(gi) = group else {
-        for (i, pos) in out.positions.iter_mut().enumerate() {
-            if !chosen(i) {
-                continue;
+    quantize_part(&mut out, p, group, &|i| chosen(i).then_some(step));
+    out
+}
+
+/// What a decoder outputs for `plan` with the quantizers `groups` (their means and bases;
+/// the steps are the plan's), to the precision that matters for its render error: each
+/// group's lattice point (§3.3) at the plan's step for the Gaussian's size class, the
+/// class read from the quantized scales as §3.5 reads it, and each position at the centre
+/// of its refined cell. Entropy coding and the binary32 rules of §3.6 are left out.
+pub fn plan_output(
+    g: &Gaussians,
+    p: &PreparedGaussians,
+    groups: &[salvq::explicit::groups::Group],
+    thresholds: &[f64],
+    plan: &RatePlan,
+) -> Gaussians {
+    use nalgebra::DMatrix;
+    let n = p.len();
+    let mut out = g.clone();
+    // Per group: B (row-major) and B⁻¹, or None for the identity.
+    let bases: Vec<Option<(Vec<f64>, DMatrix<f64>)>> = groups
+        .iter()
+        .map(|gr| {
+            gr.basis.as_ref().map(|_| {
+                let b: Vec<f64> = gr.matrix().to_f64();
+                let m = DMatrix::from_row_slice(gr.dim, gr.dim, &b);
+                let inv = m
+                    .try_inverse()
+                    .unwrap_or_else(|| DMatrix::identity(gr.dim, gr.dim));
+                (b, inv)
+            })
+        })
+        .collect();
+    // x̂ = mean + Δ·B·round(B⁻¹ (x − mean) / Δ), into `x`.
+    let lattice = |gi: usize, x: &mut [f64], step: f64| {
+        let gr = &groups[gi];
+        let d = gr.dim;
+        let t: Vec<f64> = (0..d)
+            .map(|j| (x[j] - f64::from(gr.mean[j])) / step)
+            .collect();
+        match &bases[gi] {
+            None => {
+                for j in 0..d {
+                    x[j] = f64::from(gr.mean[j]) + step * t[j].round();
+                }
             }
-            for (a, v) in pos.iter_mut().enumerate() {
-                let m = p.min[a];
-                *v = (m + step * (((f64::from(*v) - m) / step).floor() + 0.5)) as f32;
+            Some((b, inv)) => {
+                let c: Vec<f64> = (0..d)
+                    .map(|j| (0..d).map(|k| inv[(j, k)] * t[k]).sum::<f64>().round())
+                    .collect();
+                for j in 0..d {
+                    let v: f64 = (0..d).map(|k| b[j * d + k] * c[k]).sum();
+                    x[j] = f64::from(gr.mean[j]) + step * v;
+                }
             }
         }
-        return out;
+    };
+    // §3.5: the size class compares the largest scale coordinate with the thresholds
+    // rounded to the scale lattice.
+    let (scale_mean, scale_step) = (f64::from(groups[0].mean[0]), plan.steps[0]);
+    let threshold_u: Vec<f64> = thresholds
+        .iter()
+        .map(|t| ((t - scale_mean) / scale_step).round())
+        .collect();
+    let mut row = Vec::new();
+    for i in 0..n {
+        let scale = &p.values[0][3 * i..3 * i + 3];
+        let largest = scale
+            .iter()
+            .map(|x| ((x - scale_mean) / scale_step).round())
+            .fold(f64::NEG_INFINITY, f64::max);
+        let class = threshold_u.iter().filter(|&&t| t <= largest).count();
+        row.clear();
+        row.extend_from_slice(scale);
+        lattice(0, &mut row, scale_step);
+        out.log_scales[i] = [row[0] as f32, row[1] as f32, row[2] as f32];
+        let cell = plan.voxel * (-f64::from(plan.refine[class])).exp2();
+        for a in 0..3 {
+            let m = p.min[a];
+            out.positions[i][a] =
+                (m + cell * (((p.positions[i][a] - m) / cell).floor() + 0.5)) as f32;
+        }
+        for (gi, kind) in p.kinds.iter().enumerate().skip(1) {
+            let d = p.dim(gi);
+            row.clear();
+            row.extend_from_slice(&p.values[gi][i * d..(i + 1) * d]);
+            let step = plan.steps[gi] * f64::from(plan.shift[gi - 1][class]).exp2();
+            lattice(gi, &mut row, step);
+            let f = |k: usize| row[k] as f32;
+            match kind {
+                GroupKind::Opacity => out.opacity_logit[i] = f(0),
+                GroupKind::Scale => out.log_scales[i] = [f(0), f(1), f(2)],
+                GroupKind::Dc => out.f_dc[i] = [f(0), f(1), f(2)],
+                GroupKind::Rest => {
+                    for (k, o) in out.f_rest[i * d..(i + 1) * d].iter_mut().enumerate() {
+                        *o = f(k);
+                    }
+                }
+                GroupKind::Rotation => {
+                    out.rotations[i] = salvq::explicit::reconstruct::quaternion(
+                        [f(0), f(1), f(2)],
+                        p.rotation_index[i],
+                    );
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Quantizes in `out` group `group` (the positions, to voxel centres, when `None`) of each
+/// Gaussian `i` for which `step_of(i)` gives a step.
+fn quantize_part(
+    out: &mut Gaussians,
+    p: &PreparedGaussians,
+    group: Option<usize>,
+    step_of: &dyn Fn(usize) -> Option<f64>,
+) {
+    let Some(gi) = group else {
+        for (i, pos) in out.positions.iter_mut().enumerate() {
+            let Some(step) = step_of(i) else {
+                continue;
+            };
+            for (a, v) in pos.iter_mut().enumerate() {
+                let m = p.min[a];
+                *v = (m + step * (((p.positions[i][a] - m) / step).floor() + 0.5)) as f32;
+            }
+        }
+        return;
     };
     let d = p.dim(gi);
     let v = &p.values[gi];
-    for i in (0..p.len()).filter(|&i| chosen(i)) {
+    for i in 0..p.len() {
+        let Some(step) = step_of(i) else {
+            continue;
+        };
+        let q = |x: f64| (step * (x / step).round()) as f32;
         let x = &v[i * d..(i + 1) * d];
         match p.kinds[gi] {
             GroupKind::Opacity => out.opacity_logit[i] = q(x[0]),
@@ -111,7 +227,6 @@ fn quantized(
             }
         }
     }
-    out
 }
 
 /// A part's measured operating points: (log2 of the step over the part's default, render
@@ -130,6 +245,37 @@ pub enum Part {
 }
 
 impl Part {
+    /// Which values it quantizes: the group (`None`: the positions) and the size class
+    /// (`None`: all).
+    pub fn quantizes(self) -> (Option<usize>, Option<u8>) {
+        match self {
+            Part::Position(c) => (None, Some(c)),
+            Part::Scale => (Some(0), None),
+            Part::Group(gi, c) => (Some(gi), Some(c)),
+        }
+    }
+
+    /// Whether a Gaussian of size class `class` is one of its.
+    pub fn holds(self, class: u8) -> bool {
+        self.quantizes().1.is_none_or(|c| c == class)
+    }
+
+    /// Its Gaussians (ascending indices), given each one's size class.
+    pub fn members(self, class_of: &[u8]) -> Vec<usize> {
+        (0..class_of.len())
+            .filter(|&i| self.holds(class_of[i]))
+            .collect()
+    }
+
+    /// The step its trial exponents scale.
+    pub fn base_step(self, start: &TrialSteps) -> f64 {
+        match self {
+            Part::Position(_) => start.position,
+            Part::Scale => start.groups[0],
+            Part::Group(gi, _) => start.groups[gi],
+        }
+    }
+
     /// What the part is, in a person's words (`kinds`: the scene's groups).
     pub fn describe(self, kinds: &[GroupKind]) -> String {
         let class = |c: u8| {
@@ -166,211 +312,6 @@ pub fn parts(p: &PreparedGaussians) -> Vec<Part> {
         }
     }
     parts
-}
-
-/// Trial renders [`measure_curves`] makes at most.
-pub fn curve_trials(p: &PreparedGaussians) -> u64 {
-    parts(p)
-        .into_iter()
-        .map(|part| trial_exponents(part).0.len() as u64)
-        .sum()
-}
-
-/// Every part's rate-distortion curve (Annex A.8.2): each part alone is quantized at trial
-/// steps, its render error measured against `target` and its bits counted as the layer
-/// coder would pay them (positions: the octree at that edge, shared by classes in
-/// proportion to their Gaussians). `progress` hears each part as it starts (its number from
-/// 1, and its description) and the trial renders done so far.
-pub fn measure_curves(
-    g: &Gaussians,
-    p: &PreparedGaussians,
-    classes: &SizeClasses,
-    variant: super::Variant,
-    effort: Effort,
-    target: &RingTarget,
-    progress: &dyn Fn(usize, &str, u64),
-) -> Result<Vec<(Part, Curve)>> {
-    use super::layer::{grid, group_bits, group_coordinates, BitCost};
-    use salvq::entropy::GaussianTables;
-    use salvq::tiles::{TileTable, DEFAULT_TILE_ANCHORS};
-    let tables = GaussianTables::standard();
-    let start = TrialSteps::default_for(p);
-    let origin = p.min.map(|v| v as f32);
-    let reference = grid(p, origin, start.position);
-    let class_of = classes.classes(p);
-    let n = p.len() as f64;
-    let cost = BitCost::standard();
-    let parts = parts(p);
-    let mut trials_done = 0u64;
-    // Octree bits per Gaussian at each trial edge, shared by the position parts.
-    let mut octree_bits: rustc_hash::FxHashMap<i64, f64> = Default::default();
-    let mut out = Vec::with_capacity(parts.len());
-    for (number, part) in parts.into_iter().enumerate() {
-        let (group, class, base) = match part {
-            Part::Position(c) => (None, Some(c), start.position),
-            Part::Scale => (Some(0), None, start.groups[0]),
-            Part::Group(gi, c) => (Some(gi), Some(c), start.groups[gi]),
-        };
-        let (ks, scale) = trial_exponents(part);
-        let what = part.describe(&p.kinds);
-        let before = trials_done;
-        progress(number + 1, &what, before);
-        // Trials a curve skips (it stops once the error vanishes) count as done.
-        trials_done += ks.len() as u64;
-        let members: Vec<usize> = match class {
-            Some(c) => reference
-                .order
-                .iter()
-                .copied()
-                .filter(|&i| class_of[i] == c)
-                .collect(),
-            None => reference.order.clone(),
-        };
-        let share = members.len() as f64 / n;
-        let mut curve = Curve::new();
-        if members.is_empty() {
-            curve.push((0.0, 0.0, 0.0));
-            out.push((part, curve));
-            continue;
-        }
-        let subset_voxels: Vec<[u32; 3]> = {
-            let mut at = vec![usize::MAX; p.len()];
-            for (k, &i) in reference.order.iter().enumerate() {
-                at[i] = k;
-            }
-            members.iter().map(|&i| reference.voxels[at[i]]).collect()
-        };
-        let tiles = TileTable::cut(&subset_voxels, DEFAULT_TILE_ANCHORS);
-        let last = ks.len() - 1;
-        // Each trial's bits, and its render error where it is rendered (None: interpolated).
-        let mut trials: Vec<(f64, Option<f64>, f64)> = Vec::with_capacity(ks.len());
-        for (k_at, k) in ks.into_iter().enumerate() {
-            if k_at > 0 {
-                progress(number + 1, &what, before + k_at as u64);
-            }
-            let log2 = f64::from(k) * scale;
-            let step = base * log2.exp2();
-            let rendered = k_at % effort.render_every() == 0 || k_at == last;
-            let mse = if rendered {
-                Some(target.mse(&quantized(
-                    g,
-                    p,
-                    group,
-                    class.map(|c| (c, class_of.as_slice())),
-                    step,
-                ))?)
-            } else {
-                None
-            };
-            let bits = match group {
-                None => {
-                    let key = k as i64;
-                    let total = match octree_bits.get(&key) {
-                        Some(&b) => b,
-                        None => {
-                            let gr = grid(p, origin, step);
-                            let t = TileTable::cut(&gr.voxels, DEFAULT_TILE_ANCHORS);
-                            let mut bytes = 0usize;
-                            for i in 0..t.len() {
-                                let (level, cell) = t.cells[i];
-                                let local: Vec<[u32; 3]> = gr.voxels[t.range(i)]
-                                    .iter()
-                                    .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
-                                    .collect();
-                                bytes += salvq::geometry::encode(&local, level, tables)?.len();
-                            }
-                            let b = bytes as f64 * 8.0 / n;
-                            octree_bits.insert(key, b);
-                            b
-                        }
-                    };
-                    total * share
-                }
-                Some(gi) => {
-                    let d = p.dim(gi);
-                    let one = super::measurement_group(p, gi);
-                    let c = group_coordinates(&p.values[gi], &one, step as f32, &|_| 0, &members);
-                    group_bits(
-                        &c,
-                        d,
-                        &subset_voxels,
-                        reference.coord_bits,
-                        &tiles,
-                        cost,
-                        variant,
-                        one.kind == GroupKind::Rest,
-                    ) * share
-                }
-            };
-            trials.push((log2, mse, bits));
-            if mse.is_some_and(|m| m < 1e-10) {
-                break;
-            }
-        }
-        // Trials after the last rendered one (none where every trial is rendered) are dropped.
-        while trials.last().is_some_and(|t| t.1.is_none()) {
-            trials.pop();
-        }
-        curve.extend(interpolated(&trials));
-        out.push((part, curve));
-    }
-    Ok(out)
-}
-
-/// How hard the encoder searches (Annex A.8.2): which trial steps of a curve are rendered.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Effort {
-    /// Every third trial step rendered (and the finest), the render error of the others
-    /// interpolated: the curves cost about a third of the renders.
-    #[default]
-    Default,
-    /// Every trial step rendered.
-    Best,
-}
-
-impl Effort {
-    fn render_every(self) -> usize {
-        match self {
-            Effort::Default => 3,
-            Effort::Best => 1,
-        }
-    }
-}
-
-/// `trials` (log2 step, render error if rendered, bits) with each error that was not
-/// rendered interpolated between the rendered ones around it, linearly in log error
-/// against log step: the error of a quantizer grows as a power of its step.
-fn interpolated(trials: &[(f64, Option<f64>, f64)]) -> Curve {
-    let rendered: Vec<usize> = (0..trials.len())
-        .filter(|&i| trials[i].1.is_some())
-        .collect();
-    let ln = |m: f64| m.max(1e-30).ln();
-    trials
-        .iter()
-        .enumerate()
-        .map(|(i, &(x, mse, bits))| {
-            let mse = mse.unwrap_or_else(|| {
-                let after = rendered.partition_point(|&r| r < i);
-                let (a, b) = (
-                    rendered[after.saturating_sub(1)],
-                    rendered[after.min(rendered.len() - 1)],
-                );
-                let (xa, ma, xb, mb) = (
-                    trials[a].0,
-                    trials[a].1.unwrap_or(0.0),
-                    trials[b].0,
-                    trials[b].1.unwrap_or(0.0),
-                );
-                let t = if (xb - xa).abs() > 1e-12 {
-                    (x - xa) / (xb - xa)
-                } else {
-                    0.0
-                };
-                (ln(ma) + t * (ln(mb) - ln(ma))).exp()
-            });
-            (x, mse, bits)
-        })
-        .collect()
 }
 
 /// The plan whose summed render error is `target_mse` at the least total bits (Annex
@@ -553,32 +494,4 @@ fn predicted(
         sum = (sum.0 + m, sum.1 + b);
     }
     sum
-}
-
-#[cfg(test)]
-mod tests {
-    use super::interpolated;
-
-    /// A render error that is a power of the step is interpolated exactly between rendered
-    /// trials; rendered trials and every trial's bits are kept as they are.
-    #[test]
-    fn an_error_that_is_a_power_of_the_step_is_interpolated_exactly() {
-        let mse = |x: f64| 0.01 * (2.0 * x).exp2();
-        let trials: Vec<(f64, Option<f64>, f64)> = (0..10)
-            .map(|i| {
-                let x = 8.0 - f64::from(i);
-                (x, (i % 3 == 0).then(|| mse(x)), 10.0 - x)
-            })
-            .collect();
-        let curve = interpolated(&trials);
-        assert_eq!(curve.len(), trials.len());
-        for ((x, m, b), t) in curve.iter().zip(&trials) {
-            assert_eq!((*x, *b), (t.0, t.2));
-            assert!(
-                (m / mse(*x) - 1.0).abs() < 1e-12,
-                "at {x}: {m} against {}",
-                mse(*x)
-            );
-        }
-    }
 }
