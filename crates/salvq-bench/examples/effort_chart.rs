@@ -78,9 +78,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let g = salvq_render::ply::read_ply(&std::fs::read(path)?)?;
         if let Some(old) = &before {
             eprintln!("{name}: the earlier build's salvq encode");
-            let mut run = encode(old, path, name, "default", scratch.path(), &out)?;
-            run.codec = "before".into();
-            runs.push(run);
+            runs.push(encode(
+                old,
+                path,
+                name,
+                "default",
+                "before",
+                scratch.path(),
+                &out,
+            )?);
         }
         for effort in &efforts {
             if effort == "best" && g.len() as u64 > best_up_to {
@@ -88,7 +94,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 continue;
             }
             eprintln!("{name}: salvq encode --effort {effort}");
-            runs.push(encode(&salvq, path, name, effort, scratch.path(), &out)?);
+            runs.push(encode(
+                &salvq,
+                path,
+                name,
+                effort,
+                effort,
+                scratch.path(),
+                &out,
+            )?);
         }
         if let Some(st) = &peer {
             let reference = RingTarget::new(&g, 8, 512, 384)?;
@@ -140,16 +154,17 @@ fn sibling_salvq() -> PathBuf {
     dir.join("salvq")
 }
 
-/// One `salvq encode --json` of `scene`, its report read back.
+/// One `salvq encode --effort EFFORT --json` of `scene`, its report read back, labelled.
 fn encode(
     salvq: &Path,
     scene: &Path,
     name: &str,
     effort: &str,
+    label: &str,
     work: &Path,
     out: &Path,
 ) -> Result<Run, Box<dyn std::error::Error>> {
-    let output = work.join(format!("{name}.{effort}.salvq"));
+    let output = work.join(format!("{name}.{label}.salvq"));
     let t = Instant::now();
     let run = Command::new(salvq)
         .arg("encode")
@@ -159,7 +174,7 @@ fn encode(
         .output()?;
     let wall = t.elapsed().as_secs_f64();
     // Its progress lines, each stamped with the seconds since it started: where time goes.
-    std::fs::write(out.join(format!("{name}.{effort}.log")), &run.stderr)?;
+    std::fs::write(out.join(format!("{name}.{label}.log")), &run.stderr)?;
     if !run.status.success() {
         return Err(format!(
             "{} encode {} failed: {}",
@@ -201,7 +216,7 @@ fn encode(
     Ok(Run {
         scene: name.into(),
         gaussians: num(&json["gaussians"]).unwrap_or(0.0) as u64,
-        codec: effort.into(),
+        codec: label.into(),
         // The encode to the written file; the rest of `wall` measured the rates.
         wall_s: written.or(num(&json["seconds"])).unwrap_or(wall),
         cpu_s: num(&json["cpu_seconds"]),
