@@ -64,13 +64,21 @@ impl Weight for i8 {
 }
 
 /// The 16 weights at `p` as 16 i16 lanes (i8 weights sign-extended: the same values).
+///
+/// # Safety
+/// The CPU has AVX2, and `p` is valid for reads of 16 consecutive `W` (16 bytes for `i8`,
+/// 32 for `i16`; no alignment needed).
 #[inline]
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn load16<W: Weight>(p: *const W) -> __m256i {
-    if W::NARROW {
-        _mm256_cvtepi8_epi16(_mm_loadu_si128(p.cast()))
-    } else {
-        _mm256_loadu_si256(p.cast())
+    // SAFETY: AVX2 is the caller's guarantee (# Safety), and so are the 16 `W` at `p`, the
+    // bytes either unaligned load reads (16 for i8, 32 for i16).
+    unsafe {
+        if W::NARROW {
+            _mm256_cvtepi8_epi16(_mm_loadu_si128(p.cast()))
+        } else {
+            _mm256_loadu_si256(p.cast())
+        }
     }
 }
 
@@ -216,6 +224,12 @@ impl Avx2Mlp {
         {
             return None;
         }
+        // The passes over a layer point into its weights before reading any, which needs at
+        // least one input pair's column in each layer: an MLP without inputs or hidden units
+        // (no valid stream has one) takes the portable path.
+        if cin == 0 || hidden == 0 {
+            return None;
+        }
         // Layer 0 writes the hidden activations 8 at a time (and layer 1 reads them in
         // pairs): padding to 8, not to a whole 16-lane vector, spares HAC's 100 units a
         // group of 8 rows of zeros.
@@ -282,8 +296,10 @@ impl Avx2Mlp {
                 && y.len() == self.cout,
             "Avx2Mlp::eval: scratch of the wrong shape"
         );
-        // SAFETY: `new` returned this kernel only after detecting AVX2 on this CPU; the
-        // assertion above gives `eval_avx2` the slice lengths it reads and writes.
+        // SAFETY: `eval_avx2`'s contract: `new` returned this kernel only after detecting
+        // AVX2 on this CPU; `l0` and `l1` are the two layers of `self.weights`, laid by `new`
+        // for this MLP; the assertion above gives `x.len() >= self.input_len()` and
+        // `h.len() >= self.hidden_len()`.
         unsafe {
             match &self.weights {
                 Weights::Wide(w) => self.eval_avx2(&w.l0, &w.l1, x, h, y),
@@ -292,6 +308,16 @@ impl Avx2Mlp {
         }
     }
 
+    /// [`Self::eval`] after its checks.
+    ///
+    /// # Safety
+    /// - The CPU has AVX2.
+    /// - `l0` and `l1` are layer 0 (by row groups) and layer 1 of one `Laid` of
+    ///   `self.weights`: `l0` has `self.hidden_pad / 8` row groups of `self.input_len() / 16`
+    ///   blocks, and `l1` the columns of `self.hidden_pad / 2` unit pairs.
+    /// - `x.len() >= self.input_len()` (the rows read `l0.blocks · 16` inputs).
+    /// - `h.len() >= self.hidden_len()`: `self.hidden_pad` activations, then the list of up
+    ///   to `self.hidden_pad / 2` unit pairs, written without bounds checks.
     #[target_feature(enable = "avx2")]
     unsafe fn eval_avx2<W: Weight>(
         &self,
@@ -302,20 +328,29 @@ impl Avx2Mlp {
         y: &mut [i32],
     ) {
         // Layer 0: s_h = b0[h] + W0[h] . x, then a_h = min(max(rshr(s_h, shift0), 0), 32767).
-        for g in 0..l0.groups {
-            let s = rows8(l0, g, x.as_ptr());
-            let acc =
-                _mm256_add_epi32(s, _mm256_loadu_si256(l0.bias.as_ptr().add(g * ROWS).cast()));
-            store_hidden(acc, self.shift0, &mut h[g * ROWS..]);
+        // SAFETY: AVX2 is the caller's guarantee (# Safety), which `rows8` and `store_hidden`
+        // also need. `rows8`: g < `l0.groups`, and `x` holds `self.input_len()` =
+        // `l0.blocks · 16` values (# Safety). The bias load reads 8 i32 at g · 8, inside
+        // `l0.bias`, which `Layer::new` padded to `l0.groups · 8`. `store_hidden` checks its
+        // slice itself (and `h[g * ROWS..]` is a checked slice).
+        unsafe {
+            for g in 0..l0.groups {
+                let s = rows8(l0, g, x.as_ptr());
+                let bias = _mm256_loadu_si256(l0.bias.as_ptr().add(g * ROWS).cast());
+                let acc = _mm256_add_epi32(s, bias);
+                store_hidden(acc, self.shift0, &mut h[g * ROWS..]);
+            }
         }
         // The unit pairs with a nonzero unit, in order. Written without branches: each pair
         // is stored and the count advances only past nonzero ones (a branch per pair would be
-        // mispredicted often). In bounds: the store for pair q is at n <= q < hidden_pad / 2,
-        // the list's length.
+        // mispredicted often).
         let (act, list) = h.split_at_mut(self.hidden_pad);
         let mut n = 0;
         for (q, pair) in act.chunks_exact(2).enumerate() {
-            *list.get_unchecked_mut(n) = q as u16 as i16;
+            // SAFETY: the store for pair q is at n <= q < hidden_pad / 2, and `list`, the
+            // rest of `h`, holds at least hidden_pad / 2 values: `h.len() >=
+            // self.hidden_len()` (# Safety).
+            unsafe { *list.get_unchecked_mut(n) = q as u16 as i16 };
             n += usize::from((pair[0] | pair[1]) != 0);
         }
         let (act, list) = (&*act, &list[..n]);
@@ -324,24 +359,41 @@ impl Avx2Mlp {
         let groups = l1.outputs / ROWS;
         let mut first = 0;
         while first < groups {
-            match groups - first {
-                1 => self.layer1_pass::<W, 1>(l1, act, list, first, y),
-                2 => self.layer1_pass::<W, 2>(l1, act, list, first, y),
-                3 => self.layer1_pass::<W, 3>(l1, act, list, first, y),
-                4 => self.layer1_pass::<W, 4>(l1, act, list, first, y),
-                5 => self.layer1_pass::<W, 5>(l1, act, list, first, y),
-                6 => self.layer1_pass::<W, 6>(l1, act, list, first, y),
-                7 => self.layer1_pass::<W, 7>(l1, act, list, first, y),
-                8 => self.layer1_pass::<W, 8>(l1, act, list, first, y),
-                9 => self.layer1_pass::<W, 9>(l1, act, list, first, y),
-                10 => self.layer1_pass::<W, 10>(l1, act, list, first, y),
-                _ => self.layer1_pass::<W, PASS_GROUPS>(l1, act, list, first, y),
+            // SAFETY: `layer1_pass`'s contract. AVX2: the caller's guarantee (# Safety). Each
+            // pass has first + B <= `groups` = `l1.outputs / 8` (B is at most the groups left).
+            // `l1` is laid by `Pairs::new` with its inputs padded to `self.hidden_pad`, at least
+            // 8 (`new` refuses an MLP without hidden units): `l1.weights` holds `hidden_pad ·
+            // l1.outputs` values and `l1.bias` `l1.outputs`. Every listed q < hidden_pad / 2
+            // (the loop above lists each pair of `act` once), so 2q + 1 < `act.len()` =
+            // hidden_pad and (q + 1) · 2 · `l1.outputs` <= `l1.weights.len()`.
+            unsafe {
+                match groups - first {
+                    1 => self.layer1_pass::<W, 1>(l1, act, list, first, y),
+                    2 => self.layer1_pass::<W, 2>(l1, act, list, first, y),
+                    3 => self.layer1_pass::<W, 3>(l1, act, list, first, y),
+                    4 => self.layer1_pass::<W, 4>(l1, act, list, first, y),
+                    5 => self.layer1_pass::<W, 5>(l1, act, list, first, y),
+                    6 => self.layer1_pass::<W, 6>(l1, act, list, first, y),
+                    7 => self.layer1_pass::<W, 7>(l1, act, list, first, y),
+                    8 => self.layer1_pass::<W, 8>(l1, act, list, first, y),
+                    9 => self.layer1_pass::<W, 9>(l1, act, list, first, y),
+                    10 => self.layer1_pass::<W, 10>(l1, act, list, first, y),
+                    _ => self.layer1_pass::<W, PASS_GROUPS>(l1, act, list, first, y),
+                }
             }
             first += PASS_GROUPS;
         }
     }
 
     /// Layer 1's outputs `8 * first .. 8 * (first + B)` from the unit pairs in `list`.
+    ///
+    /// # Safety
+    /// - The CPU has AVX2.
+    /// - `first + B <= l1.outputs / 8`; `l1` is laid by [`Pairs::new`] (`l1.bias` holds
+    ///   `l1.outputs` values) and holds at least one pair's column: `2 · l1.outputs <=
+    ///   l1.weights.len()`.
+    /// - Every `q` in `list` (read as u16) has `2q + 1 < act.len()` and its column in `l1`:
+    ///   `(q + 1) · 2 · l1.outputs <= l1.weights.len()`.
     #[inline]
     #[target_feature(enable = "avx2")]
     unsafe fn layer1_pass<W: Weight, const B: usize>(
@@ -352,40 +404,56 @@ impl Avx2Mlp {
         first: usize,
         y: &mut [i32],
     ) {
-        let mut acc = [_mm256_setzero_si256(); B];
-        let base = l1.weights.as_ptr().add(first * ROWS * 2);
-        for &q in list {
-            // q < hidden_pad / 2 (see `eval_avx2`): units 2q and 2q + 1 are in `act`, and the
-            // pair's weights for these B groups are in `weights` (hidden_pad · outputs).
-            let q = usize::from(q as u16);
-            let both = u32::from(*act.get_unchecked(2 * q) as u16)
-                | u32::from(*act.get_unchecked(2 * q + 1) as u16) << 16;
-            let hv = _mm256_set1_epi32(both as i32);
-            let col = base.add(q * l1.outputs * 2);
-            for (i, a) in acc.iter_mut().enumerate() {
-                let w = load16(col.add(i * 2 * ROWS));
-                *a = _mm256_add_epi32(*a, _mm256_madd_epi16(w, hv));
+        // SAFETY: every operation relies on this function's contract (# Safety). The
+        // intrinsics, `load16` and `store_outputs` need AVX2: the caller's guarantee. `base`,
+        // at first · 16 < 2 · `l1.outputs`, is inside `l1.weights`. For a listed q, units 2q
+        // and 2q + 1 are in `act`, and `col` (q · 2 · `l1.outputs` on from the weights)
+        // and its B groups' 16 weights, up to (q + 1) · 2 · `l1.outputs`, are in
+        // `l1.weights`. The bias loads read 8 i32 at o < o + 8 <= `l1.outputs`.
+        // `store_outputs` leaves out the outputs past `y`'s end itself.
+        unsafe {
+            let mut acc = [_mm256_setzero_si256(); B];
+            let base = l1.weights.as_ptr().add(first * ROWS * 2);
+            for &q in list {
+                let q = usize::from(q as u16);
+                let both = u32::from(*act.get_unchecked(2 * q) as u16)
+                    | u32::from(*act.get_unchecked(2 * q + 1) as u16) << 16;
+                let hv = _mm256_set1_epi32(both as i32);
+                let col = base.add(q * l1.outputs * 2);
+                for (i, a) in acc.iter_mut().enumerate() {
+                    let w = load16(col.add(i * 2 * ROWS));
+                    *a = _mm256_add_epi32(*a, _mm256_madd_epi16(w, hv));
+                }
             }
-        }
-        for (i, a) in acc.into_iter().enumerate() {
-            let o = (first + i) * ROWS;
-            let v = _mm256_add_epi32(a, _mm256_loadu_si256(l1.bias.as_ptr().add(o).cast()));
-            store_outputs(v, o, y);
+            for (i, a) in acc.into_iter().enumerate() {
+                let o = (first + i) * ROWS;
+                let v = _mm256_add_epi32(a, _mm256_loadu_si256(l1.bias.as_ptr().add(o).cast()));
+                store_outputs(v, o, y);
+            }
         }
     }
 }
 
 /// §5.3 step 2 on 8 layer-0 sums (biases added): `min(max(rshr(s, shift0), 0), 32767)`,
-/// stored at the front of `h`.
+/// stored at the front of `h` (which it asserts holds 8 values).
+///
+/// # Safety
+/// The CPU has AVX2.
 #[inline]
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn store_hidden(sums: __m256i, shift0: u8, h: &mut [i16]) {
-    let q = round_shift(sums, shift0);
-    // Signed saturation to i16 then max with 0 is exactly the clamp to 0 ..= 32767.
-    let packed = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
-    let relu = _mm_max_epi16(packed, _mm_setzero_si128());
+    // SAFETY: register operations only (`round_shift` included), which need AVX2: the
+    // caller's guarantee (# Safety).
+    let relu = unsafe {
+        let q = round_shift(sums, shift0);
+        // Signed saturation to i16 then max with 0 is exactly the clamp to 0 ..= 32767.
+        let packed = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
+        _mm_max_epi16(packed, _mm_setzero_si128())
+    };
     assert!(h.len() >= ROWS, "store_hidden: fewer than 8 units");
-    _mm_storeu_si128(h.as_mut_ptr().cast::<__m128i>(), relu);
+    // SAFETY: the store writes 8 i16 (unaligned) to the front of `h`, which holds at least
+    // 8 (asserted just above); AVX2 (SSE2 suffices) is the caller's guarantee.
+    unsafe { _mm_storeu_si128(h.as_mut_ptr().cast::<__m128i>(), relu) };
 }
 
 /// The unit pairs with a nonzero unit in any of the `A` activation vectors in `act` (each
@@ -394,8 +462,8 @@ pub(super) unsafe fn store_hidden(sums: __m256i, shift0: u8, h: &mut [i16]) {
 /// nonzero ones. (Bounds-checked indexing here cost 1.6 % of a 100 k-anchor decode.)
 ///
 /// # Safety
-/// `act` holds at least `A · hp` values and `list` at least `hp / 2`: the store for pair q
-/// is at n <= q < hp / 2.
+/// `act` holds at least `A · hp` values and `list` at least `hp / 2` (no CPU feature is
+/// needed).
 #[inline(always)]
 pub(super) unsafe fn nonzero_pairs<const A: usize>(
     act: &[i16],
@@ -406,72 +474,104 @@ pub(super) unsafe fn nonzero_pairs<const A: usize>(
     for q in 0..hp / 2 {
         let mut any = 0u32;
         for a in 0..A {
-            any |= act
-                .as_ptr()
-                .add(a * hp + 2 * q)
-                .cast::<u32>()
-                .read_unaligned();
+            // SAFETY: units a · hp + 2q and + 1, with a < A and 2q + 2 <= hp, are inside
+            // the A · hp values of `act` (# Safety); the read is unaligned.
+            any |= unsafe {
+                act.as_ptr()
+                    .add(a * hp + 2 * q)
+                    .cast::<u32>()
+                    .read_unaligned()
+            };
         }
-        *list.get_unchecked_mut(n) = q as u16 as i16;
+        // SAFETY: the store for pair q is at n <= q < hp / 2, inside `list`, which holds at
+        // least hp / 2 values (# Safety).
+        unsafe { *list.get_unchecked_mut(n) = q as u16 as i16 };
         n += usize::from(any != 0);
     }
     n
 }
 
 /// Stores the 8 sums `v` of outputs `o .. o + 8` into `y`, leaving out those past its end.
+///
+/// # Safety
+/// The CPU has AVX2 (any `o` and `y` will do).
 #[inline]
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn store_outputs(v: __m256i, o: usize, y: &mut [i32]) {
     if o + ROWS <= y.len() {
-        _mm256_storeu_si256(y.as_mut_ptr().add(o).cast::<__m256i>(), v);
+        // SAFETY: the store writes `y[o .. o + 8]`, inside `y` (checked just above), and
+        // needs AVX2: the caller's guarantee (# Safety).
+        unsafe { _mm256_storeu_si256(y.as_mut_ptr().add(o).cast::<__m256i>(), v) };
     } else {
         let mut last = [0i32; ROWS];
-        _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), v);
+        // SAFETY: the store writes the 8 i32 of `last`; AVX2 is the caller's guarantee.
+        unsafe { _mm256_storeu_si256(last.as_mut_ptr().cast::<__m256i>(), v) };
         let at = o.min(y.len());
         let n = y.len() - at;
         y[at..].copy_from_slice(&last[..n.min(ROWS)]);
     }
 }
 
-/// The 8 wrapping dot products of row group `g` of `layer` with the input at `x` (which has
-/// `layer.blocks * 16` readable i16), as one vector of 8 sums.
+/// The 8 wrapping dot products of row group `g` of `layer` with the input at `x`, as one
+/// vector of 8 sums.
+///
+/// # Safety
+/// The CPU has AVX2; `g < layer.groups`; `x` is valid for reads of `layer.blocks * 16` i16.
+/// (`layer` is laid by `Layer::new`: its weights hold `groups · blocks · 8 · 16` values.)
 #[inline]
 #[target_feature(enable = "avx2")]
 unsafe fn rows8<W: Weight>(layer: &Layer<W>, g: usize, x: *const i16) -> __m256i {
-    let mut acc = [_mm256_setzero_si256(); ROWS];
-    let base = layer.weights.as_ptr().add(g * layer.blocks * ROWS * LANES);
-    for b in 0..layer.blocks {
-        let xv = _mm256_loadu_si256(x.add(b * LANES).cast());
-        let wb = base.add(b * ROWS * LANES);
-        for (i, a) in acc.iter_mut().enumerate() {
-            let wv = load16(wb.add(i * LANES));
-            *a = _mm256_add_epi32(*a, _mm256_madd_epi16(wv, xv));
+    // SAFETY: every operation relies on this function's contract (# Safety). The intrinsics
+    // and `load16` need AVX2: the caller's guarantee. Block b < `layer.blocks` reads the 16
+    // inputs at `x + 16 b`, inside the `layer.blocks · 16` the caller guarantees, and row
+    // i < 8's 16 weights at ((g · blocks + b) · 8 + i) · 16, inside `layer.weights` since
+    // g < `layer.groups`.
+    unsafe {
+        let mut acc = [_mm256_setzero_si256(); ROWS];
+        let base = layer.weights.as_ptr().add(g * layer.blocks * ROWS * LANES);
+        for b in 0..layer.blocks {
+            let xv = _mm256_loadu_si256(x.add(b * LANES).cast());
+            let wb = base.add(b * ROWS * LANES);
+            for (i, a) in acc.iter_mut().enumerate() {
+                let wv = load16(wb.add(i * LANES));
+                *a = _mm256_add_epi32(*a, _mm256_madd_epi16(wv, xv));
+            }
         }
+        // Reduce: after two rounds of pairwise horizontal adds, each 128-bit half holds
+        // partial sums of rows 0-3 (from acc 0-3) or 4-7; adding the halves completes them.
+        let s01 = _mm256_hadd_epi32(acc[0], acc[1]);
+        let s23 = _mm256_hadd_epi32(acc[2], acc[3]);
+        let s45 = _mm256_hadd_epi32(acc[4], acc[5]);
+        let s67 = _mm256_hadd_epi32(acc[6], acc[7]);
+        let t0 = _mm256_hadd_epi32(s01, s23);
+        let t1 = _mm256_hadd_epi32(s45, s67);
+        let lo = _mm256_permute2x128_si256(t0, t1, 0x20);
+        let hi = _mm256_permute2x128_si256(t0, t1, 0x31);
+        _mm256_add_epi32(lo, hi)
     }
-    // Reduce: after two rounds of pairwise horizontal adds, each 128-bit half holds partial
-    // sums of rows 0-3 (from acc 0-3) or 4-7; adding the halves completes them.
-    let s01 = _mm256_hadd_epi32(acc[0], acc[1]);
-    let s23 = _mm256_hadd_epi32(acc[2], acc[3]);
-    let s45 = _mm256_hadd_epi32(acc[4], acc[5]);
-    let s67 = _mm256_hadd_epi32(acc[6], acc[7]);
-    let t0 = _mm256_hadd_epi32(s01, s23);
-    let t1 = _mm256_hadd_epi32(s45, s67);
-    let lo = _mm256_permute2x128_si256(t0, t1, 0x20);
-    let hi = _mm256_permute2x128_si256(t0, t1, 0x31);
-    _mm256_add_epi32(lo, hi)
 }
 
 /// §0.5 `rshr(acc, s)` on 8 lanes without the 64-bit sum: `(acc >> s) + bit (s - 1) of acc`,
 /// which equals `(acc + 2^(s-1)) >> s` for every i32 and 1 <= s <= 31.
+///
+/// # Safety
+/// The CPU has AVX2.
 #[inline]
 #[target_feature(enable = "avx2")]
+// Register intrinsics only: unsafe functions for Rust 1.80 (see the module `simd`), safe
+// inside this function for compilers from 1.87 on, which find the block unneeded.
+#[allow(unused_unsafe)]
 pub(super) unsafe fn round_shift(acc: __m256i, s: u8) -> __m256i {
     if s == 0 {
         return acc;
     }
-    let shifted = _mm256_sra_epi32(acc, _mm_cvtsi32_si128(i32::from(s)));
-    let half = _mm256_sra_epi32(acc, _mm_cvtsi32_si128(i32::from(s) - 1));
-    _mm256_add_epi32(shifted, _mm256_and_si256(half, _mm256_set1_epi32(1)))
+    // SAFETY: register operations only, which need AVX2: the caller's guarantee
+    // (# Safety).
+    unsafe {
+        let shifted = _mm256_sra_epi32(acc, _mm_cvtsi32_si128(i32::from(s)));
+        let half = _mm256_sra_epi32(acc, _mm_cvtsi32_si128(i32::from(s) - 1));
+        _mm256_add_epi32(shifted, _mm256_and_si256(half, _mm256_set1_epi32(1)))
+    }
 }
 
 #[cfg(test)]
@@ -508,7 +608,8 @@ mod tests {
                 let mut lanes = [0i32; 8];
                 lanes[..chunk.len()].copy_from_slice(chunk);
                 let mut out = [0i32; 8];
-                // SAFETY: AVX2 detected above; both arrays hold 8 i32.
+                // SAFETY: AVX2 detected above (`round_shift`'s contract and the loads'); both
+                // arrays hold the 8 i32 the load reads and the store writes.
                 unsafe {
                     let v = _mm256_loadu_si256(lanes.as_ptr().cast());
                     _mm256_storeu_si256(out.as_mut_ptr().cast(), round_shift(v, s));

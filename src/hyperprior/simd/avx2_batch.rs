@@ -67,15 +67,21 @@ impl Avx2Mlp {
                 && y.len() == A * self.cout,
             "Avx2Mlp::eval_batch: scratch of the wrong shape"
         );
-        // SAFETY: the weights for AVX-512 exist only where `Avx512Weights::new` detected
-        // it; the assertion above gives the kernel the slice lengths it reads and writes.
         #[cfg(salvq_avx512)]
         if let Some(w) = &self.avx512 {
+            // SAFETY: `Avx512Weights::eval_batch`'s contract: `new` made these weights for
+            // this kernel, and the assertion above gives `x.len() >= A ·
+            // self.input_len()` and `h.len() >= self.batch_hidden_len(A)`, which is at least
+            // `w.batch_hidden_len(A)`. (Only `Avx512Weights::new` makes the weights, after
+            // detecting the instructions.)
             unsafe { w.eval_batch::<A>(self, x, h, y) };
             return;
         }
-        // SAFETY: `new` returned this kernel only after detecting AVX2 on this CPU; the
-        // assertion above gives `batch_avx2` the slice lengths it reads and writes.
+        // SAFETY: `batch_avx2`'s contract: `new` returned this kernel only after detecting
+        // AVX2 on this CPU; `l0` and `l1` are the layers of one `Laid` of `self.weights`,
+        // laid by `new` for this MLP; the assertion above gives `x.len() >= A ·
+        // self.input_len()` and `h.len() >= self.batch_hidden_len(A)`, which is at least
+        // `A · self.hidden_pad + self.hidden_pad / 2`.
         unsafe {
             match &self.weights {
                 Weights::Wide(w) => self.batch_avx2::<_, A>(&w.l0_pairs, &w.l1, x, h, y),
@@ -84,6 +90,18 @@ impl Avx2Mlp {
         }
     }
 
+    /// [`Self::eval_batch`] with AVX2, after its checks.
+    ///
+    /// # Safety
+    /// - The CPU has AVX2.
+    /// - `l0` and `l1` are layer 0 by input pairs (`l0_pairs`) and layer 1 of one `Laid` of
+    ///   `self.weights`: `l0` has the columns of `self.cin.div_ceil(2)` input pairs and
+    ///   `l1` those of `self.hidden_pad / 2` unit pairs, each for `self.hidden_pad` and
+    ///   `round_up(self.cout, 8)` outputs.
+    /// - `x.len() >= A · self.input_len()` (the A anchors' inputs are read through a
+    ///   pointer).
+    /// - `h.len() >= A · self.hidden_pad + self.hidden_pad / 2`: the A anchors'
+    ///   activations, then the list of unit pairs, both written without bounds checks.
     #[target_feature(enable = "avx2")]
     unsafe fn batch_avx2<W: Weight, const A: usize>(
         &self,
@@ -95,60 +113,90 @@ impl Avx2Mlp {
     ) {
         let (stride, hp) = (self.input_len(), self.hidden_pad);
         let (act, list) = h.split_at_mut(A * hp);
-        // Layer 0: s_h = b0[h] + W0[h] . x, then a_h = min(max(rshr(s_h, shift0), 0), 32767).
-        // The last pair of an odd `cin` reads the first zero of the padding.
-        let mut sums = [[_mm256_setzero_si256(); A]; MAX_PASS_GROUPS];
-        let groups = hp / ROWS;
-        let mut first = 0;
-        while first < groups {
-            let b = (groups - first).min(pass_groups(A));
-            pass_in::<W, A>(
-                b,
-                l0,
-                first,
-                x.as_ptr(),
-                stride,
-                &self.input_pairs,
-                &mut sums,
-            );
-            for (i, group) in sums[..b].iter().enumerate() {
-                let o = (first + i) * ROWS;
-                let bias = _mm256_loadu_si256(l0.bias.as_ptr().add(o).cast());
-                // `avx2::store_hidden` written out: called here, it made the compiler's
-                // code for the passes 6 % longer (callgrind, 100 k anchors).
-                for (a, &s) in group.iter().enumerate() {
-                    let q = round_shift(_mm256_add_epi32(s, bias), self.shift0);
-                    // Signed saturation to i16 then max with 0 is the clamp to 0 ..= 32767.
-                    let packed =
-                        _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
-                    let relu = _mm_max_epi16(packed, _mm_setzero_si128());
-                    _mm_storeu_si128(act.as_mut_ptr().add(a * hp + o).cast::<__m128i>(), relu);
+        // SAFETY: every operation relies on this function's contract (# Safety). AVX2, which
+        // the intrinsics and the functions called need: the caller's guarantee.
+        // - `pass_in` for layer 0: b <= `pass_groups(A)` <= 13 and first + b <= `groups` =
+        //   `hp / 8` = `l0.outputs / 8`; `l0` (laid by `Pairs::new`, inputs padded to
+        //   `round_up(cin, 2)` >= 2, as `new` refuses an MLP without inputs) holds
+        //   `round_up(cin, 2) · l0.outputs` weights, so one pair's column at least and that
+        //   of every listed q < cin.div_ceil(2) (`input_pairs`); anchor a's pair q reads
+        //   inputs a · stride + 2q and + 1 < A · stride <= `x.len()` (stride =
+        //   `input_len()` >= `round_up(cin, 2)`; the last pair of an odd `cin` reads the
+        //   first zero of the padding).
+        // - The bias loads read 8 i32 at o < o + 8 <= `l0.outputs` (or `l1.outputs`), the
+        //   length `Pairs::new` padded the biases to.
+        // - The activation store writes 8 i16 at a · hp + o with a < A and o + 8 <= hp:
+        //   inside `act`, A · hp long.
+        // - `nonzero_pairs`: `act` holds A · hp values and `list`, the rest of `h`, at least
+        //   hp / 2 (`h.len()` in # Safety).
+        // - `pass_in` for layer 1: first + b <= `l1.outputs / 8`; `l1` holds `hp ·
+        //   l1.outputs` weights (hp >= 8: `new` refuses an MLP without hidden units); every
+        //   listed q < hp / 2, so its column is in `l1` and anchor a's units a · hp + 2q
+        //   and + 1 are inside `act`.
+        // - `store_outputs` leaves out the outputs past each anchor's slice itself.
+        unsafe {
+            // Layer 0: s_h = b0[h] + W0[h] . x, then
+            // a_h = min(max(rshr(s_h, shift0), 0), 32767).
+            let mut sums = [[_mm256_setzero_si256(); A]; MAX_PASS_GROUPS];
+            let groups = hp / ROWS;
+            let mut first = 0;
+            while first < groups {
+                let b = (groups - first).min(pass_groups(A));
+                pass_in::<W, A>(
+                    b,
+                    l0,
+                    first,
+                    x.as_ptr(),
+                    stride,
+                    &self.input_pairs,
+                    &mut sums,
+                );
+                for (i, group) in sums[..b].iter().enumerate() {
+                    let o = (first + i) * ROWS;
+                    let bias = _mm256_loadu_si256(l0.bias.as_ptr().add(o).cast());
+                    // `avx2::store_hidden` written out: called here, it made the compiler's
+                    // code for the passes 6 % longer (callgrind, 100 k anchors).
+                    for (a, &s) in group.iter().enumerate() {
+                        let q = round_shift(_mm256_add_epi32(s, bias), self.shift0);
+                        // Signed saturation to i16 then max with 0 is the clamp to
+                        // 0 ..= 32767.
+                        let packed = _mm_packs_epi32(
+                            _mm256_castsi256_si128(q),
+                            _mm256_extracti128_si256(q, 1),
+                        );
+                        let relu = _mm_max_epi16(packed, _mm_setzero_si128());
+                        let at = act.as_mut_ptr().add(a * hp + o);
+                        _mm_storeu_si128(at.cast::<__m128i>(), relu);
+                    }
                 }
+                first += b;
             }
-            first += b;
-        }
-        // `act` holds A · hp units and `list` the rest of `h`, at least hp / 2.
-        let n = nonzero_pairs::<A>(act, hp, list);
-        let list = &list[..n];
-        // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.
-        let groups = l1.outputs / ROWS;
-        let mut first = 0;
-        while first < groups {
-            let b = (groups - first).min(pass_groups(A));
-            pass_in::<W, A>(b, l1, first, act.as_ptr(), hp, list, &mut sums);
-            for (i, group) in sums[..b].iter().enumerate() {
-                let o = (first + i) * ROWS;
-                let bias = _mm256_loadu_si256(l1.bias.as_ptr().add(o).cast());
-                for (&s, ya) in group.iter().zip(y.chunks_exact_mut(self.cout)) {
-                    store_outputs(_mm256_add_epi32(s, bias), o, ya);
+            let n = nonzero_pairs::<A>(act, hp, list);
+            let list = &list[..n];
+            // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.
+            let groups = l1.outputs / ROWS;
+            let mut first = 0;
+            while first < groups {
+                let b = (groups - first).min(pass_groups(A));
+                pass_in::<W, A>(b, l1, first, act.as_ptr(), hp, list, &mut sums);
+                for (i, group) in sums[..b].iter().enumerate() {
+                    let o = (first + i) * ROWS;
+                    let bias = _mm256_loadu_si256(l1.bias.as_ptr().add(o).cast());
+                    for (&s, ya) in group.iter().zip(y.chunks_exact_mut(self.cout)) {
+                        store_outputs(_mm256_add_epi32(s, bias), o, ya);
+                    }
                 }
+                first += b;
             }
-            first += b;
         }
     }
 }
 
-/// [`pass`] for `b` output groups (1 ..= 13), its sums written to the front of `sums`.
+/// [`pass`] for `b` output groups (1 ..= 13; it panics on others), its sums written to the
+/// front of `sums`.
+///
+/// # Safety
+/// [`pass`]'s contract with B = `b`.
 #[inline]
 #[target_feature(enable = "avx2")]
 unsafe fn pass_in<W: Weight, const A: usize>(
@@ -168,13 +216,21 @@ unsafe fn pass_in<W: Weight, const A: usize>(
             }
         };
     }
-    by_groups!(1 2 3 4 5 6 7 8 9 10 11 12 13);
+    // SAFETY: the arm taken calls `pass` with B = `b`, whose contract the caller meets
+    // (# Safety).
+    unsafe { by_groups!(1 2 3 4 5 6 7 8 9 10 11 12 13) };
 }
 
 /// The sums of output groups `first .. first + B` of `layer` over the input pairs in `list`,
 /// for the `A` activation vectors at `act`, `stride` values apart, into `sums` (B long).
-/// The caller guarantees that every listed pair q < `layer`'s inputs / 2 and that `act`
-/// holds A vectors of at least 2q + 2 values.
+///
+/// # Safety
+/// - The CPU has AVX2.
+/// - `first + B <= layer.outputs / 8`, and `layer` (laid by [`Pairs::new`]) holds at least
+///   one pair's column: `2 · layer.outputs <= layer.weights.len()`.
+/// - Every `q` in `list` (read as u16) has its column in `layer`: `(q + 1) · 2 ·
+///   layer.outputs <= layer.weights.len()`; and `act` is valid for reads of `a · stride +
+///   2q + 2` i16 for every a < A.
 #[inline]
 #[target_feature(enable = "avx2")]
 unsafe fn pass<W: Weight, const A: usize, const B: usize>(
@@ -185,23 +241,32 @@ unsafe fn pass<W: Weight, const A: usize, const B: usize>(
     list: &[i16],
     sums: &mut [[__m256i; A]],
 ) {
-    let mut acc = [[_mm256_setzero_si256(); A]; B];
-    let base = layer.weights.as_ptr().add(first * ROWS * 2);
-    for &q in list {
-        let q = usize::from(q as u16);
-        let mut both = [_mm256_setzero_si256(); A];
-        for (a, v) in both.iter_mut().enumerate() {
-            *v = _mm256_set1_epi32(act.add(a * stride + 2 * q).cast::<i32>().read_unaligned());
-        }
-        let col = base.add(q * layer.outputs * 2);
-        for (i, group) in acc.iter_mut().enumerate() {
-            let w = load16(col.add(i * 2 * ROWS));
-            for (s, v) in group.iter_mut().zip(&both) {
-                *s = _mm256_add_epi32(*s, _mm256_madd_epi16(w, *v));
+    // SAFETY: every operation relies on this function's contract (# Safety). The intrinsics
+    // and `load16` need AVX2: the caller's guarantee. `base`, at first · 16 < 2 ·
+    // `layer.outputs`, is inside `layer.weights`. For a listed q, anchor a reads the two i16
+    // (one unaligned i32) at a · stride + 2q from `act`, and `col` (q · 2 · `layer.outputs`
+    // on from the weights) and its B groups' 16 weights, up to (q + 1) · 2 ·
+    // `layer.outputs`, are inside `layer.weights`.
+    unsafe {
+        let mut acc = [[_mm256_setzero_si256(); A]; B];
+        let base = layer.weights.as_ptr().add(first * ROWS * 2);
+        for &q in list {
+            let q = usize::from(q as u16);
+            let mut both = [_mm256_setzero_si256(); A];
+            for (a, v) in both.iter_mut().enumerate() {
+                let pair = act.add(a * stride + 2 * q).cast::<i32>().read_unaligned();
+                *v = _mm256_set1_epi32(pair);
+            }
+            let col = base.add(q * layer.outputs * 2);
+            for (i, group) in acc.iter_mut().enumerate() {
+                let w = load16(col.add(i * 2 * ROWS));
+                for (s, v) in group.iter_mut().zip(&both) {
+                    *s = _mm256_add_epi32(*s, _mm256_madd_epi16(w, *v));
+                }
             }
         }
+        sums.copy_from_slice(&acc);
     }
-    sums.copy_from_slice(&acc);
 }
 
 #[cfg(test)]

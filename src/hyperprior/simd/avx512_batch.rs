@@ -99,8 +99,10 @@ impl Avx512Weights {
     /// [`Avx2Mlp::eval_batch`] with this kernel.
     ///
     /// # Safety
-    /// `k` is the kernel these weights were made with, and the slices have the shapes
-    /// [`Avx2Mlp::eval_batch`] checks, with `h` at least [`Self::batch_hidden_len`]`(A)`.
+    /// `k` is the kernel these weights were made with (by [`Avx2Mlp::new`], for the same
+    /// MLP), `x.len() >= A · k.input_len()` and `h.len() >=`
+    /// [`Self::batch_hidden_len`]`(A)`. (The CPU's instructions need no promise: only
+    /// [`Self::new`] makes these weights, after detecting them.)
     pub(super) unsafe fn eval_batch<const A: usize>(
         &self,
         k: &Avx2Mlp,
@@ -108,8 +110,9 @@ impl Avx512Weights {
         h: &mut [i16],
         y: &mut [i32],
     ) {
-        // SAFETY: `new` made these weights only after detecting the instructions; the
-        // caller gives the shapes.
+        // SAFETY: `batch`'s contract: `new` made these weights only after detecting AVX-512
+        // F, BW and VNNI; `w` is their own layers; `k`, `x` and `h` are as the caller
+        // guarantees (# Safety).
         unsafe {
             match &self.stored {
                 Stored::Wide(w) => self.batch::<_, A>(w, k, x, h, y),
@@ -118,6 +121,14 @@ impl Avx512Weights {
         }
     }
 
+    /// [`Self::eval_batch`] for the weights `w`.
+    ///
+    /// # Safety
+    /// - The CPU has AVX-512 F, BW and VNNI.
+    /// - `w` is the layers of `self.stored`, and `k` the kernel [`Avx2Mlp::new`] made for
+    ///   the same MLP (its `input_pairs` list the `k.cin.div_ceil(2)` input pairs `w.l0`
+    ///   has columns for, and `k.cin` and the hidden units are at least 1).
+    /// - `x.len() >= A · k.input_len()` and `h.len() >= self.batch_hidden_len(A)`.
     #[target_feature(enable = "avx512f,avx512bw,avx512vnni")]
     unsafe fn batch<W: Weight, const A: usize>(
         &self,
@@ -136,13 +147,26 @@ impl Avx512Weights {
             hp,
             shift0: k.shift0,
         };
-        passes::<W, A>(&w.l0, x.as_ptr(), stride, &k.input_pairs, hidden);
-        // `act` holds A · hp units and `list` the rest of `h`, at least hp / 2.
-        let n = nonzero_pairs::<A>(act, hp, list);
+        // SAFETY: `passes`' contract. The CPU features: the caller's guarantee (# Safety).
+        // `w.l0`, laid by `Pairs::new` with its inputs padded to `round_up(cin, 2)` >= 2 and
+        // its outputs to `hp`, holds `round_up(cin, 2) · hp` weights: one pair's column,
+        // and that of every listed q < cin.div_ceil(2) (`k.input_pairs`). Anchor a's pair q
+        // reads inputs a · stride + 2q and + 1 < A · stride <= `x.len()` (stride =
+        // `k.input_len()` >= `round_up(cin, 2)`). The sink writes `act`, A · hp values,
+        // which nothing else uses during the call, for `w.l0.outputs` = hp outputs.
+        unsafe { passes::<W, A>(&w.l0, x.as_ptr(), stride, &k.input_pairs, hidden) };
+        // SAFETY: `nonzero_pairs`' contract: `act` holds A · hp values and `list`, the rest
+        // of `h`, at least hp / 2 (`h.len() >= self.batch_hidden_len(A)`, # Safety).
+        let n = unsafe { nonzero_pairs::<A>(act, hp, list) };
         let list = &list[..n];
         // Layer 1: y_o = b1[o] + Σ_j W1[o][j] a_j over the listed pairs.
         let outputs = Sink::Outputs { y, cout: k.cout };
-        passes::<W, A>(&w.l1, act.as_ptr(), hp, list, outputs);
+        // SAFETY: `passes`' contract. The CPU features: the caller's guarantee (# Safety).
+        // `w.l1`, laid by `Pairs::new` with its inputs padded to `hp` >= 16, holds `hp ·
+        // w.l1.outputs` weights: one pair's column, and that of every listed q < hp / 2,
+        // whose units a · hp + 2q and + 1 are inside `act` (A · hp). The sink writes `y`
+        // through `store_outputs`, which leaves out what is past its end.
+        unsafe { passes::<W, A>(&w.l1, act.as_ptr(), hp, list, outputs) };
     }
 }
 
@@ -159,23 +183,32 @@ enum Sink<'a> {
 }
 
 impl Sink<'_> {
-    /// Stores the `A` anchors' sums `s` of outputs `o .. o + 16`, `bias` added. The caller
-    /// guarantees that `act` holds A vectors of `hp` ≥ o + 16 values.
+    /// Stores the `A` anchors' sums `s` of outputs `o .. o + 16`, `bias` added.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512 F and BW. For `Sink::Hidden { act, hp, .. }`: `o + 16 <= hp`,
+    /// and `act` is valid for writes of `A · hp` i16 that nothing else uses during the
+    /// call. (`Sink::Outputs` needs nothing more.)
     #[inline]
     #[target_feature(enable = "avx512f,avx512bw")]
     unsafe fn put<const A: usize>(&mut self, o: usize, s: &[__m512i; A], bias: __m512i) {
         match self {
             Sink::Hidden { act, hp, shift0 } => {
                 for (a, &s) in s.iter().enumerate() {
-                    let q = round_shift(_mm512_add_epi32(s, bias), *shift0);
+                    // SAFETY: `round_shift` needs AVX-512 F: the caller's guarantee.
+                    let q = unsafe { round_shift(_mm512_add_epi32(s, bias), *shift0) };
                     // Signed saturation to i16 then max with 0 is the clamp to 0 ..= 32767.
                     let relu = _mm256_max_epi16(_mm512_cvtsepi32_epi16(q), _mm256_setzero_si256());
-                    _mm256_storeu_si256(act.add(a * *hp + o).cast(), relu);
+                    // SAFETY: the store writes 16 i16 at a · hp + o, with a < A and o + 16 <=
+                    // hp: inside the A · hp the caller guarantees writable (# Safety).
+                    unsafe { _mm256_storeu_si256(act.add(a * *hp + o).cast(), relu) };
                 }
             }
             Sink::Outputs { y, cout } => {
                 for (&s, ya) in s.iter().zip(y.chunks_exact_mut(*cout)) {
-                    store_outputs(_mm512_add_epi32(s, bias), o, ya);
+                    // SAFETY: `store_outputs` needs AVX-512 F alone (it leaves out what is
+                    // past `ya`'s end): the caller's guarantee.
+                    unsafe { store_outputs(_mm512_add_epi32(s, bias), o, ya) };
                 }
             }
         }
@@ -184,6 +217,17 @@ impl Sink<'_> {
 
 /// Every output group of `layer` in passes of at most [`pass_groups`]`(A)` groups, over the
 /// input pairs in `list` of the `A` vectors at `act`, `stride` values apart, into `sink`.
+///
+/// # Safety
+/// [`pass`]'s contract for every pass, that is:
+/// - The CPU has AVX-512 F, BW and VNNI.
+/// - `layer` is laid by [`Pairs::new`] with outputs padded to 16 and holds at least one
+///   pair's column: `2 · layer.outputs <= layer.weights.len()`.
+/// - Every `q` in `list` (read as u16) has its column in `layer`: `(q + 1) · 2 ·
+///   layer.outputs <= layer.weights.len()`; and `act` is valid for reads of `a · stride +
+///   2q + 2` i16 for every a < A.
+/// - For `Sink::Hidden { act: out, hp, .. }`: `layer.outputs <= hp`, and `out` is valid for
+///   writes of `A · hp` i16 that nothing else uses during the call.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vnni")]
 unsafe fn passes<W: Weight, const A: usize>(
@@ -197,23 +241,36 @@ unsafe fn passes<W: Weight, const A: usize>(
     let mut first = 0;
     while first < groups {
         let b = (groups - first).min(pass_groups(A));
-        pass_in::<W, A>(b, layer, first, act, stride, list, &mut sink);
+        // SAFETY: `pass_in`'s contract: 1 <= b <= `pass_groups(A)` <= 12 and first + b <=
+        // `layer.outputs / 16`; the rest is this function's own (# Safety), passed on.
+        unsafe { pass_in::<W, A>(b, layer, first, act, stride, list, &mut sink) };
         first += b;
     }
 }
 
 /// The 32 weights at `p` as 32 i16 lanes (i8 weights sign-extended: the same values).
+///
+/// # Safety
+/// The CPU has AVX-512 F and BW, and `p` is valid for reads of 32 consecutive `W` (32 bytes
+/// for `i8`, 64 for `i16`; no alignment needed).
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw")]
 unsafe fn load32<W: Weight>(p: *const W) -> __m512i {
     if W::NARROW {
-        _mm512_cvtepi8_epi16(_mm256_loadu_si256(p.cast()))
+        // SAFETY: the unaligned load reads the 32 bytes of 32 i8 at `p`: the caller's
+        // guarantee, as are the CPU features (# Safety).
+        _mm512_cvtepi8_epi16(unsafe { _mm256_loadu_si256(p.cast()) })
     } else {
-        _mm512_loadu_si512(p.cast())
+        // SAFETY: the unaligned load reads the 64 bytes of 32 i16 at `p`: the caller's
+        // guarantee, as are the CPU features (# Safety).
+        unsafe { _mm512_loadu_si512(p.cast()) }
     }
 }
 
-/// [`pass`] for `b` output groups (1 ..= 12).
+/// [`pass`] for `b` output groups (1 ..= 12; it panics on others).
+///
+/// # Safety
+/// [`pass`]'s contract with B = `b`.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vnni")]
 unsafe fn pass_in<W: Weight, const A: usize>(
@@ -233,13 +290,25 @@ unsafe fn pass_in<W: Weight, const A: usize>(
             }
         };
     }
-    by_groups!(1 2 3 4 5 6 7 8 9 10 11 12);
+    // SAFETY: the arm taken calls `pass` with B = `b`, whose contract the caller meets
+    // (# Safety).
+    unsafe { by_groups!(1 2 3 4 5 6 7 8 9 10 11 12) };
 }
 
 /// The sums of output groups `first .. first + B` (of 16) of `layer` over the input pairs in
 /// `list`, for the `A` activation vectors at `act`, `stride` values apart, into `sink`
-/// straight from the registers. The caller guarantees that every listed pair q < `layer`'s inputs / 2 and that
-/// `act` holds A vectors of at least 2q + 2 values.
+/// straight from the registers.
+///
+/// # Safety
+/// - The CPU has AVX-512 F, BW and VNNI.
+/// - `first + B <= layer.outputs / 16`; `layer` is laid by [`Pairs::new`] (`layer.bias`
+///   holds `layer.outputs` values) and holds at least one pair's column: `2 ·
+///   layer.outputs <= layer.weights.len()`.
+/// - Every `q` in `list` (read as u16) has its column in `layer`: `(q + 1) · 2 ·
+///   layer.outputs <= layer.weights.len()`; and `act` is valid for reads of `a · stride +
+///   2q + 2` i16 for every a < A.
+/// - For `Sink::Hidden { act: out, hp, .. }`: `layer.outputs <= hp`, and `out` is valid for
+///   writes of `A · hp` i16 that nothing else uses during the call.
 #[inline]
 #[target_feature(enable = "avx512f,avx512bw,avx512vnni")]
 unsafe fn pass<W: Weight, const A: usize, const B: usize>(
@@ -251,16 +320,26 @@ unsafe fn pass<W: Weight, const A: usize, const B: usize>(
     sink: &mut Sink<'_>,
 ) {
     let mut acc = [[_mm512_setzero_si512(); A]; B];
-    let base = layer.weights.as_ptr().add(first * LANES * 2);
+    // SAFETY: first · 32 < 2 · `layer.outputs` <= `layer.weights.len()` (# Safety): the
+    // offset stays inside the weights.
+    let base = unsafe { layer.weights.as_ptr().add(first * LANES * 2) };
     for &q in list {
         let q = usize::from(q as u16);
         let mut both = [_mm512_setzero_si512(); A];
         for (a, v) in both.iter_mut().enumerate() {
-            *v = _mm512_set1_epi32(act.add(a * stride + 2 * q).cast::<i32>().read_unaligned());
+            // SAFETY: for a listed q, the two i16 at a · stride + 2q are readable through
+            // `act` (# Safety); the read is unaligned.
+            let pair = unsafe { act.add(a * stride + 2 * q).cast::<i32>().read_unaligned() };
+            *v = _mm512_set1_epi32(pair);
         }
-        let col = base.add(q * layer.outputs * 2);
+        // SAFETY: q's column starts q · 2 · `layer.outputs` on from the weights, inside them
+        // as (q + 1) · 2 · `layer.outputs` <= `layer.weights.len()` (# Safety).
+        let col = unsafe { base.add(q * layer.outputs * 2) };
         for (i, group) in acc.iter_mut().enumerate() {
-            let w = load32(col.add(i * 2 * LANES));
+            // SAFETY: `load32`'s contract: the CPU features are the caller's guarantee; the
+            // 32 weights of group first + i end at q · 2 · outputs + (first + i + 1) · 32
+            // <= (q + 1) · 2 · outputs, inside the weights.
+            let w = unsafe { load32(col.add(i * 2 * LANES)) };
             for (s, v) in group.iter_mut().zip(&both) {
                 *s = _mm512_dpwssd_epi32(*s, *v, w);
             }
@@ -268,26 +347,38 @@ unsafe fn pass<W: Weight, const A: usize, const B: usize>(
     }
     for (i, group) in acc.iter().enumerate() {
         let o = (first + i) * LANES;
-        sink.put(
-            o,
-            group,
-            _mm512_loadu_si512(layer.bias.as_ptr().add(o).cast()),
-        );
+        // SAFETY: the load reads 16 i32 at o < o + 16 <= `layer.outputs`, inside
+        // `layer.bias`. `put`'s contract: the CPU features, and for a `Sink::Hidden` o + 16
+        // <= `layer.outputs` <= hp with its A · hp values writable, are the caller's
+        // guarantee (# Safety).
+        unsafe {
+            let bias = _mm512_loadu_si512(layer.bias.as_ptr().add(o).cast());
+            sink.put(o, group, bias);
+        }
     }
 }
 
 /// Stores the 16 sums `v` of outputs `o .. o + 16` into `y`, leaving out those past its end
 /// (a masked store: the lanes left out are neither written nor touched).
+///
+/// # Safety
+/// The CPU has AVX-512 F (any `o` and `y` will do).
 #[inline]
 #[target_feature(enable = "avx512f")]
 unsafe fn store_outputs(v: __m512i, o: usize, y: &mut [i32]) {
     let at = o.min(y.len());
     let n = (y.len() - at).min(LANES);
     let mask = ((1u32 << n) - 1) as u16;
-    _mm512_mask_storeu_epi32(y.as_mut_ptr().add(at).cast(), mask, v);
+    // SAFETY: `at <= y.len()` keeps the pointer inside `y` (or at its end), and the mask
+    // enables n <= y.len() − at lanes: the store writes `y[at .. at + n]` alone. AVX-512 F
+    // is the caller's guarantee (# Safety).
+    unsafe { _mm512_mask_storeu_epi32(y.as_mut_ptr().add(at).cast(), mask, v) };
 }
 
 /// §0.5 `rshr(acc, s)` on 16 lanes, as `avx2::round_shift` on 8.
+///
+/// # Safety
+/// The CPU has AVX-512 F.
 #[inline]
 #[target_feature(enable = "avx512f")]
 unsafe fn round_shift(acc: __m512i, s: u8) -> __m512i {
@@ -329,7 +420,8 @@ mod tests {
             let mut lanes = [0i32; LANES];
             lanes[..values.len()].copy_from_slice(&values);
             let mut out = [0i32; LANES];
-            // SAFETY: AVX-512 F detected above; both arrays hold 16 i32.
+            // SAFETY: AVX-512 F detected above, which is all that `load_lanes`,
+            // `round_shift` and `store_outputs` need.
             unsafe { store_outputs(round_shift(load_lanes(&lanes), s), 0, &mut out) };
             for (a, b) in lanes.iter().zip(out) {
                 assert_eq!(crate::hyperprior::mlp::round_shift(*a, s), b, "{a} >> {s}");
@@ -337,8 +429,14 @@ mod tests {
         }
     }
 
+    /// The 16 lanes of `lanes` as one vector.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512 F.
     #[target_feature(enable = "avx512f")]
     unsafe fn load_lanes(lanes: &[i32; LANES]) -> __m512i {
-        _mm512_loadu_si512(lanes.as_ptr().cast())
+        // SAFETY: the unaligned load reads the 16 i32 of `lanes`; AVX-512 F is the caller's
+        // guarantee (# Safety).
+        unsafe { _mm512_loadu_si512(lanes.as_ptr().cast()) }
     }
 }

@@ -21,13 +21,17 @@ const ROWS: usize = 64;
 pub fn dense_product<T: Copy + Into<i64>>(b: &[f32], stride: usize, u: &[T], z: &mut [f32]) {
     #[cfg(all(feature = "simd", target_arch = "x86_64"))]
     if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, detected just now.
+        // SAFETY: `dense_product_avx2`'s contract is AVX2 alone, detected just now.
         return unsafe { dense_product_avx2(b, stride, u, z) };
     }
     dense_product_portable(b, stride, u, z);
 }
 
 /// [`dense_product_portable`] built for AVX2.
+///
+/// # Safety
+/// The CPU has AVX2. (The body is safe code, bounds-checked: the compiler may use AVX2
+/// instructions in it, which is all that needs the promise.)
 #[cfg(all(feature = "simd", target_arch = "x86_64"))]
 #[target_feature(enable = "avx2")]
 unsafe fn dense_product_avx2<T: Copy + Into<i64>>(

@@ -28,6 +28,18 @@
 //! - [`prefetch`]: a hint to load a hash-grid entry ahead of its use (§5.1's corners are
 //!   scattered over megabytes of tables, and waiting for them was most of the
 //!   interpolation's time). A hint changes no result.
+//!
+//! Every unsafe function here says in `# Safety` what its caller must guarantee (the CPU
+//! features its `#[target_feature]` enables, and the bounds of what it reads and writes
+//! through pointers or unchecked indexing), and every call says how it meets that. Inside an
+//! unsafe function, the unsafe operations are in `unsafe` blocks that say why each is sound
+//! (`unsafe_op_in_unsafe_fn`, denied in the workspace). The crate builds with Rust 1.80,
+//! where every `std::arch` intrinsic is an unsafe function; from 1.87 on, those that need
+//! only a target feature are safe inside a function that enables it. So the AVX2 kernels'
+//! blocks hold their register operations too, next to the loads and stores, and the few
+//! functions made of register operations alone allow `unused_unsafe` (a block newer
+//! compilers do not need). The AVX-512 kernels build only with 1.89 or later, and their
+//! blocks hold the unsafe operations alone.
 
 #![allow(unsafe_code)]
 

@@ -49,19 +49,31 @@ impl Avx512Scales {
 
     /// `out[i]` = the count of `table`'s thresholds <= `max(ys[i], 1) << lifts[i]`, for
     /// lifted values below 2^61. Returns false, writing nothing, where the slices' lengths
-    /// differ (the caller then counts value by value).
+    /// differ (the caller then counts value by value). `table` is a `ThresholdSearch`'s
+    /// (`counts_into` makes the only ones): the gathers rely on its bucket counts being at
+    /// most 62.
     #[inline]
     pub fn counts(self, table: BucketTable<'_>, ys: &[i32], lifts: &[u32], out: &mut [u8]) -> bool {
         if ys.len() != out.len() || lifts.len() != out.len() {
             return false;
         }
-        // SAFETY: `new` made this kernel only after detecting its instructions; the lengths
-        // are equal.
+        // SAFETY: `counts_avx512`'s contract: `new` made this kernel only after detecting
+        // its instructions; the lengths are equal (checked just above); and `table` comes
+        // from `ThresholdSearch::counts_into`, whose bucket counts `ThresholdSearch::new`
+        // wrote as at most `THRESHOLDS - 1` = 62.
         unsafe { counts_avx512(table, ys, lifts, out) };
         true
     }
 }
 
+/// [`Avx512Scales::counts`] after its checks.
+///
+/// # Safety
+/// - The CPU has AVX-512 F, CD, VL and BW.
+/// - `ys.len() >= out.len()` and `lifts.len() >= out.len()`.
+/// - Every bucket's count in `table.counts` (its first `COUNTS_LEN - 3` bytes) is at most
+///   62, so that the thresholds read at the count and the one after it are inside
+///   `table.thresholds` (64).
 #[target_feature(enable = "avx512f,avx512cd,avx512vl,avx512bw")]
 unsafe fn counts_avx512(table: BucketTable<'_>, ys: &[i32], lifts: &[u32], out: &mut [u8]) {
     let low = _mm512_set1_epi64(i64::from(table.low));
@@ -76,8 +88,15 @@ unsafe fn counts_avx512(table: BucketTable<'_>, ys: &[i32], lifts: &[u32], out: 
         // nor written).
         let n = (out.len() - at).min(LANES);
         let k = ((1u32 << n) - 1) as u8;
-        let y = _mm256_maskz_loadu_epi32(k, ys.as_ptr().add(at));
-        let lift = _mm256_maskz_loadu_epi32(k, lifts.as_ptr().add(at).cast());
+        // SAFETY: at < `out.len()` <= `ys.len()` and `lifts.len()` (# Safety), so both
+        // pointers are inside their slices, and the mask enables the n lanes at .. at + n <=
+        // `out.len()`, the only ones read. The CPU features are the caller's guarantee.
+        let (y, lift) = unsafe {
+            (
+                _mm256_maskz_loadu_epi32(k, ys.as_ptr().add(at)),
+                _mm256_maskz_loadu_epi32(k, lifts.as_ptr().add(at).cast()),
+            )
+        };
         let y = _mm256_max_epi32(y, _mm256_set1_epi32(1));
         let v = _mm512_sllv_epi64(_mm512_cvtepu32_epi64(y), _mm512_cvtepu32_epi64(lift));
         // Bit length − 1, and the 4 bits after the leading one.
@@ -96,21 +115,33 @@ unsafe fn counts_avx512(table: BucketTable<'_>, ys: &[i32], lifts: &[u32], out: 
             last_bucket,
         );
         // The bucket's count: the first of the 4 bytes read there (`COUNTS_LEN` pads them).
-        let c = _mm512_i64gather_epi32::<1>(bucket, counts);
+        // SAFETY: every lane's bucket is clamped to 0 ..= `COUNTS_LEN - 4` just above, and
+        // the gather reads the 4 bytes there, inside `table.counts` (`COUNTS_LEN` long).
+        let c = unsafe { _mm512_i64gather_epi32::<1>(bucket, counts) };
         let c = _mm512_and_si512(_mm512_cvtepu32_epi64(c), _mm512_set1_epi64(0xFF));
-        let t0 = _mm512_i64gather_epi64::<8>(c, thresholds);
-        let t1 = _mm512_i64gather_epi64::<8>(_mm512_add_epi64(c, one), thresholds);
+        // SAFETY: c is a bucket's count, at most 62 (# Safety), so the gathers read the u64
+        // at c and c + 1 <= 63, inside `table.thresholds` (64).
+        let (t0, t1) = unsafe {
+            (
+                _mm512_i64gather_epi64::<8>(c, thresholds),
+                _mm512_i64gather_epi64::<8>(_mm512_add_epi64(c, one), thresholds),
+            )
+        };
         let count = _mm512_mask_add_epi64(c, _mm512_cmple_epu64_mask(t0, v), c, one);
         let count = _mm512_mask_add_epi64(count, _mm512_cmple_epu64_mask(t1, v), count, one);
         let below = _mm512_cmplt_epi64_mask(bits, low);
         let above = !_mm512_cmplt_epi64_mask(bits, top);
         let count = _mm512_mask_blend_epi64(below, count, _mm512_setzero_si512());
         let count = _mm512_mask_blend_epi64(above, count, _mm512_set1_epi64(63));
-        _mm_mask_storeu_epi8(
-            out.as_mut_ptr().add(at).cast(),
-            u16::from(k),
-            _mm512_cvtepi64_epi8(count),
-        );
+        // SAFETY: at < `out.len()` keeps the pointer inside `out`, and the mask enables the
+        // n bytes at .. at + n <= `out.len()`, the only ones written.
+        unsafe {
+            _mm_mask_storeu_epi8(
+                out.as_mut_ptr().add(at).cast(),
+                u16::from(k),
+                _mm512_cvtepi64_epi8(count),
+            )
+        };
         at += n;
     }
 }
