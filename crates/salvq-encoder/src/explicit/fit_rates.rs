@@ -11,7 +11,6 @@ use super::{fit_groups, ratios, RateControl};
 use crate::error::{Error, Result};
 use salvq::entropy::GaussianTables;
 use salvq::explicit::groups::{write_gqua, Group, GroupKind};
-use salvq::explicit::layer::SIZE_CLASSES;
 use salvq::explicit::Gaussians;
 use salvq_render::compare::RingTarget;
 
@@ -162,29 +161,11 @@ pub fn choose_klt(
     Ok(klt)
 }
 
-/// The plan of a rate coarser than `finer` that nests in it (§3.8): each group's step the
-/// finer one's times its odd `factors`, each size class's position cell the finer one's
-/// times `2^up[c]`. Shifts are kept, so the ratio of two nested plans' steps is the factor.
-pub fn nested_plan(finer: &RatePlan, factors: &[u8], up: &[u8; SIZE_CLASSES]) -> RatePlan {
-    let most = up.iter().copied().max().unwrap_or(0);
-    RatePlan {
-        voxel: finer.voxel * f64::from(most).exp2(),
-        refine: std::array::from_fn(|c| finer.refine[c] + most - up[c]),
-        steps: finer
-            .steps
-            .iter()
-            .zip(factors)
-            .map(|(s, &m)| s * f64::from(m))
-            .collect(),
-        shift: finer.shift.clone(),
-    }
-}
-
 /// Each rate of `options.rates`, given or fitted to its PSNR target by rendering with
 /// `options.effort` (Annex A.8.2), and the groups with a KLT basis (`options.klt` if given;
 /// else chosen on the middle target's first allocation, so that every rate is fitted with
 /// the quantizers it will be coded with). For a progressive stream (§3.8), each rate after
-/// the finest is fitted as a [`nested_plan`] of the one before it. Targets above what the scene reaches fail at once
+/// the finest is fitted as a [`ratios::nested_plan`] of the one before it. Targets above what the scene reaches fail at once
 /// ([`Error::TargetUnreachable`]).
 pub fn rate_plans(
     g: &Gaussians,
@@ -374,27 +355,6 @@ fn land(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_nested_plan_multiplies_steps_by_its_factors_and_cells_by_octaves() {
-        let finer = RatePlan {
-            voxel: 0.5,
-            refine: [3, 2, 1, 0],
-            steps: vec![0.1, 0.2, 0.3],
-            shift: vec![[1, 0, 0, -1], [2, 1, 0, 0]],
-        };
-        let coarser = nested_plan(&finer, &[1, 3, 5], &[2, 0, 1, 0]);
-        assert_eq!(coarser.steps, [0.1, 0.2 * 3.0, 0.3 * 5.0]);
-        assert_eq!(coarser.shift, finer.shift);
-        let cell = |p: &RatePlan, c: usize| p.voxel * (-f64::from(p.refine[c])).exp2();
-        for (c, k) in [2, 0, 1, 0].into_iter().enumerate() {
-            assert_eq!(
-                cell(&coarser, c),
-                cell(&finer, c) * f64::from(k).exp2(),
-                "class {c}"
-            );
-        }
-    }
 
     #[test]
     fn targets_fall_from_the_finest() {

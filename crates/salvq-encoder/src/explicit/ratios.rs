@@ -387,6 +387,24 @@ fn curve_at(curve: &Curve, x: f64) -> (f64, f64) {
     (a.1 + t * (b.1 - a.1), a.2 + t * (b.2 - a.2))
 }
 
+/// The plan of a rate coarser than `finer` that nests in it (§3.8): each group's step the
+/// finer one's times its odd `factors`, each size class's position cell the finer one's
+/// times `2^up[c]`. Shifts are kept, so the ratio of two nested plans' steps is the factor.
+pub fn nested_plan(finer: &RatePlan, factors: &[u8], up: &[u8; SIZE_CLASSES]) -> RatePlan {
+    let most = up.iter().copied().max().unwrap_or(0);
+    RatePlan {
+        voxel: finer.voxel * f64::from(most).exp2(),
+        refine: std::array::from_fn(|c| finer.refine[c] + most - up[c]),
+        steps: finer
+            .steps
+            .iter()
+            .zip(factors)
+            .map(|(s, &m)| s * f64::from(m))
+            .collect(),
+        shift: finer.shift.clone(),
+    }
+}
+
 /// Odd step factors a nested rate chooses among per group, and octaves its position cells
 /// may grow by per size class (Annex A.8.2).
 const NESTED_FACTORS: [u8; 3] = [1, 3, 5];
@@ -409,7 +427,7 @@ pub fn allocate_nested(
     let mut units: Vec<Vec<(f64, f64)>> = Vec::with_capacity(groups + SIZE_CLASSES);
     for gi in 0..groups {
         let options = NESTED_FACTORS.iter().map(|&m| {
-            let plan = super::fit_rates::nested_plan(finer, &factors_for(groups, gi, m), &[0; 4]);
+            let plan = nested_plan(finer, &factors_for(groups, gi, m), &[0; 4]);
             predicted(curves, &start, &plan, |part| match part {
                 Part::Scale => gi == 0,
                 Part::Group(g, _) => g == gi,
@@ -422,7 +440,7 @@ pub fn allocate_nested(
         let options = NESTED_OCTAVES.iter().map(|&k| {
             let mut up = [0u8; SIZE_CLASSES];
             up[c] = k;
-            let plan = super::fit_rates::nested_plan(finer, &vec![1; groups], &up);
+            let plan = nested_plan(finer, &vec![1; groups], &up);
             predicted(curves, &start, &plan, |part| {
                 part == Part::Position(c as u8)
             })
@@ -462,7 +480,7 @@ pub fn allocate_nested(
         rest /= radix;
         k
     });
-    super::fit_rates::nested_plan(finer, &factors, &up)
+    nested_plan(finer, &factors, &up)
 }
 
 /// Factor `m` for group `gi` and 1 for the others.
@@ -494,4 +512,30 @@ fn predicted(
         sum = (sum.0 + m, sum.1 + b);
     }
     sum
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_nested_plan_multiplies_steps_by_its_factors_and_cells_by_octaves() {
+        let finer = RatePlan {
+            voxel: 0.5,
+            refine: [3, 2, 1, 0],
+            steps: vec![0.1, 0.2, 0.3],
+            shift: vec![[1, 0, 0, -1], [2, 1, 0, 0]],
+        };
+        let coarser = nested_plan(&finer, &[1, 3, 5], &[2, 0, 1, 0]);
+        assert_eq!(coarser.steps, [0.1, 0.2 * 3.0, 0.3 * 5.0]);
+        assert_eq!(coarser.shift, finer.shift);
+        let cell = |p: &RatePlan, c: usize| p.voxel * (-f64::from(p.refine[c])).exp2();
+        for (c, k) in [2, 0, 1, 0].into_iter().enumerate() {
+            assert_eq!(
+                cell(&coarser, c),
+                cell(&finer, c) * f64::from(k).exp2(),
+                "class {c}"
+            );
+        }
+    }
 }
