@@ -22,7 +22,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use plotters::prelude::*;
-use salvq_bench::real::{bytes_at, peer_encode, provenance};
+use salvq_bench::peers::peer_encode;
+use salvq_bench::real::{bytes_at, provenance};
 use salvq_render::compare::RingTarget;
 
 /// One salvq encode, or one peer file.

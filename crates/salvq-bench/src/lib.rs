@@ -13,6 +13,7 @@ pub mod bdrate;
 mod charts;
 pub mod coder;
 pub mod parsimony;
+pub mod peers;
 pub mod precision;
 pub mod real;
 pub mod render_psnr;

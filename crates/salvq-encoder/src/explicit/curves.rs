@@ -75,7 +75,7 @@ pub fn measure_curves(
     progress(1, &all[0].describe(&p.kinds), 0);
     let model = match effort {
         Effort::Best => None,
-        _ => Some((target.sensitivities(g), classes.classes(p))),
+        _ => Some(target.sensitivities(g)),
     };
     let calibration = match effort {
         Effort::Default => Some(Calibration::new(sg, sp, classes)?),
@@ -102,7 +102,7 @@ pub fn measure_curves(
                     Ok(target.mse(&quantized(g, p, group, class.map(|c| (c, class_of)), step))?)
                 })
             }
-            Some((sens, _)) => {
+            Some(sens) => {
                 let u = sensitivity::weights(p, sens, part);
                 let kappa = match &calibration {
                     Some(c) => c.kappa(part, base, &ks, scale)?,
