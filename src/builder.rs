@@ -1,18 +1,23 @@
-//! The decoder as a viewer holds it: configured once ([`Decoder::builder`]), then asked for a
+//! The one way in: a decoder configured once ([`Decoder::builder`]), then asked for a
 //! stream's preflight ([`Decoder::read_header`]), a whole decode ([`Decoder::decode`]) or a
-//! decoder fed as bytes arrive ([`Decoder::stream`]).
+//! decoder fed as bytes arrive ([`Decoder::stream`]), for either profile.
 
 #[cfg(feature = "parallel")]
 use std::sync::Arc;
 
+use crate::anchors::{decode_anchors, decode_scene};
+use crate::attributes::Symbols;
 use crate::container::chunk::{ChunkReader, ChunkTag};
+use crate::container::is_explicit;
 use crate::container::preflight::Preflight;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
-use crate::decoder::{decode_any, DecodeOptions, Decoded};
 use crate::error::{Error, Result, Structure};
 use crate::explicit::GaussianHeader;
 use crate::limits::Limits;
+use crate::model::SceneModel;
+use crate::scene::Scene;
 use crate::stream::StreamDecoder;
+use crate::tiles::{RegionBox, TilePart};
 
 /// A stream's preflight (§1.4, §3.2): what a viewer needs to size its buffers before it
 /// decodes anything.
@@ -25,16 +30,41 @@ pub enum Header {
     Gaussians(GaussianHeader),
 }
 
-/// A configured decoder: limits, rate, region and threads, set once.
+/// What one decode does, as the builder set it.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct DecodeOptions {
+    pub(crate) limits: Limits,
+    pub(crate) rate: Option<u8>,
+    pub(crate) region: Option<RegionBox>,
+    pub(crate) part: Option<TilePart>,
+    pub(crate) gaussians_only: bool,
+    pub(crate) accept_prefix: bool,
+    #[cfg(feature = "test-hooks")]
+    pub(crate) fault: Option<Fault>,
+}
+
+/// Deliberate decoder bugs ([`DecoderBuilder::fault`]) that prove the conformance vectors
+/// catch them (§11); only with the `test-hooks` feature, for the conformance tools.
+#[cfg(feature = "test-hooks")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fault {
+    /// One wrong entry in scale `scale`'s frequency table.
+    FrequencyTable {
+        /// The scale index whose table is wrong (§6.3).
+        scale: u8,
+    },
+}
+
+/// A configured decoder: limits, rate, region, part and threads, set once; cheap to clone.
 ///
 /// ```
-/// use salvq::{Decoder, Header};
+/// use salvq::{Decoder, Header, Scene};
 /// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/conformance/vectors/g-sh3-rates.salvq");
 /// let stream = std::fs::read(path).expect("a conformance vector");
 /// let decoder = Decoder::builder().rate(1).build();
 /// let Header::Gaussians(header) = decoder.read_header(&stream)? else { panic!() };
-/// let decoded = decoder.decode(&stream)?;
-/// # let _ = (header, decoded);
+/// let Scene::Gaussians(scene) = decoder.decode(&stream)? else { panic!() };
+/// assert_eq!(scene.gaussians.len(), header.count as usize);
 /// # Ok::<(), salvq::Error>(())
 /// ```
 #[derive(Debug, Clone, Default)]
@@ -44,8 +74,9 @@ pub struct Decoder {
     pool: Option<Arc<rayon::ThreadPool>>,
 }
 
-/// Sets up a [`Decoder`].
-#[derive(Debug, Default)]
+/// Sets up a [`Decoder`]; every setting has a default, so `Decoder::builder().build()`
+/// decodes any stream within [`Limits::default`].
+#[derive(Debug, Clone, Default)]
 #[must_use]
 pub struct DecoderBuilder {
     options: DecodeOptions,
@@ -60,61 +91,87 @@ impl DecoderBuilder {
         self
     }
 
-    /// The rate to decode (§7.4); default: the lowest coded rate.
-    pub fn rate(mut self, rate: u8) -> Self {
-        self.options.rate = Some(rate);
+    /// The rate to decode (§7.4); default (or `None`): the lowest coded rate.
+    pub fn rate(mut self, rate: impl Into<Option<u8>>) -> Self {
+        self.options.rate = rate.into();
         self
     }
 
-    /// Decode only the tiles whose box meets this world box (min x, y, z, max x, y, z;
-    /// §10.3); default: every tile.
-    pub fn region(mut self, region: crate::tiles::RegionBox) -> Self {
-        self.options.region = Some(region);
+    /// Decode only the tiles whose box meets this world box (§10.3); default (or `None`):
+    /// every tile.
+    pub fn region(mut self, region: impl Into<Option<RegionBox>>) -> Self {
+        self.options.region = region.into();
         self
     }
 
     /// Decode only `part` of the (region's) tiles (§10.3.2): one of several workers that
-    /// share no memory, each with its own part; default: every tile.
-    pub fn part(mut self, part: crate::tiles::TilePart) -> Self {
-        self.options.part = Some(part);
+    /// share no memory, each with its own part; default (or `None`): every tile.
+    pub fn part(mut self, part: impl Into<Option<TilePart>>) -> Self {
+        self.options.part = part.into();
         self
     }
 
-    /// Explicit profile: keep only the Gaussians, not the symbols they were reconstructed
-    /// from ([`crate::DecodeOptions::gaussians_only`]).
-    pub fn gaussians_only(mut self) -> Self {
-        self.options.gaussians_only = true;
+    /// Explicit profile: keep only the Gaussians, not the lattice coordinates and other
+    /// symbols they were reconstructed from ([`crate::DecodedGaussians::symbols`] is then
+    /// empty). What a viewer needs: less memory written, and about a third less at the peak.
+    /// The conformance output (§11.6) needs the symbols. Default: off.
+    pub fn gaussians_only(mut self, on: bool) -> Self {
+        self.options.gaussians_only = on;
         self
     }
 
-    /// Decode tiles on a pool of `threads` threads, built once here (default: rayon's
-    /// global pool). The output does not depend on the count (§10.3).
-    #[cfg(feature = "parallel")]
-    pub fn threads(mut self, threads: usize) -> Self {
-        self.pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads.max(1))
-            .build()
-            .ok()
-            .map(Arc::new);
+    /// Explicit profile, progressive streams (§3.8): a stream that ends before `SEND`, after
+    /// at least one complete layer, decodes to its last complete layer
+    /// ([`crate::DecodedGaussians::truncated`]) instead of failing with the truncation.
+    /// Default: off.
+    pub fn accept_prefix(mut self, on: bool) -> Self {
+        self.options.accept_prefix = on;
+        self
+    }
+
+    /// Decode tiles on a pool of `threads` threads, built once here; default (or `None`):
+    /// rayon's global pool. The output does not depend on the count (§10.3). Without the
+    /// `parallel` feature every decode runs on the caller's thread and this does nothing.
+    pub fn threads(mut self, threads: impl Into<Option<usize>>) -> Self {
+        let threads = threads.into();
+        #[cfg(feature = "parallel")]
+        {
+            self.pool = threads.and_then(|n| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n.max(1))
+                    .build()
+                    .ok()
+                    .map(Arc::new)
+            });
+        }
+        #[cfg(not(feature = "parallel"))]
+        let _ = threads;
         self
     }
 
     /// Decode tiles on the caller's pool: one the application shares, or one whose threads it
     /// has pinned to CPUs. Where the kernel packs threads onto few CPUs (virtual machines
     /// can), a pool thread woken by a busy thread may wait on that thread's CPU for a
-    /// scheduler tick, milliseconds, which only a short decode notices (docs/speed).
+    /// scheduler tick, milliseconds, which only a short decode notices.
     #[cfg(feature = "parallel")]
     pub fn thread_pool(mut self, pool: Arc<rayon::ThreadPool>) -> Self {
         self.pool = Some(pool);
         self
     }
 
+    /// A deliberate decoder bug (`test-hooks` feature, conformance tools only).
+    #[cfg(feature = "test-hooks")]
+    pub fn fault(mut self, fault: Option<Fault>) -> Self {
+        self.options.fault = fault;
+        self
+    }
+
     /// The decoder.
-    pub fn build(self) -> Decoder {
+    pub fn build(&self) -> Decoder {
         Decoder {
-            options: self.options,
+            options: self.options.clone(),
             #[cfg(feature = "parallel")]
-            pool: self.pool,
+            pool: self.pool.clone(),
         }
     }
 }
@@ -126,9 +183,14 @@ impl Decoder {
         DecoderBuilder::default()
     }
 
-    /// The options this decoder applies.
-    pub fn options(&self) -> &DecodeOptions {
-        &self.options
+    /// The limits this decoder applies.
+    pub fn limits(&self) -> &Limits {
+        &self.options.limits
+    }
+
+    /// The rate this decoder asks for (`None`: the lowest coded rate).
+    pub fn rate(&self) -> Option<u8> {
+        self.options.rate
     }
 
     /// The preflight of a stream of either profile, from its signature and first chunk only
@@ -155,16 +217,57 @@ impl Decoder {
     }
 
     /// Decodes a whole stream of either profile (§1.5, §3.7).
-    pub fn decode(&self, data: &[u8]) -> Result<Decoded> {
-        #[cfg(feature = "parallel")]
-        if let Some(pool) = &self.pool {
-            return pool.install(|| decode_any(data, &self.options));
-        }
-        decode_any(data, &self.options)
+    pub fn decode(&self, data: &[u8]) -> Result<Scene> {
+        self.in_pool(|| decode_scene(data, &self.options))
     }
 
-    /// A decoder to feed the stream in pieces as they arrive ([`StreamDecoder`]).
+    /// Decodes an anchors-profile stream and the selected layer's symbols, the lattice
+    /// coordinates (§6.6.2) that the canonical decoded form hashes (§11.1). Keeping them
+    /// needs `8·N·(F + S + 3K)` bytes more, checked against the allocation limit on top of
+    /// the decoded size. An explicit-profile stream keeps its symbols in
+    /// [`crate::DecodedGaussians::symbols`]; here it fails as an anchors stream would
+    /// (`ChunkOrder`, §3).
+    pub fn decode_with_symbols(&self, data: &[u8]) -> Result<(SceneModel, Symbols)> {
+        if is_explicit(data) {
+            return Err(Error::ChunkOrder {
+                found: ChunkTag::GHED,
+                expected: ChunkTag::HEAD,
+            });
+        }
+        self.in_pool(|| decode_anchors(data, &self.options, true))
+            .map(|(m, sy)| (m, sy.unwrap_or_default()))
+    }
+
+    /// A decoder to feed the stream in pieces as they arrive ([`StreamDecoder`]); it decodes
+    /// on the caller's thread.
     pub fn stream(&self) -> StreamDecoder {
         StreamDecoder::new(self.options.clone())
     }
+
+    #[cfg(feature = "parallel")]
+    fn in_pool<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
+        match &self.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+
+    #[cfg(not(feature = "parallel"))]
+    fn in_pool<T>(&self, f: impl FnOnce() -> T) -> T {
+        f()
+    }
+}
+
+/// Decodes a whole stream of either profile with the default settings: a thin alias for
+/// `Decoder::builder().build().decode(data)`.
+///
+/// ```
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/conformance/vectors/g-sh3-rates.salvq");
+/// let stream = std::fs::read(path).expect("a conformance vector");
+/// let scene = salvq::decode(&stream)?;
+/// assert!(scene.gaussians().is_some());
+/// # Ok::<(), salvq::Error>(())
+/// ```
+pub fn decode(data: &[u8]) -> Result<Scene> {
+    Decoder::default().decode(data)
 }

@@ -30,7 +30,7 @@ struct Profile {
 
 const ANCHORS: Profile = Profile {
     critical: &ChunkTag::CRITICAL_ORDER,
-    expected: |i, layers, _| crate::decoder::expected_critical(i, layers),
+    expected: |i, layers, _| crate::anchors::expected_critical(i, layers),
     layer_start: &[ChunkTag::AFEA],
     rewrite: |payload, rate, limits| {
         let mut head = Preflight::parse(payload, limits)?;
@@ -41,8 +41,8 @@ const ANCHORS: Profile = Profile {
 };
 
 const EXPLICIT: Profile = Profile {
-    critical: &crate::explicit::decode::CRITICAL_CHUNKS,
-    expected: crate::explicit::decode::expected_critical,
+    critical: &crate::explicit::order::CRITICAL_CHUNKS,
+    expected: crate::explicit::order::expected_critical,
     layer_start: &[ChunkTag::GLAY, ChunkTag::GREF],
     rewrite: |payload, rate, limits| {
         let mut head = GaussianHeader::parse(payload, limits)?;
@@ -60,7 +60,7 @@ const EXPLICIT: Profile = Profile {
 /// as a decoder checks it (signature, framing, CRC-32C, chunk order, the preflight); the
 /// payloads of the other chunks are copied without being parsed.
 pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
-    let profile = if crate::decoder::is_explicit(data) {
+    let profile = if crate::container::is_explicit(data) {
         &EXPLICIT
     } else {
         &ANCHORS
@@ -90,7 +90,7 @@ pub fn extract_rate(data: &[u8], rate: u8, limits: &Limits) -> Result<Vec<u8>> {
                 if progressive
                     && e.is_truncation()
                     && next_critical >= crate::explicit::order::FIRST_LAYER_CHUNK
-                    && crate::explicit::decode::layer_of(next_critical, layers, true)
+                    && crate::explicit::order::layer_of(next_critical, layers, true)
                         .map_or(true, |l| l > selected) =>
             {
                 write_chunk(&mut out, ChunkTag::SEND, &[]);

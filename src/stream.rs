@@ -2,7 +2,7 @@
 //! and draws each tile of an explicit-profile stream as soon as its `GATT` body is complete.
 //!
 //! The result, and the error of a broken stream, are those of the whole-buffer decoder
-//! ([`crate::decoder::decode_any`]) on the same bytes:
+//! ([`crate::Decoder::decode`]) on the same bytes:
 //! - a chunk is decoded once it is complete and its CRC checked, in stream order, so an error
 //!   found in it is the one the whole-buffer decoder reports (everything before it passed);
 //! - the selected layer's `GATT` is the exception: its tiles are decoded as their bodies
@@ -20,17 +20,19 @@
 
 use std::ops::Range;
 
+use crate::anchors::decode_scene;
+use crate::builder::DecodeOptions;
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::method::METHOD_CODED;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
-use crate::decoder::{decode_any, DecodeOptions, Decoded};
 use crate::entropy::GaussianTables;
 use crate::error::{Error, Result};
 use crate::explicit::attributes::{TileSymbols, TileSymbolsRef};
-use crate::explicit::decode::{Due, ExplicitDecoder};
 use crate::explicit::gatt::decode_tile;
 use crate::explicit::Gaussians;
+use crate::gaussians::{Due, ExplicitDecoder};
 use crate::limits::LimitKind;
+use crate::scene::Scene;
 
 /// Bytes of a chunk's length and tag fields (§1.3).
 const CHUNK_HEADER: usize = 8;
@@ -41,10 +43,10 @@ const CHUNK_CRC: usize = 4;
 /// whole-buffer decoder gives for the same bytes.
 ///
 /// ```
-/// use salvq::stream::StreamDecoder;
+/// use salvq::Decoder;
 /// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/conformance/vectors/g-sh3-rates.salvq");
 /// let stream = std::fs::read(path).expect("a conformance vector");
-/// let mut decoder = StreamDecoder::new(Default::default());
+/// let mut decoder = Decoder::builder().build().stream();
 /// for piece in stream.chunks(1000) {
 ///     decoder.feed(piece)?;
 ///     for tile in decoder.new_tiles() {
@@ -52,7 +54,7 @@ const CHUNK_CRC: usize = 4;
 ///     }
 /// }
 /// let decoded = decoder.finish()?;
-/// assert_eq!(decoded, salvq::decoder::decode_any(&stream, &Default::default())?);
+/// assert_eq!(decoded, salvq::decode(&stream)?);
 /// # Ok::<(), salvq::Error>(())
 /// ```
 pub struct StreamDecoder {
@@ -119,7 +121,7 @@ struct Gatt {
 impl StreamDecoder {
     /// A decoder with these options (`threads` does not apply: pieces are decoded on the
     /// caller's thread).
-    pub fn new(options: DecodeOptions) -> Self {
+    pub(crate) fn new(options: DecodeOptions) -> Self {
         StreamDecoder {
             options,
             buf: Vec::new(),
@@ -179,15 +181,15 @@ impl StreamDecoder {
         self.buf.len()
     }
 
-    /// Ends the stream: what [`decode_any`] gives for the bytes fed.
-    pub fn finish(self) -> Result<Decoded> {
+    /// Ends the stream: what [`crate::Decoder::decode`] gives for the bytes fed.
+    pub fn finish(self) -> Result<Scene> {
         if let Some(e) = self.error {
             return Err(e);
         }
         let (Profile::Explicit(explicit), Some(end)) = (self.profile, self.end) else {
             // Not decoded to SEND: the whole-buffer decoder reports what is missing (or
             // decodes an anchors-profile stream).
-            return decode_any(&self.buf, &self.options);
+            return decode_scene(&self.buf, &self.options);
         };
         if self.buf.len() > end {
             return Err(Error::TrailingData {
@@ -198,7 +200,7 @@ impl StreamDecoder {
         explicit
             .decoder
             .finish_with(Some(gaussians))
-            .map(|d| Decoded::Gaussians(Box::new(d)))
+            .map(|d| Scene::Gaussians(Box::new(d)))
     }
 
     fn advance(&mut self) -> Result<()> {

@@ -21,15 +21,15 @@ const CHILD: &str = "SALVQ_ALLOCATION_CHILD";
 fn child(spec: &str) {
     let (path, rate) = spec.rsplit_once(':').expect("PATH:RATE");
     let stream = std::fs::read(path).expect("stream");
-    let options = salvq::DecodeOptions::default()
-        .with_rate(Some(rate.parse().expect("rate")))
-        .with_threads(Some(2));
+    let options = salvq::Decoder::builder()
+        .rate(Some(rate.parse().expect("rate")))
+        .threads(2);
     let before = ALLOCATOR.allocated();
-    let decoded = salvq::decoder::decode_any(&stream, &options).expect("valid vector");
+    let decoded = options.build().decode(&stream).expect("valid vector");
     let peak = ALLOCATOR.max_allocated() - before;
     let decoded = match decoded {
-        salvq::decoder::Decoded::Anchors(model) => salvq::model::decoded_bytes(&model.dims),
-        salvq::decoder::Decoded::Gaussians(d) => d.header.decoded_bytes(),
+        salvq::Scene::Anchors(model) => salvq_bitstream::model::decoded_bytes(&model.dims),
+        salvq::Scene::Gaussians(d) => d.header.decoded_bytes(),
     };
     println!("{peak} {decoded} {}", stream.len());
 }

@@ -4,18 +4,25 @@
 mod common;
 
 use common::*;
-use salvq::container::chunk::ChunkTag;
-use salvq::error::{Field, Structure};
-use salvq::limits::LimitKind;
-use salvq::{decode, decode_with_limits, Error, Limits};
+use salvq::{decode, Error, Limits};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::error::{Field, Structure};
+use salvq_bitstream::limits::LimitKind;
 
 fn err(stream: &[u8]) -> Error {
-    decode(stream).expect_err("stream must be rejected")
+    decode(stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .expect_err("stream must be rejected")
 }
 
 #[test]
 fn valid_stream_decodes() {
-    assert_eq!(decode(&small_stream()).unwrap(), small_expected());
+    assert_eq!(
+        decode(&small_stream())
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap(),
+        small_expected()
+    );
 }
 
 #[test]
@@ -93,7 +100,7 @@ fn unsupported_major_version() {
 
 #[test]
 fn unsupported_minor_version_in_draft_series() {
-    let current = salvq::container::FORMAT_MINOR;
+    let current = salvq_bitstream::container::FORMAT_MINOR;
     for minor in [current - 1, current + 1] {
         let mut s = small_stream();
         s[9] = minor;
@@ -102,7 +109,7 @@ fn unsupported_minor_version_in_draft_series() {
             Error::UnsupportedMinorVersion {
                 major: 0,
                 found: minor,
-                supported: salvq::container::FORMAT_MINOR
+                supported: salvq_bitstream::container::FORMAT_MINOR
             }
         );
     }
@@ -214,7 +221,12 @@ fn unknown_ancillary_chunks_are_skipped() {
     cs.insert(1, (ChunkTag(*b"abcd"), vec![0xff; 100]));
     cs.insert(5, (ChunkTag(*b"zz99"), vec![]));
     cs.insert(cs.len() - 1, (ChunkTag::ENCD, b"hello".to_vec()));
-    assert_eq!(decode(&assemble(&s, &cs)).unwrap(), small_expected());
+    assert_eq!(
+        decode(&assemble(&s, &cs))
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap(),
+        small_expected()
+    );
 }
 
 #[test]
@@ -343,7 +355,12 @@ fn anchor_count_over_limits() {
         ..Limits::default()
     };
     assert_eq!(
-        decode_with_limits(&small_stream(), &limits).unwrap_err(),
+        salvq::Decoder::builder()
+            .limits(limits)
+            .build()
+            .decode(&small_stream())
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::LimitExceeded {
             limit: LimitKind::Anchors,
             requested: 13,
@@ -360,14 +377,16 @@ fn huge_anchor_count_is_refused_before_allocating() {
     let model = small_model();
     let mut dims = model.dims.clone();
     dims.anchors = u32::MAX;
-    let stated = salvq::model::decoded_bytes(&dims);
+    let stated = salvq_bitstream::model::decoded_bytes(&dims);
     let s = edit_payload(&s, ChunkTag::HEAD, |p| {
         p[0..4].copy_from_slice(&u32::MAX.to_le_bytes());
         let n = p.len();
         p[n - 8..].copy_from_slice(&stated.to_le_bytes());
     });
     assert!(matches!(
-        decode(&s).unwrap_err(),
+        decode(&s)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::LimitExceeded {
             limit: LimitKind::Anchors,
             ..
@@ -378,7 +397,12 @@ fn huge_anchor_count_is_refused_before_allocating() {
         ..Limits::default()
     };
     assert!(matches!(
-        decode_with_limits(&s, &limits).unwrap_err(),
+        salvq::Decoder::builder()
+            .limits(limits)
+            .build()
+            .decode(&s)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::LimitExceeded {
             limit: LimitKind::AllocationBytes,
             ..
@@ -393,7 +417,12 @@ fn chunk_over_limit() {
         ..Limits::default()
     };
     assert!(matches!(
-        decode_with_limits(&small_stream(), &limits).unwrap_err(),
+        salvq::Decoder::builder()
+            .limits(limits)
+            .build()
+            .decode(&small_stream())
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::LimitExceeded {
             limit: LimitKind::ChunkBytes,
             allowed: 16,
@@ -417,11 +446,11 @@ fn display_names_rule_and_section() {
 }
 
 /// §1.4 step 4 checks `coord_bits` before the lattice codes and their fit: a HEAD with both
-/// broken reports `coord_bits` (found by the Python decoder written from the spec alone; the
-/// reference used to check the lattices first).
+/// broken reports `coord_bits`, the class every decoder written from the spec alone reports
+/// (the Python decoder found the order).
 #[test]
 fn head_checks_follow_the_spec_order() {
-    use salvq::error::Field;
+    use salvq_bitstream::error::Field;
     let s = small_stream();
     for scaling_lattice in [2u8, 9] {
         let bad = edit_payload(&s, ChunkTag::HEAD, |p| {
@@ -444,7 +473,7 @@ fn head_checks_follow_the_spec_order() {
 /// is allocated. Decoding Gaussians only it holds 0.2 GB more and passes that check.
 #[test]
 fn the_allocation_limit_counts_what_an_explicit_decode_holds() {
-    let h = salvq::explicit::header::GaussianHeader {
+    let h = salvq_bitstream::explicit::header::GaussianHeader {
         count: 1 << 24,
         sh_degree: 3,
         rate_count: 1,
@@ -454,16 +483,15 @@ fn the_allocation_limit_counts_what_an_explicit_decode_holds() {
     };
     let limit = Limits::default().max_alloc_bytes;
     assert!(h.decoded_bytes() <= limit);
-    let stream = salvq::container::surgery::assemble(
-        &salvq::container::signature::Signature::current().to_bytes(),
+    let stream = salvq_encoder::writers::surgery::assemble(
+        &salvq_bitstream::container::signature::Signature::current().to_bytes(),
         &[(ChunkTag::GHED, h.to_payload()), (ChunkTag::SEND, vec![])],
     );
     let decode = |gaussians_only: bool| {
-        salvq::decoder::decode_any(
-            &stream,
-            &salvq::DecodeOptions::default().with_gaussians_only(gaussians_only),
-        )
-        .err()
+        (salvq::Decoder::builder().gaussians_only(gaussians_only))
+            .build()
+            .decode(&stream)
+            .err()
     };
     match decode(false) {
         Some(Error::LimitExceeded {

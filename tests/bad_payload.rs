@@ -4,13 +4,15 @@
 mod common;
 
 use common::*;
-use salvq::container::chunk::ChunkTag;
-use salvq::container::payload::{context_bytes, ContextPrecision, ScaffoldPrecision};
-use salvq::error::Field;
-use salvq::{decode, decode_with_limits, Error, Limits};
+use salvq::{decode, Error, Limits};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::container::payload::{context_bytes, ContextPrecision, ScaffoldPrecision};
+use salvq_bitstream::error::Field;
 
 fn err(stream: &[u8]) -> Error {
-    decode(stream).expect_err("stream must be rejected")
+    decode(stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .expect_err("stream must be rejected")
 }
 
 #[test]
@@ -24,7 +26,7 @@ fn padding_bits_set() {
             })
         })
         .find_map(|m| {
-            let layout = salvq::hyperprior::GridLayout::new(&m.dims, m.coord_bits());
+            let layout = salvq_bitstream::hyperprior::GridLayout::new(&m.dims, m.coord_bits());
             let touched =
                 layout.touched(&m.anchors.voxel, m.dims.entries_3d(), m.dims.entries_2d());
             let bits: usize = touched
@@ -38,7 +40,13 @@ fn padding_bits_set() {
             })
         })
         .expect("a scene with padding bits");
-    assert!(decode(&stream).is_ok(), "{} anchors", model.n());
+    assert!(
+        decode(&stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .is_ok(),
+        "{} anchors",
+        model.n()
+    );
     let s = edit_payload(&stream, ChunkTag::GRID, |p| *p.last_mut().unwrap() |= 0x80);
     assert_eq!(
         err(&s),
@@ -68,8 +76,8 @@ fn with_voxels(voxels: &[[u32; 3]]) -> Vec<u8> {
         .iter()
         .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
         .collect();
-    let tables = salvq::entropy::GaussianTables::standard();
-    let body = salvq::geometry::encode(&local, level, tables).unwrap();
+    let tables = salvq_bitstream::entropy::GaussianTables::standard();
+    let body = salvq_encoder::writers::encode_geometry(&local, level, tables).unwrap();
     edit_payload(&small_stream(), ChunkTag::APOS, |p| {
         p.truncate(1);
         p.extend_from_slice(&(body.len() as u32).to_le_bytes());
@@ -89,7 +97,7 @@ fn octree_with_more_cells_than_anchors() {
         .find(|v| !voxels.contains(v))
         .unwrap();
     voxels.push(free);
-    voxels.sort_by_key(|v| salvq::model::morton3(*v));
+    voxels.sort_by_key(|v| salvq_bitstream::model::morton3(*v));
     match err(&with_voxels(&voxels)) {
         Error::OctreeInvalid {
             rule,
@@ -97,7 +105,7 @@ fn octree_with_more_cells_than_anchors() {
             anchors,
             ..
         } => {
-            assert_eq!(rule, salvq::geometry::MORE_NODES_THAN_ANCHORS);
+            assert_eq!(rule, salvq_bitstream::geometry::MORE_NODES_THAN_ANCHORS);
             assert_eq!((count, anchors), (n as u64 + 1, n as u32));
         }
         e => panic!("{e:?}"),
@@ -113,7 +121,7 @@ fn octree_counts_that_do_not_add_up() {
     more.insert(3, more[3]);
     match err(&with_voxels(&more)) {
         Error::OctreeInvalid { rule, anchors, .. } => {
-            assert_eq!(rule, salvq::geometry::COUNTS_ABOVE);
+            assert_eq!(rule, salvq_bitstream::geometry::COUNTS_ABOVE);
             assert_eq!(anchors, n);
         }
         e => panic!("{e:?}"),
@@ -124,7 +132,7 @@ fn octree_counts_that_do_not_add_up() {
     assert_eq!(
         err(&with_voxels(&fewer)),
         Error::OctreeInvalid {
-            rule: salvq::geometry::COUNTS_BELOW,
+            rule: salvq_bitstream::geometry::COUNTS_BELOW,
             depth: tile_cell().0,
             count: u64::from(n) - 1,
             anchors: n
@@ -147,7 +155,7 @@ fn non_finite_values() {
             ..Default::default()
         };
         let stream = salvq_encoder::encode_with_options(&small_model(), &options).unwrap();
-        let mlps = salvq::container::surgery::chunks(&stream)
+        let mlps = salvq_encoder::writers::surgery::chunks(&stream)
             .unwrap()
             .into_iter()
             .find(|(t, _)| *t == ChunkTag::MLPS)
@@ -270,7 +278,7 @@ fn corrupt_entropy_coded_words() {
         err(&s),
         Error::AnsStreamInvalid {
             tag: ChunkTag::ASCL,
-            fault: salvq::error::AnsFault::Framing
+            fault: salvq_bitstream::error::AnsFault::Framing
         }
     ));
 }
@@ -282,7 +290,9 @@ fn corrupt_entropy_coded_words() {
 #[test]
 fn grid_and_mask_errors_come_in_stream_order() {
     let s = small_stream();
-    let good = decode(&s).expect("valid");
+    let good = decode(&s)
+        .and_then(salvq::Scene::try_into_anchors)
+        .expect("valid");
     let bad_mask = |p: &mut Vec<u8>| p[1..3].fill(0);
     let mask_error = Error::ValueInvalid {
         tensor: "AMSK.p_one",
@@ -309,7 +319,12 @@ fn grid_and_mask_errors_come_in_stream_order() {
         cs.insert(at, (ChunkTag::ENCD, b"between GRID and AMSK".to_vec()));
         assemble(stream, &cs)
     };
-    assert_eq!(decode(&with_ancillary(&s)).expect("valid"), good);
+    assert_eq!(
+        decode(&with_ancillary(&s))
+            .and_then(salvq::Scene::try_into_anchors)
+            .expect("valid"),
+        good
+    );
     let masked = edit_payload(&s, ChunkTag::AMSK, bad_mask);
     assert_eq!(err(&with_ancillary(&masked)), mask_error);
     // AMSK's CRC wrong: not looked ahead at, and reported as a CRC mismatch at its position.
@@ -369,7 +384,12 @@ fn context_precision_out_of_range_and_i8_weights_decode() {
             ..Default::default()
         };
         let e = salvq_encoder::encode_full(&m, &options).unwrap();
-        assert_eq!(&decode(&e.stream).unwrap(), e.expected());
+        assert_eq!(
+            &decode(&e.stream)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap(),
+            e.expected()
+        );
         sizes.push(e.stream.len());
     }
     let d = &m.dims;
@@ -427,7 +447,12 @@ fn lattice_codes_and_dimensions() {
 fn every_truncation_is_an_error_not_a_panic() {
     let s = small_stream();
     for len in 0..s.len() {
-        assert!(decode(&s[..len]).is_err(), "prefix of {len} bytes decoded");
+        assert!(
+            decode(&s[..len])
+                .and_then(salvq::Scene::try_into_anchors)
+                .is_err(),
+            "prefix of {len} bytes decoded"
+        );
     }
 }
 
@@ -438,7 +463,13 @@ fn every_single_bit_flip_is_rejected_without_panic() {
     for i in 0..s.len() * 8 {
         let mut t = s.clone();
         t[i / 8] ^= 1 << (i % 8);
-        if decode_with_limits(&t, &Limits::tight()).is_ok() {
+        if salvq::Decoder::builder()
+            .limits(Limits::tight())
+            .build()
+            .decode(&t)
+            .and_then(salvq::Scene::try_into_anchors)
+            .is_ok()
+        {
             accepted += 1;
         }
     }

@@ -1,7 +1,7 @@
 //! BD-rate / BD-PSNR against the values the PyPI package `bjontegaard` 1.3.0 computed
-//! (`shared/reference/bdrate_cases.csv`, inputs in `bdrate_inputs.csv`; see the "Expected BD
-//! values" section of `shared/reference/README.md`). Byte-identical copies live in
-//! `tests/data/reference/` (checked by SHA-256 below) so a fresh clone can run the test.
+//! (`tests/data/reference/bdrate_cases.csv`, inputs in `bdrate_inputs.csv`; its README says
+//! how they were computed). The files are checked by SHA-256 below, so that a change to them
+//! shows.
 
 use std::collections::HashMap;
 
@@ -16,7 +16,8 @@ const CASES: &str = concat!(
     "/tests/data/reference/bdrate_cases.csv"
 );
 
-/// The copies are the shared reference files byte for byte (shared/reference/SHA256SUMS).
+/// The reference files are byte for byte the ones the hashes in tests/data/reference/README.md
+/// name.
 #[test]
 fn reference_copies_are_byte_identical() {
     use sha2::{Digest, Sha256};

@@ -1,8 +1,8 @@
 //! The context MLP's weight storage (§1.6.2 Table 1-7, Annex A.5.4): i8 when it is
 //! smaller at equal distortion, with the base steps refined to hold the distortion.
 
-use salvq::container::payload::ContextPrecision;
 use salvq::SceneModel;
+use salvq_bitstream::container::payload::ContextPrecision;
 use salvq_encoder::context_precision::{MAX_REFINED_RATIO, MSE_TOLERANCE};
 use salvq_encoder::{encode_full, values_mse as mse, EncodeOptions};
 use salvq_gen::{generate, GenParams};

@@ -1,11 +1,12 @@
 //! Hostile entropy-coded bodies (spec §6.2.6, §6.4): every `AnsFault`, `EscapeOverflow` from a
 //! crafted stream, and thousands of random bodies decoded without panic — with the same values
-//! and errors as the spec-text port (`entropy::reference`).
+//! and errors as the spec-text port (`salvq_conformance::reference_coder`).
 
-use salvq::container::chunk::ChunkTag;
-use salvq::entropy::reference;
-use salvq::entropy::{GaussianTables, SymbolReader, SymbolWriter, SCALE_COUNT, SCALE_INDEX_COUNT};
-use salvq::error::{AnsFault, Error};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::entropy::{GaussianTables, SymbolReader, SCALE_COUNT, SCALE_INDEX_COUNT};
+use salvq_bitstream::error::{AnsFault, Error};
+use salvq_conformance::reference_coder as reference;
+use salvq_encoder::writers::SymbolWriter;
 use salvq_gen::rng::Stream;
 
 const TAG: ChunkTag = ChunkTag::AOFF;

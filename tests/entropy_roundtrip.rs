@@ -1,19 +1,20 @@
 //! Entropy coding round trips (spec §6.2 – §6.4): random symbol streams with escapes and binary
-//! events; the spec-text port (`entropy::reference`) decodes and encodes them identically to
+//! events; the spec-text port (`salvq_conformance::reference_coder`) decodes and encodes them identically to
 //! `constriction`; a golden word vector pins the bitstream; coded size tracks `ideal_bits`.
 
 use constriction::stream::model::ContiguousCategoricalEntropyModel;
 use constriction::stream::stack::AnsCoder;
 use constriction::stream::Encode;
 use constriction::UnwrapInfallible;
-use salvq::container::chunk::ChunkTag;
-use salvq::entropy::reference;
-use salvq::entropy::{
-    checked_scale_index, scale_index, GaussianTables, SymbolReader, SymbolWriter, PRECISION,
-    SCALE_COUNT, SCALE_INDEX_COUNT,
-};
-use salvq::error::Error;
 use salvq_bench::coder::{sigma_to_q16, synthetic_samples};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::entropy::{
+    checked_scale_index, scale_index, GaussianTables, SymbolReader, PRECISION, SCALE_COUNT,
+    SCALE_INDEX_COUNT,
+};
+use salvq_bitstream::error::Error;
+use salvq_conformance::reference_coder as reference;
+use salvq_encoder::writers::SymbolWriter;
 use salvq_gen::rng::Stream;
 
 const TAG: ChunkTag = ChunkTag::AFEA;

@@ -4,8 +4,8 @@
 
 use std::path::PathBuf;
 
-use salvq::entropy::tables::{RADIUS_LIMIT, X_MAX_Q32};
-use salvq::entropy::{
+use salvq_bitstream::entropy::tables::{RADIUS_LIMIT, X_MAX_Q32};
+use salvq_bitstream::entropy::{
     GaussianTables, PRECISION, R_MAX, SCALE_COUNT, SIGMA_Q16, TAIL_Q4, THRESHOLD_Q16,
 };
 use sha2::{Digest, Sha256};

@@ -4,8 +4,8 @@
 mod common;
 use common::shared_data;
 
-use salvq::decoder::{decode_any, is_explicit, DecodeOptions, Decoded};
-use salvq::explicit::{decode_gaussians, DecodedGaussians};
+use salvq::DecodedGaussians;
+use salvq::DecoderBuilder;
 use salvq::{Error, Limits};
 use salvq_conformance::explicit_vectors::encode_synthetic;
 use salvq_encoder::explicit::input::{input_kind, InputKind};
@@ -51,15 +51,21 @@ fn tiled(count: usize, sh: u8, seed: u64, tile: u32) -> salvq_encoder::explicit:
 }
 
 /// `decode_any` of a stream that must be explicit and must decode.
-fn gaussians_of(stream: &[u8], o: &DecodeOptions) -> DecodedGaussians {
-    match decode_any(stream, o).unwrap() {
-        Decoded::Gaussians(d) => *d,
-        Decoded::Anchors(_) => panic!("an explicit stream"),
+fn gaussians_of(stream: &[u8], o: &DecoderBuilder) -> DecodedGaussians {
+    match o.build().decode(stream).unwrap() {
+        salvq::Scene::Gaussians(d) => *d,
+        salvq::Scene::Anchors(_) => panic!("an explicit stream"),
     }
 }
 
 fn decode(stream: &[u8], rate: u8) -> DecodedGaussians {
-    decode_gaussians(stream, &Limits::default(), Some(rate)).expect("the stream decodes")
+    salvq::Decoder::builder()
+        .limits(Limits::default())
+        .rate(Some(rate))
+        .build()
+        .decode(stream)
+        .and_then(salvq::Scene::try_into_gaussians)
+        .expect("the stream decodes")
 }
 
 #[test]
@@ -75,7 +81,7 @@ fn every_rate_decodes_to_the_encoders_prediction() {
             },
         )
         .unwrap();
-        assert!(is_explicit(&e.stream));
+        assert!(salvq_bitstream::container::is_explicit(&e.stream));
         for (report, _, expected) in &e.layers {
             let d = decode(&e.stream, report.rate);
             assert_eq!(
@@ -101,7 +107,7 @@ fn coarser_rates_are_smaller_and_further_from_the_input() {
     let e = encode_synthetic(&params, rate_plans.clone(), layered).unwrap();
     let sizes: Vec<usize> = e.layers.iter().map(|l| l.1).collect();
     assert!(sizes[0] > sizes[1] && sizes[1] > sizes[2], "{sizes:?}");
-    // Decoded Gaussians are in each layer's Morton order: compare through it.
+    // Scene Gaussians are in each layer's Morton order: compare through it.
     let origin = p.min.map(|v| v as f32);
     let errors: Vec<f64> = e
         .layers
@@ -130,7 +136,7 @@ fn positions_and_attributes_stay_within_their_steps() {
     let p = plans(1, 5);
     let e = encode_synthetic(&params, p.clone(), ExplicitOptions::default()).unwrap();
     let d = &e.layers[0].2;
-    // Decoded order is the stream's: match Gaussians by their (unique) scales' nearness.
+    // Scene order is the stream's: match Gaussians by their (unique) scales' nearness.
     let voxel = p[0].voxel;
     for q in &d.positions {
         let near = g
@@ -185,7 +191,7 @@ fn one_and_two_threads_decode_the_same() {
     )
     .unwrap();
     let with = |threads| {
-        let o = DecodeOptions::default().with_threads(Some(threads));
+        let o = salvq::Decoder::builder().threads(threads);
         gaussians_of(&e.stream, &o).gaussians
     };
     assert!(e.layers[0].0.tiles > 4);
@@ -197,8 +203,8 @@ fn one_and_two_threads_decode_the_same() {
 /// is the one reported.
 #[test]
 fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
-    use salvq::container::chunk::ChunkTag;
-    use salvq::error::AnsFault;
+    use salvq_bitstream::container::chunk::ChunkTag;
+    use salvq_bitstream::error::AnsFault;
     let e = tiled(900, 1, 6, 100);
     let nt = e.layers[0].0.tiles;
     assert!(nt > 4, "{nt} tiles");
@@ -218,13 +224,13 @@ fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
             fault: AnsFault::ZeroTopWord,
         };
         for threads in [1, 2, 4] {
-            let o = DecodeOptions::default().with_threads(Some(threads));
-            let other = decode_any(&later, &o).map(|_| ()).unwrap_err();
+            let o = salvq::Decoder::builder().threads(threads);
+            let other = o.build().decode(&later).map(|_| ()).unwrap_err();
             assert_ne!(
                 other, zero_top,
                 "{tag}: tiles 2.. alone must fail otherwise"
             );
-            let first = decode_any(&both, &o).map(|_| ()).unwrap_err();
+            let first = o.build().decode(&both).map(|_| ()).unwrap_err();
             assert_eq!(first, zero_top, "{tag}, {threads} threads");
         }
     }
@@ -237,11 +243,9 @@ fn gaussians_only_decodes_the_same_gaussians_without_the_symbols() {
     let region = salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap();
     for threads in [1, 2] {
         for region in [None, Some(region)] {
-            let o = DecodeOptions::default()
-                .with_threads(Some(threads))
-                .with_region(region);
-            let decode = |o: &DecodeOptions| gaussians_of(&e.stream, o);
-            let (full, only) = (decode(&o), decode(&o.clone().with_gaussians_only(true)));
+            let o = salvq::Decoder::builder().threads(threads).region(region);
+            let decode = |o: &DecoderBuilder| gaussians_of(&e.stream, o);
+            let (full, only) = (decode(&o), decode(&o.clone().gaussians_only(true)));
             let what = format!("{threads} threads, region {region:?}");
             assert!(!full.gaussians.is_empty(), "{what}");
             assert_eq!(only.gaussians, full.gaussians, "{what}");
@@ -269,10 +273,10 @@ fn a_region_decodes_only_the_tiles_it_meets() {
     )
     .unwrap();
     let all = decode(&e.stream, 0).gaussians;
-    let o = DecodeOptions::default().with_region(Some(
+    let o = salvq::Decoder::builder().region(Some(
         salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap(),
     ));
-    let Decoded::Gaussians(part) = decode_any(&e.stream, &o).unwrap() else {
+    let salvq::Scene::Gaussians(part) = o.build().decode(&e.stream).unwrap() else {
         panic!("an explicit stream")
     };
     let part = part.gaussians;
@@ -294,7 +298,7 @@ fn the_parts_of_a_stream_are_its_tiles_once_each() {
     // §10.3.2, with and without a region: every kept tile in exactly one part, each part's
     // Gaussians those of its tiles in the full decode, the same whole or as bytes arrive.
     let e = tiled(900, 1, 7, 60);
-    let full = gaussians_of(&e.stream, &DecodeOptions::default());
+    let full = gaussians_of(&e.stream, &salvq::Decoder::builder());
     let nt = full.tiles.len();
     assert!(nt > 6, "{nt} tiles");
     let region = salvq::RegionBox::from_array([-3.0, -3.0, -3.0, 0.0, 0.0, 3.0]).unwrap();
@@ -307,11 +311,11 @@ fn the_parts_of_a_stream_are_its_tiles_once_each() {
             let mut owner = vec![None; nt];
             for index in 0..count {
                 let part = salvq::TilePart::new(index, count);
-                let o = DecodeOptions::default()
-                    .with_threads(Some(2))
-                    .with_region(region)
-                    .with_part(part)
-                    .with_gaussians_only(true);
+                let o = salvq::Decoder::builder()
+                    .threads(2)
+                    .region(region)
+                    .part(part)
+                    .gaussians_only(true);
                 let d = gaussians_of(&e.stream, &o);
                 let mine =
                     full.tiles
@@ -332,11 +336,11 @@ fn the_parts_of_a_stream_are_its_tiles_once_each() {
                     assert_eq!(d.gaussians.rotations[j], full.gaussians.rotations[i]);
                 }
                 // The streaming decoder keeps the same tiles.
-                let mut stream = salvq::StreamDecoder::new(o.clone());
+                let mut stream = (o.clone()).build().stream();
                 for piece in e.stream.chunks(999) {
                     stream.feed(piece).unwrap();
                 }
-                let Decoded::Gaussians(streamed) = stream.finish().unwrap() else {
+                let salvq::Scene::Gaussians(streamed) = stream.finish().unwrap() else {
                     panic!("an explicit stream")
                 };
                 assert_eq!(streamed.gaussians, d.gaussians, "{what}, streamed");
@@ -352,9 +356,9 @@ fn the_parts_of_a_stream_are_its_tiles_once_each() {
 /// `APOS` body of another part's tile is not its error (a full decode reports it).
 #[test]
 fn a_part_reads_only_its_own_tiles_geometry() {
-    use salvq::container::chunk::ChunkTag;
+    use salvq_bitstream::container::chunk::ChunkTag;
     let e = tiled(900, 1, 6, 100);
-    let full = gaussians_of(&e.stream, &DecodeOptions::default());
+    let full = gaussians_of(&e.stream, &salvq::Decoder::builder());
     let nt = full.tiles.len();
     let parts = [0, 1].map(|k| salvq::TilePart::new(k, 2));
     let owned_by = |part| {
@@ -368,17 +372,19 @@ fn a_part_reads_only_its_own_tiles_geometry() {
         p[at..at + 8].copy_from_slice(&[0xA5; 8]);
     });
     for threads in [1, 2] {
-        let o = DecodeOptions::default().with_threads(Some(threads));
-        let whole = decode_any(&broken, &o).map(|_| ()).unwrap_err();
+        let o = salvq::Decoder::builder().threads(threads);
+        let whole = o.build().decode(&broken).map(|_| ()).unwrap_err();
         assert!(whole.to_string().starts_with("APOS"), "{whole}");
         // Part 0 decodes: the broken tile is part 1's.
-        let mine = gaussians_of(&broken, &o.clone().with_part(parts[0]));
+        let mine = gaussians_of(&broken, &o.clone().part(parts[0]));
         let rows = (0..nt).filter(|&t| owned_by(parts[0])[t]);
         assert_eq!(
             mine.gaussians.len(),
             rows.map(|t| full.tiles.range(t).len()).sum::<usize>()
         );
-        let theirs = decode_any(&broken, &o.with_part(parts[1]))
+        let theirs = (o.part(parts[1]))
+            .build()
+            .decode(&broken)
             .map(|_| ())
             .unwrap_err();
         assert_eq!(theirs, whole, "{threads} threads");
@@ -393,7 +399,9 @@ fn the_anchors_decoder_names_the_other_profile() {
         ExplicitOptions::default(),
     )
     .unwrap();
-    let err = salvq::decode(&e.stream).unwrap_err();
+    let err = salvq::decode(&e.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap_err();
     assert!(
         matches!(err, Error::ChunkOrder { found, .. } if found.as_str() == "GHED"),
         "{err}"

@@ -1,7 +1,8 @@
 //! Replays every kept fuzz finding (listed in [`FINDINGS`]: the files under
 //! `tests/fuzz_regressions/`, `<target>-<name>.bin`, and the findings kept elsewhere) and every
 //! seed under `fuzz/seeds/<target>/` through the same checks the fuzz targets run
-//! (`salvq_conformance::fuzzing`), so a fixed bug stays fixed and the seeds stay valid inputs.
+//! (`salvq_conformance::fuzzing`), so a fixed bug stays fixed and the seeds stay valid inputs
+//! (`cargo run -p salvq-conformance --example write_fuzz_seeds` writes the seeds anew).
 //! A kept finding also states what the decoder must answer for it, and that answer is checked.
 
 use std::path::Path;
@@ -40,7 +41,7 @@ const FINDINGS: &[Finding] = &[
     // rounding shift by 68 panicked in debug builds ("shift left with overflow") and wrapped
     // modulo 64 in release. Found by the Python decoder, kept as a conformance vector (see
     // tests/fuzz_regressions/README.md); replayed here through the `decode` target's checks
-    // (decode, re-encode, decode again), which panic on the old code.
+    // (decode, re-encode, decode again), which panic if the shift is taken unchecked.
     Finding {
         file: "conformance/vectors/extreme-exponents.salvq",
         target: "decode",
@@ -58,7 +59,7 @@ const FINDINGS: &[Finding] = &[
 
 /// What the reference decoder answers for a whole stream, as [`Finding::expect`] spells it.
 fn outcome(data: &[u8]) -> String {
-    match salvq::decoder::decode_any(data, &salvq::DecodeOptions::default()) {
+    match (salvq::Decoder::builder()).build().decode(data) {
         Ok(_) => "ok".to_string(),
         Err(e) => format!("error:{}", e.class()),
     }
@@ -160,164 +161,11 @@ fn seeds_replay_clean_and_the_stream_seeds_decode() {
             replay(target, &data);
             if target == "decode" {
                 // A seed is a valid stream: the fuzzer starts from inputs that decode.
-                let options = salvq::DecodeOptions::default();
-                assert!(
-                    salvq::decoder::decode_any(&data, &options).is_ok(),
-                    "{}",
-                    path.display()
-                );
+                let options = salvq::Decoder::builder();
+                assert!(options.build().decode(&data).is_ok(), "{}", path.display());
             }
             count += 1;
         }
     }
     assert!(count >= 8, "only {count} seeds");
-}
-
-/// The `geometry` target's seeds: each tile's `APOS` body of a tiled stream, after its depth
-/// and anchor count (`salvq_conformance::fuzzing::geometry_input`'s layout).
-fn write_geometry_seeds(dir: &Path, stream: &[u8]) {
-    use salvq::container::chunk::ChunkTag;
-    use salvq::container::surgery::chunks;
-    let all = chunks(stream).unwrap();
-    let payload = |tag| &all.iter().find(|(t, _)| *t == tag).unwrap().1;
-    let (tils, apos) = (payload(ChunkTag::TILS), payload(ChunkTag::APOS));
-    let word = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap());
-    let tiles = word(tils, 1) as usize;
-    let bodies = salvq::tiles::split_bodies(ChunkTag::APOS, 1, &apos[1..], tiles).unwrap();
-    for old in files(dir) {
-        std::fs::remove_file(old).unwrap();
-    }
-    for (t, body) in bodies.iter().enumerate() {
-        // §10.1: each tile entry is 41 bytes (anchors, level, cell, box) after 5.
-        let entry = 5 + 41 * t;
-        let anchors = word(tils, entry) as u16;
-        let mut seed = vec![tils[entry + 4]];
-        seed.extend_from_slice(&(anchors - 1).to_le_bytes());
-        seed.extend_from_slice(body);
-        std::fs::write(dir.join(format!("tile{t}.bin")), seed).unwrap();
-    }
-}
-
-/// Writes the seeds of the `decode` and `extract` targets (five small streams), and of the
-/// `payload` and `preflight` targets (each payload of the base stream, and the `HEAD`
-/// payloads of the conformance vectors); run after a format change:
-/// `SALVQ_WRITE_SEEDS=1 cargo test --test fuzz_regressions write_seeds -- --ignored`.
-#[test]
-#[ignore]
-fn write_seeds() {
-    use salvq::container::surgery::chunks;
-    if std::env::var("SALVQ_WRITE_SEEDS").is_err() {
-        return;
-    }
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    // Stream seeds for `decode`, and the same with a rate byte first for `extract`.
-    use salvq::LatticeKind;
-    use salvq_encoder::{encode_full, EncodeOptions, Search};
-    use salvq_gen::{generate, GenParams};
-    let small = |n, seed, basis| GenParams {
-        feat_basis: basis,
-        ..GenParams::small(n, seed)
-    };
-    let streams: [(&str, GenParams, EncodeOptions, u8); 5] = [
-        ("usq", small(40, 1, false), EncodeOptions::default(), 0),
-        (
-            "salvq_2rates",
-            small(60, 2, true),
-            EncodeOptions {
-                rates: vec![0, 1],
-                ..Default::default()
-            },
-            1,
-        ),
-        (
-            "dn",
-            small(40, 3, false),
-            EncodeOptions {
-                feat_lattice: Some(LatticeKind::Dn),
-                ..Default::default()
-            },
-            0,
-        ),
-        (
-            "e8_tiles",
-            GenParams {
-                feat_dim: 16,
-                ..small(80, 4, false)
-            },
-            EncodeOptions {
-                feat_lattice: Some(LatticeKind::E8Product),
-                tile_anchors: 16,
-                search: Search::Rdo { lambda_milli: 1000 },
-                ..Default::default()
-            },
-            0,
-        ),
-        (
-            "klt_regions",
-            small(90, 5, true),
-            EncodeOptions {
-                fit_basis: true,
-                feat_regions: 3,
-                encoder_note: Some("seed".into()),
-                ..Default::default()
-            },
-            0,
-        ),
-    ];
-    for (name, params, options, rate) in streams {
-        let stream = encode_full(&generate(&params), &options).unwrap().stream;
-        std::fs::write(
-            root.join(format!("fuzz/seeds/decode/{name}.salvq")),
-            &stream,
-        )
-        .unwrap();
-        let mut e = vec![rate];
-        e.extend_from_slice(&stream);
-        std::fs::write(root.join(format!("fuzz/seeds/extract/{name}.bin")), e).unwrap();
-        if name == "e8_tiles" {
-            write_geometry_seeds(&root.join("fuzz/seeds/geometry"), &stream);
-        }
-    }
-    // An explicit-profile stream (spec §3): the payload target's explicit base.
-    let explicit = salvq_conformance::fuzzing::explicit_payload_base();
-    std::fs::write(root.join("fuzz/seeds/decode/explicit_sh1.salvq"), explicit).unwrap();
-    let mut e = vec![1];
-    e.extend_from_slice(explicit);
-    std::fs::write(root.join("fuzz/seeds/extract/explicit_sh1.bin"), e).unwrap();
-    let dir = root.join("fuzz/seeds/payload");
-    std::fs::create_dir_all(&dir).unwrap();
-    let base = chunks(salvq_conformance::fuzzing::payload_base()).unwrap();
-    for (i, tag) in salvq_conformance::fuzzing::PAYLOAD_TAGS.iter().enumerate() {
-        let payload = &base.iter().find(|(t, _)| t == tag).unwrap().1;
-        let mut seed = vec![i as u8];
-        seed.extend_from_slice(payload);
-        std::fs::write(dir.join(format!("{}.bin", tag.as_str())), seed).unwrap();
-    }
-    let explicit = chunks(salvq_conformance::fuzzing::explicit_payload_base()).unwrap();
-    for (i, tag) in salvq_conformance::fuzzing::EXPLICIT_PAYLOAD_TAGS
-        .iter()
-        .enumerate()
-    {
-        let payload = &explicit.iter().find(|(t, _)| t == tag).unwrap().1;
-        let mut seed = vec![(salvq_conformance::fuzzing::PAYLOAD_TAGS.len() + i) as u8];
-        seed.extend_from_slice(payload);
-        std::fs::write(dir.join(format!("explicit-{}.bin", tag.as_str())), seed).unwrap();
-    }
-    let dir = root.join("fuzz/seeds/preflight");
-    std::fs::create_dir_all(&dir).unwrap();
-    for v in files(&root.join("conformance/vectors")) {
-        if v.extension().map_or(true, |e| e != "salvq") {
-            continue;
-        }
-        let name = v.file_stem().unwrap().to_string_lossy().to_string();
-        // Must-fail streams, and explicit-profile streams (their first chunk is GHED).
-        if name.starts_with("x-") || name.starts_with("g-") {
-            continue;
-        }
-        let head = chunks(&std::fs::read(&v).unwrap())
-            .unwrap()
-            .swap_remove(0)
-            .1;
-        std::fs::write(dir.join(format!("{name}.bin")), head).unwrap();
-    }
 }

@@ -2,10 +2,11 @@
 //! included; edge cases of depth and count; on a generated scene the adaptive contexts beat
 //! the order-0 entropy of the occupancy bytes.
 
-use salvq::entropy::GaussianTables;
-use salvq::geometry::{decode, encode};
-use salvq::model::morton3;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::geometry::decode;
+use salvq_bitstream::model::morton3;
 use salvq_encoder::encode_full;
+use salvq_encoder::writers::encode_geometry as encode;
 use salvq_gen::rng::Stream;
 use salvq_gen::{generate, GenParams};
 
@@ -70,7 +71,9 @@ fn models_with_shared_voxels_decode_exactly() {
     m.anchors.voxel[50] = m.anchors.voxel[49];
     m.anchors.voxel[51] = m.anchors.voxel[49];
     let e = encode_full(&m, &Default::default()).unwrap();
-    let d = salvq::decode(&e.stream).unwrap();
+    let d = salvq::decode(&e.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     assert_eq!(&d, e.expected());
     assert_eq!(d.anchors.voxel, m.to_canonical_order().anchors.voxel);
 }
@@ -84,7 +87,7 @@ fn contexts_beat_order_zero_on_a_generated_scene() {
     let depth = m.coord_bits();
     let bytes = round_trip(m.anchors.voxel.clone(), depth);
     let coded = bytes as f64 * 8.0;
-    let order0 = salvq::geometry::order0_occupancy_bits(&m.anchors.voxel, depth);
+    let order0 = salvq_encoder::writers::geometry::order0_occupancy_bits(&m.anchors.voxel, depth);
     assert!(
         coded < 0.95 * order0,
         "coded {:.2} vs order-0 {:.2} bits/anchor",

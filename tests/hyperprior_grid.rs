@@ -1,7 +1,7 @@
 //! The hyperprior's integer grid interpolation (spec §5.2) against the encoder's binary64
 //! reference (Annex B.4.2) on a generated scene.
 
-use salvq::hyperprior::grid::GridLayout;
+use salvq_bitstream::hyperprior::grid::GridLayout;
 use salvq_encoder::float_grid::Interp;
 use salvq_gen::{generate, GenParams};
 

@@ -209,8 +209,8 @@ fn extreme_scales_give_the_answers_of_scale_one() {
 
 #[test]
 fn fixed_generators_are_stored_sparse_but_equal_the_dense_definitions() {
-    use salvq::quantizer::LatticeMatrix;
-    use salvq::LatticeKind;
+    use salvq_bitstream::model::LatticeKind;
+    use salvq_bitstream::quantizer::LatticeMatrix;
     for n in [2usize, 3, 8, 50, 1024] {
         let m = LatticeMatrix::new(LatticeKind::Dn, n, None);
         assert_eq!(m.to_f64(), dn_basis(n), "D_{n}");

@@ -6,9 +6,10 @@
 mod common;
 
 use common::*;
-use salvq::container::chunk::ChunkTag;
-use salvq::error::Field;
-use salvq::{decode, decode_with_options, extract_rate, DecodeOptions, Error, LatticeKind, Limits};
+use salvq::{decode, extract_rate, Error, Limits};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::error::Field;
+use salvq_bitstream::model::LatticeKind;
 use salvq_encoder::{encode_full, EncodeOptions, Search};
 use salvq_gen::{generate, GenParams};
 
@@ -23,12 +24,12 @@ fn options(rates: &[u8], lattice: Option<LatticeKind>, search: Search) -> Encode
 }
 
 fn decode_rate(stream: &[u8], rate: u8) -> salvq::Result<salvq::SceneModel> {
-    decode_with_options(
-        stream,
-        &DecodeOptions::default()
-            .with_limits(Limits::default())
-            .with_rate(Some(rate)),
-    )
+    (salvq::Decoder::builder()
+        .limits(Limits::default())
+        .rate(Some(rate)))
+    .build()
+    .decode(stream)
+    .and_then(salvq::Scene::try_into_anchors)
 }
 
 /// A HAC-like model with 16 feature dimensions (so E8 products and D_n apply) and a learned
@@ -59,7 +60,9 @@ fn every_lattice_and_search_decodes_to_the_prediction() {
     for kind in kinds {
         for search in searches {
             let e = encode_full(&m, &options(&[0], Some(kind), search)).unwrap();
-            let d = decode(&e.stream).unwrap();
+            let d = decode(&e.stream)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap();
             assert_eq!(&d, e.expected(), "{kind:?} {search:?}");
             assert_eq!(d.dims.feat_lattice, kind);
             assert_eq!(d.quant_feat.basis.is_some(), kind == LatticeKind::General);
@@ -107,7 +110,12 @@ fn each_rate_of_a_multi_rate_stream_decodes_alone() {
         );
     }
     // The default is the lowest coded rate.
-    assert_eq!(&decode(&e.stream).unwrap(), &e.layers[0].expected);
+    assert_eq!(
+        &decode(&e.stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap(),
+        &e.layers[0].expected
+    );
 }
 
 fn usq_small(n: u32, seed: u64) -> salvq::SceneModel {
@@ -137,7 +145,9 @@ fn extract_equals_encoding_the_rate_alone() {
                 "rate {rate}: extract differs from encoding alone"
             );
             assert_eq!(
-                decode(&extracted).unwrap(),
+                decode(&extracted)
+                    .and_then(salvq::Scene::try_into_anchors)
+                    .unwrap(),
                 decode_rate(&multi, rate).unwrap()
             );
         }
@@ -227,7 +237,9 @@ fn bad_quantizer_values_in_a_stream() {
         p[s_at + 8..s_at + 12].copy_from_slice(&0f32.to_le_bytes())
     });
     assert_eq!(
-        decode(&s).unwrap_err(),
+        decode(&s)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::BasisSingular {
             tensor: "quant.feat.basis_s",
             index: 2
@@ -238,7 +250,9 @@ fn bad_quantizer_values_in_a_stream() {
         p[s_at..s_at + 4].copy_from_slice(&f32::NAN.to_le_bytes())
     });
     assert_eq!(
-        decode(&s).unwrap_err(),
+        decode(&s)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::NonFiniteValue {
             tensor: "quant.feat.basis_s",
             index: vec![0]
@@ -249,7 +263,9 @@ fn bad_quantizer_values_in_a_stream() {
         let s = edit_payload(&stream, ChunkTag::QUAN, |p| {
             p[gains_at + 4..gains_at + 8].copy_from_slice(&v.to_le_bytes())
         });
-        let e = decode(&s).unwrap_err();
+        let e = decode(&s)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err();
         if nan {
             assert!(
                 matches!(
@@ -290,7 +306,9 @@ fn bad_quantizer_values_in_a_stream() {
         }
     });
     assert_eq!(
-        decode(&s).unwrap_err(),
+        decode(&s)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::NonFiniteValue {
             tensor: "quant.feat.matrix",
             index: vec![0, 0]
@@ -301,7 +319,9 @@ fn bad_quantizer_values_in_a_stream() {
         p[1..5].copy_from_slice(&3e38f32.to_le_bytes())
     });
     assert_eq!(
-        decode(&s).unwrap_err(),
+        decode(&s)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::NonFiniteValue {
             tensor: "quant.feat.gains",
             index: vec![1]
@@ -338,7 +358,12 @@ fn damaged_multi_rate_lattice_streams_never_panic() {
         .unwrap()
         .stream;
     for len in 0..s.len() {
-        assert!(decode(&s[..len]).is_err(), "prefix of {len} bytes decoded");
+        assert!(
+            decode(&s[..len])
+                .and_then(salvq::Scene::try_into_anchors)
+                .is_err(),
+            "prefix of {len} bytes decoded"
+        );
         assert!(extract_rate(&s[..len], 1, &Limits::default()).is_err());
     }
     let parts = chunks(&s);

@@ -5,9 +5,9 @@ mod common;
 use common::*;
 use safetensors::tensor::TensorView;
 use safetensors::{Dtype, SafeTensors};
-use salvq::error::Field;
-use salvq::model::names;
 use salvq::Error;
+use salvq_bitstream::error::Field;
+use salvq_bitstream::model::names;
 use salvq_encoder::encode;
 use salvq_render::interchange::{model_from_safetensors, model_to_safetensors};
 

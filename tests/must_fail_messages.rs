@@ -2,8 +2,6 @@
 //! conformance vector (spec §9.2), as a snapshot a reviewer reads. Each line must also name
 //! the class the manifest gives.
 
-use salvq::decoder::{decode_any, DecodeOptions};
-
 #[test]
 fn every_must_fail_vector_is_refused_with_a_line_that_names_its_rule() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("conformance/vectors");
@@ -18,9 +16,8 @@ fn every_must_fail_vector_is_refused_with_a_line_that_names_its_rule() {
         let name = v["name"].as_str().unwrap();
         let class = v["error_class"].as_str().unwrap();
         let bytes = std::fs::read(dir.join(v["file"].as_str().unwrap())).unwrap();
-        let mut options = DecodeOptions::default();
-        options.rate = v["rate"].as_u64().map(|r| r as u8);
-        let error = match decode_any(&bytes, &options) {
+        let options = salvq::Decoder::builder().rate(v["rate"].as_u64().map(|r| r as u8));
+        let error = match options.build().decode(&bytes) {
             Ok(_) => panic!("{name} decoded; the manifest says {class}"),
             Err(e) => e,
         };

@@ -3,9 +3,9 @@
 //! coded alone), and a stream cut anywhere decodes, where the caller accepts it, to its last
 //! complete rate.
 
-use salvq::decoder::{decode_any, DecodeOptions, Decoded};
-use salvq::explicit::{decode_gaussians, DecodedGaussians};
+use salvq::DecodedGaussians;
 use salvq::Limits;
+use salvq::Scene;
 use salvq_conformance::explicit_vectors::encode_synthetic;
 use salvq_encoder::explicit::{EncodedGaussians, ExplicitOptions, RatePlan};
 use salvq_gen::gaussians::GaussianParams;
@@ -38,10 +38,10 @@ fn encode(coded: Option<Vec<u8>>) -> EncodedGaussians {
     .unwrap()
 }
 
-fn decoded(d: Decoded) -> DecodedGaussians {
+fn decoded(d: Scene) -> DecodedGaussians {
     match d {
-        Decoded::Gaussians(g) => *g,
-        Decoded::Anchors(_) => panic!("an explicit stream"),
+        salvq::Scene::Gaussians(g) => *g,
+        salvq::Scene::Anchors(_) => panic!("an explicit stream"),
     }
 }
 
@@ -52,12 +52,24 @@ fn every_rate_decodes_to_the_encoders_prediction() {
     let rates: Vec<u8> = e.layers.iter().map(|l| l.0.rate).collect();
     assert_eq!(rates, [2, 1, 0], "the coarsest rate first");
     for (report, _, expected) in &e.layers {
-        let d = decode_gaussians(&e.stream, &Limits::default(), Some(report.rate)).unwrap();
+        let d = salvq::Decoder::builder()
+            .limits(Limits::default())
+            .rate(Some(report.rate))
+            .build()
+            .decode(&e.stream)
+            .and_then(salvq::Scene::try_into_gaussians)
+            .unwrap();
         assert_eq!(d.rate, report.rate);
         assert!(!d.truncated);
         assert!(d.gaussians == *expected, "rate {}", report.rate);
     }
-    let finest = decode_gaussians(&e.stream, &Limits::default(), None).unwrap();
+    let finest = salvq::Decoder::builder()
+        .limits(Limits::default())
+        .rate(None)
+        .build()
+        .decode(&e.stream)
+        .and_then(salvq::Scene::try_into_gaussians)
+        .unwrap();
     assert_eq!(finest.rate, 0, "the finest rate by default");
 }
 
@@ -90,11 +102,17 @@ fn extraction_is_the_prefix_and_the_coarser_rates_coded_alone() {
         let alone = encode(Some((r..3).collect()));
         assert_eq!(extracted, alone.stream, "rate {r}");
         // After GHED (whose rate_mask changed), a prefix of the stream.
-        let ghed_end = salvq::container::signature::SIGNATURE_LEN + 8 + 35 + 4;
+        let ghed_end = salvq_bitstream::container::signature::SIGNATURE_LEN + 8 + 35 + 4;
         let prefix = &extracted[ghed_end..extracted.len() - 12];
         let same = &e.stream[ghed_end..ghed_end + prefix.len()];
         assert!(prefix == same, "rate {r} is a prefix");
-        let d = decode_gaussians(&extracted, &Limits::default(), None).unwrap();
+        let d = salvq::Decoder::builder()
+            .limits(Limits::default())
+            .rate(None)
+            .build()
+            .decode(&extracted)
+            .and_then(salvq::Scene::try_into_gaussians)
+            .unwrap();
         let expected = &e.layers.iter().find(|l| l.0.rate == r).unwrap().2;
         assert!(d.gaussians == *expected, "rate {r}");
     }
@@ -103,7 +121,7 @@ fn extraction_is_the_prefix_and_the_coarser_rates_coded_alone() {
 #[test]
 fn a_cut_stream_decodes_to_its_last_complete_rate() {
     let e = encode(None);
-    let accept = DecodeOptions::default().with_accept_prefix(true);
+    let accept = salvq::Decoder::builder().accept_prefix(true);
     // Where each rate's last chunk ends.
     let mut ends = Vec::new();
     let mut at = e.stream.len() - 12;
@@ -116,7 +134,7 @@ fn a_cut_stream_decodes_to_its_last_complete_rate() {
     for cut in (0..e.stream.len()).step_by(97).chain(ends.iter().copied()) {
         let data = &e.stream[..cut];
         let complete = e.layers.iter().zip(&ends).rfind(|(_, &end)| end <= cut);
-        match (decode_any(data, &accept), complete) {
+        match (accept.build().decode(data), complete) {
             (Ok(d), Some(((report, _, expected), _))) => {
                 let d = decoded(d);
                 assert!(d.truncated, "cut at {cut}");
@@ -132,7 +150,7 @@ fn a_cut_stream_decodes_to_its_last_complete_rate() {
             ),
         }
         // Without consent, every cut is an error.
-        assert!(decode_any(data, &DecodeOptions::default()).is_err());
+        assert!((salvq::Decoder::builder()).build().decode(data).is_err());
     }
     assert_eq!(last, Some(0));
 }
@@ -153,11 +171,10 @@ fn info_gives_each_rates_prefix_and_where_it_ends() {
             "rate {}",
             l.rate
         );
-        let d = decode_any(
-            &e.stream[..l.stream_end as usize],
-            &DecodeOptions::default().with_accept_prefix(true),
-        )
-        .unwrap();
+        let d = (salvq::Decoder::builder().accept_prefix(true))
+            .build()
+            .decode(&e.stream[..l.stream_end as usize])
+            .unwrap();
         assert_eq!(
             decoded(d).rate,
             l.rate,
@@ -174,11 +191,16 @@ fn info_gives_each_rates_prefix_and_where_it_ends() {
 fn a_stream_shows_the_coarsest_rate_first_then_refines_it_in_place() {
     let e = encode(None);
     let whole = |rate: u8| {
-        decode_gaussians(&e.stream, &Limits::default(), Some(rate))
+        salvq::Decoder::builder()
+            .limits(Limits::default())
+            .rate(Some(rate))
+            .build()
+            .decode(&e.stream)
+            .and_then(salvq::Scene::try_into_gaussians)
             .unwrap()
             .gaussians
     };
-    let mut decoder = salvq::StreamDecoder::new(DecodeOptions::default());
+    let mut decoder = salvq::Decoder::builder().build().stream();
     let mut seen: Vec<u8> = Vec::new();
     for piece in e.stream.chunks(300) {
         decoder.feed(piece).unwrap();
@@ -196,7 +218,7 @@ fn a_stream_shows_the_coarsest_rate_first_then_refines_it_in_place() {
     }
     assert_eq!(seen, [2, 1, 0], "coarse first, then each refinement");
     let tiles = decoder.tiles().len();
-    let Decoded::Gaussians(d) = decoder.finish().unwrap() else {
+    let salvq::Scene::Gaussians(d) = decoder.finish().unwrap() else {
         panic!("an explicit stream");
     };
     assert!(d.gaussians == whole(0));

@@ -1,7 +1,7 @@
 //! The explicit encoder's rate control (Annex A.8.2): the sensitivities' first-order model,
 //! the decoded output predicted without coding, the spatial sample, and the effort levels.
 
-use salvq::explicit::groups::GroupKind;
+use salvq_bitstream::explicit::groups::GroupKind;
 use salvq_encoder::explicit::layer::encode_layer;
 use salvq_encoder::explicit::sample::{spatial_sample, subset};
 use salvq_encoder::explicit::{
@@ -68,7 +68,7 @@ fn the_predicted_output_errs_as_the_coded_layer() {
         0,
         0,
         Default::default(),
-        salvq::entropy::GaussianTables::standard(),
+        salvq_bitstream::entropy::GaussianTables::standard(),
     )
     .unwrap();
     let predicted = ratios::plan_output(&g, &p, &groups, &classes.thresholds, &plan);
@@ -183,12 +183,13 @@ fn every_effort_encodes_a_stream_that_decodes() {
         .unwrap();
         let sizes = e.rate_stream_bytes();
         for ((report, _, expected), bytes) in e.layers.iter().zip(&sizes) {
-            let decoded = salvq::explicit::decode_gaussians(
-                &e.stream,
-                &salvq::limits::Limits::default(),
-                Some(report.rate),
-            )
-            .unwrap();
+            let decoded = salvq::Decoder::builder()
+                .limits(salvq_bitstream::limits::Limits::default())
+                .rate(Some(report.rate))
+                .build()
+                .decode(&e.stream)
+                .and_then(salvq::Scene::try_into_gaussians)
+                .unwrap();
             assert_eq!(
                 &decoded.gaussians, expected,
                 "{effort:?} rate {}",

@@ -29,7 +29,9 @@ fn usq(p: GenParams) -> SceneModel {
 /// Decodes the stream of `m` and checks it against the encoder's prediction and the input.
 fn check(m: &SceneModel) {
     let e = encode_full(m, &EncodeOptions::default()).unwrap();
-    let decoded = decode(&e.stream).unwrap();
+    let decoded = decode(&e.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     assert_eq!(
         &decoded,
         e.expected(),
@@ -47,15 +49,15 @@ fn check(m: &SceneModel) {
     // distortion with i8 context-MLP weights (Annex A.5.4): at most a factor 1/sqrt(1.05).
     let f = e.context.step_factors;
     let refined = salvq::SceneModel {
-        quant_feat: salvq::model::GroupQuantizer {
+        quant_feat: salvq_bitstream::model::GroupQuantizer {
             step: (f64::from(c.quant_feat.step) * f[0]) as f32,
             ..c.quant_feat.clone()
         },
-        quant_scaling: salvq::model::GroupQuantizer {
+        quant_scaling: salvq_bitstream::model::GroupQuantizer {
             step: (f64::from(c.quant_scaling.step) * f[1]) as f32,
             ..c.quant_scaling.clone()
         },
-        quant_offsets: salvq::model::GroupQuantizer {
+        quant_offsets: salvq_bitstream::model::GroupQuantizer {
             step: (f64::from(c.quant_offsets.step) * f[2]) as f32,
             ..c.quant_offsets.clone()
         },
@@ -105,7 +107,12 @@ fn every_rate() {
             ..Default::default()
         };
         let e = encode_full(&m, &options).unwrap();
-        assert_eq!(&decode(&e.stream).unwrap(), e.expected());
+        assert_eq!(
+            &decode(&e.stream)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap(),
+            e.expected()
+        );
         sizes.push(e.stream.len());
     }
     // Larger gains are coarser steps: fewer bytes.
@@ -152,7 +159,9 @@ fn non_canonical_input_decodes_in_canonical_order() {
     assert!(!shuffled.is_canonical());
     assert_eq!(shuffled.to_canonical_order(), m.to_canonical_order());
     assert_eq!(
-        decode(&encode(&shuffled).unwrap()).unwrap(),
+        decode(&encode(&shuffled).unwrap())
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap(),
         small_expected()
     );
 }
@@ -186,7 +195,10 @@ fn encoder_note_is_an_ancillary_chunk() {
     assert!(chunks(&s)
         .iter()
         .any(|(t, p)| t.0 == *b"encd" && p == b"salvq test"));
-    assert_eq!(decode(&s).unwrap(), small_expected());
+    assert_eq!(
+        decode(&s).and_then(salvq::Scene::try_into_anchors).unwrap(),
+        small_expected()
+    );
 }
 
 #[test]
@@ -217,7 +229,11 @@ fn golden_hashes() {
     let hac = model_to_safetensors(&generate(&GenParams::new(1_000, 1)));
     let stream = encode(&usq(GenParams::small(64, 1))).unwrap();
     let hac_stream = encode(&usq(GenParams::new(1_000, 1))).unwrap();
-    let decoded = model_to_safetensors(&decode(&hac_stream).unwrap());
+    let decoded = model_to_safetensors(
+        &decode(&hac_stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap(),
+    );
     let got = [
         ("small(64, 1) model", sha256(&small)),
         ("new(1000, 1) model", sha256(&hac)),
@@ -246,7 +262,11 @@ fn decoded_output_does_not_depend_on_the_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| decode(&e.stream).unwrap())
+            .install(|| {
+                decode(&e.stream)
+                    .and_then(salvq::Scene::try_into_anchors)
+                    .unwrap()
+            })
     };
     let one = with(1);
     assert_eq!(&one, e.expected());

@@ -6,10 +6,11 @@
 mod common;
 
 use common::*;
-use salvq::container::chunk::ChunkTag;
-use salvq::error::Field;
-use salvq::quantizer::GroupLattices;
-use salvq::{decode, decode_with_options, extract_rate, DecodeOptions, Error, LatticeKind, Limits};
+use salvq::{decode, extract_rate, Error, Limits};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::error::Field;
+use salvq_bitstream::model::LatticeKind;
+use salvq_bitstream::quantizer::GroupLattices;
 use salvq_encoder::{encode_full, EncodeOptions};
 use salvq_gen::{generate, GenParams};
 
@@ -34,7 +35,9 @@ fn klt(regions: u16, rates: &[u8]) -> EncodeOptions {
 fn regions_decode_to_the_prediction_each_with_its_own_basis() {
     let m = model(1200);
     let e = encode_full(&m, &klt(4, &[0])).unwrap();
-    let d = decode(&e.stream).unwrap();
+    let d = decode(&e.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     assert_eq!(&d, e.expected());
     assert_eq!(d.dims.feat_regions, 4);
     let q = &d.quant_feat;
@@ -73,8 +76,11 @@ fn regions_survive_extraction_and_the_interchange_file() {
         extract_rate(&all.stream, 1, &Limits::default()).unwrap(),
         alone.stream
     );
-    let d1 =
-        decode_with_options(&all.stream, &DecodeOptions::default().with_rate(Some(1))).unwrap();
+    let d1 = (salvq::Decoder::builder().rate(Some(1)))
+        .build()
+        .decode(&all.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     assert_eq!(d1, all.layers[1].expected);
     let bytes = salvq_render::interchange::model_to_safetensors(&d1);
     let back = salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
@@ -83,7 +89,11 @@ fn regions_survive_extraction_and_the_interchange_file() {
     // Re-encoding the read-back model keeps its regions.
     let again = encode_full(&back, &EncodeOptions::default()).unwrap();
     assert_eq!(
-        decode(&again.stream).unwrap().quant_feat.regions,
+        decode(&again.stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap()
+            .quant_feat
+            .regions,
         d1.quant_feat.regions
     );
 }
@@ -98,7 +108,9 @@ fn broken_region_fields_are_typed_errors() {
             p[15..17].copy_from_slice(&value.to_le_bytes())
         });
         assert_eq!(
-            decode(&bad).unwrap_err(),
+            decode(&bad)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap_err(),
             Error::FieldOutOfRange {
                 field: Field::FeatRegions,
                 value: value.into(),
@@ -113,7 +125,9 @@ fn broken_region_fields_are_typed_errors() {
         p[17..19].copy_from_slice(&2u16.to_le_bytes())
     });
     assert_eq!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::ScalingRegions,
             value: 2,
@@ -128,7 +142,9 @@ fn broken_region_fields_are_typed_errors() {
         p[at..at + 4].copy_from_slice(&400u32.to_le_bytes());
     });
     assert_eq!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::RegionStart,
             value: 333,
@@ -140,7 +156,9 @@ fn broken_region_fields_are_typed_errors() {
         p[at + 4..at + 8].copy_from_slice(&500u32.to_le_bytes());
     });
     assert_eq!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::RegionStart,
             value: 500,
@@ -164,7 +182,9 @@ fn regions_need_a_fitted_or_general_basis() {
         },
     )
     .unwrap();
-    let d = decode(&e8.stream).unwrap();
+    let d = decode(&e8.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     assert_eq!(d.dims.feat_regions, 1);
     assert!(d.quant_feat.regions.is_empty());
 }

@@ -3,11 +3,11 @@
 
 use std::path::PathBuf;
 
-use salvq::container::chunk::ChunkTag;
-use salvq::error::{Field, Structure};
-use salvq::limits::LimitKind;
-use salvq::model::Dtype;
 use salvq::Error;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::error::{Field, Structure};
+use salvq_bitstream::limits::LimitKind;
+use salvq_bitstream::model::Dtype;
 
 fn spec(file: &str) -> String {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -104,7 +104,7 @@ fn every_error() -> Vec<Error> {
         },
         Error::AnsStreamInvalid {
             tag: t,
-            fault: salvq::error::AnsFault::OutOfWords,
+            fault: salvq_bitstream::error::AnsFault::OutOfWords,
         },
         Error::EscapeOverflow {
             tag: t,
@@ -118,7 +118,7 @@ fn every_error() -> Vec<Error> {
             max: 63,
         },
         Error::LatticeDimension {
-            field: salvq::error::Field::FeatLattice,
+            field: salvq_bitstream::error::Field::FeatLattice,
             lattice: "e8",
             dim: 50,
             rule: "r",
@@ -189,11 +189,14 @@ fn every_error() -> Vec<Error> {
     ]
 }
 
-/// The variants of `salvq::Error` as `src/error/mod.rs` declares them (the enum is
+/// The variants of `salvq::Error` as `crates/salvq-bitstream/src/error/mod.rs` declares them (the enum is
 /// `#[non_exhaustive]`, so a match here cannot check that [`every_error`] lists them all).
 fn declared_error_variants() -> Vec<String> {
-    let src = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/src/error/mod.rs"))
-        .expect("src/error/mod.rs");
+    let src = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/crates/salvq-bitstream/src/error/mod.rs"
+    ))
+    .expect("the error module");
     let start = src.find("pub enum Error {").expect("the error enum");
     let body = &src[start..];
     let body = &body[..body.find("\n}\n").expect("the enum's end")];
@@ -286,11 +289,11 @@ fn tensor_names_match_table_2_1() {
         spec_names.extend(names.into_iter().map(|n| format!("{n}{rest}")));
     }
     let mut dims = salvq_gen::generate(&salvq_gen::GenParams::small(1, 1)).dims;
-    dims.feat_lattice = salvq::LatticeKind::General;
-    dims.scaling_lattice = salvq::LatticeKind::General;
+    dims.feat_lattice = salvq_bitstream::model::LatticeKind::General;
+    dims.scaling_lattice = salvq_bitstream::model::LatticeKind::General;
     dims.feat_regions = 2;
     dims.scaling_regions = 2;
-    let code: Vec<String> = salvq::model::tensor_table(&dims)
+    let code: Vec<String> = salvq_bitstream::model::tensor_table(&dims)
         .iter()
         .map(|e| e.name.to_string())
         .collect();
@@ -308,8 +311,8 @@ fn tensor_names_match_table_2_1() {
 /// their value counts.
 #[test]
 fn explicit_profile_tables_match_the_code() {
-    use salvq::explicit::decode::expected_critical;
-    use salvq::explicit::{GroupKind, GROUP_KINDS};
+    use salvq_bitstream::explicit::order::expected_critical;
+    use salvq_bitstream::explicit::{GroupKind, GROUP_KINDS};
     let text = spec("03-explicit.md");
     let chunks: Vec<String> = table_names(&text, "Table 3-2:")
         .into_iter()

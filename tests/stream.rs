@@ -5,17 +5,16 @@
 mod common;
 use common::repo_root;
 
-use salvq::container::chunk::ChunkTag;
-use salvq::decoder::{decode_any, DecodeOptions, Decoded};
-use salvq::stream::StreamDecoder;
 use salvq::Result;
+use salvq::{DecoderBuilder, Scene};
+use salvq_bitstream::container::chunk::ChunkTag;
 use salvq_conformance::explicit_vectors::encode_synthetic;
 use salvq_encoder::explicit::{ExplicitOptions, RatePlan};
 use salvq_gen::gaussians::GaussianParams;
 
 /// Feeds `stream` in pieces of `piece` bytes (stopping at the first error) and finishes.
-fn streamed(stream: &[u8], piece: usize, options: &DecodeOptions) -> Result<Decoded> {
-    let mut d = StreamDecoder::new(options.clone());
+fn streamed(stream: &[u8], piece: usize, options: &DecoderBuilder) -> Result<Scene> {
+    let mut d = options.build().stream();
     for p in stream.chunks(piece.max(1)) {
         if d.feed(p).is_err() {
             break;
@@ -51,9 +50,9 @@ fn every_vector_streams_to_the_whole_buffer_result() {
     for (name, bytes) in &vectors {
         let rates = [None, Some(0), Some(1), Some(3)];
         for rate in rates {
-            let options = DecodeOptions::default().with_rate(rate);
-            let whole = decode_any(bytes, &options);
-            explicit += usize::from(matches!(whole, Ok(Decoded::Gaussians(_))));
+            let options = salvq::Decoder::builder().rate(rate);
+            let whole = options.build().decode(bytes);
+            explicit += usize::from(matches!(whole, Ok(salvq::Scene::Gaussians(_))));
             for piece in [1, 7, 100, 4096, bytes.len()] {
                 let got = streamed(bytes, piece, &options);
                 assert_eq!(got, whole, "{name}, rate {rate:?}, pieces of {piece} bytes");
@@ -65,7 +64,12 @@ fn every_vector_streams_to_the_whole_buffer_result() {
 
 #[test]
 fn truncated_streams_report_what_the_whole_buffer_decoder_reports() {
-    for (name, bytes) in vectors().iter().filter(|(n, _)| n.starts_with("g-")) {
+    let explicit: Vec<_> = vectors()
+        .into_iter()
+        .filter(|(n, _)| n.starts_with("g-"))
+        .collect();
+    assert!(explicit.len() >= 10, "{} g-* vectors", explicit.len());
+    for (name, bytes) in &explicit {
         for cut in [
             0,
             5,
@@ -76,10 +80,10 @@ fn truncated_streams_report_what_the_whole_buffer_decoder_reports() {
             bytes.len() - 1,
         ] {
             let part = &bytes[..cut.min(bytes.len())];
-            let options = DecodeOptions::default();
+            let options = salvq::Decoder::builder();
             assert_eq!(
                 streamed(part, 3, &options),
-                decode_any(part, &options),
+                options.build().decode(part),
                 "{name} cut at {cut}"
             );
         }
@@ -108,7 +112,7 @@ fn tiled_stream(tile_gaussians: u32) -> Vec<u8> {
 #[test]
 fn tiles_arrive_before_the_stream_ends_and_add_up_to_the_whole() {
     let stream = tiled_stream(200);
-    let mut d = StreamDecoder::new(DecodeOptions::default());
+    let mut d = salvq::Decoder::builder().build().stream();
     let mut first_tile_at = None;
     let mut handed_out = Vec::new();
     for (i, piece) in stream.chunks(64).enumerate() {
@@ -122,7 +126,7 @@ fn tiles_arrive_before_the_stream_ends_and_add_up_to_the_whole() {
     let first = first_tile_at.expect("tiles were handed out");
     assert!(first < stream.len(), "first tile only at the end");
     let drawn = d.gaussians().clone();
-    let Ok(Decoded::Gaussians(whole)) = d.finish() else {
+    let Ok(salvq::Scene::Gaussians(whole)) = d.finish() else {
         panic!("an explicit stream")
     };
     assert!(handed_out.len() > 4, "{} tiles", handed_out.len());
@@ -141,8 +145,8 @@ fn a_corrupt_tile_is_reported_as_the_whole_buffer_decoder_reports_it() {
     let at = stream.len() - 40;
     let mut bad = stream.clone();
     bad[at] ^= 0x5a;
-    let options = DecodeOptions::default();
-    let whole = decode_any(&bad, &options);
+    let options = salvq::Decoder::builder();
+    let whole = options.build().decode(&bad);
     assert!(whole.is_err());
     for piece in [1, 50, 1000] {
         assert_eq!(streamed(&bad, piece, &options), whole, "pieces of {piece}");
@@ -151,13 +155,15 @@ fn a_corrupt_tile_is_reported_as_the_whole_buffer_decoder_reports_it() {
     // for corruptions in several tiles' bodies.
     let mut faults = 0;
     for back in [30usize, 200, 700, 1500] {
-        let Some(edited) = salvq::container::surgery::edit_payload(&stream, ChunkTag::GATT, |p| {
-            let at = p.len().saturating_sub(back);
-            p[at] ^= 0xa5;
-        }) else {
+        let Some(edited) =
+            salvq_encoder::writers::surgery::edit_payload(&stream, ChunkTag::GATT, |p| {
+                let at = p.len().saturating_sub(back);
+                p[at] ^= 0xa5;
+            })
+        else {
             panic!("a GATT chunk")
         };
-        let whole = decode_any(&edited, &options);
+        let whole = options.build().decode(&edited);
         faults += usize::from(whole.is_err());
         for piece in [1, 50, 1000] {
             assert_eq!(

@@ -5,10 +5,9 @@
 mod common;
 
 use common::*;
-use salvq::container::chunk::ChunkTag;
-use salvq::error::Field;
-use salvq::tiles::TileTable;
-use salvq::{decode, decode_with_options, extract_rate, DecodeOptions, Error, Limits};
+use salvq::{decode, extract_rate, DecoderBuilder, Error, Limits};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::error::Field;
 use salvq_encoder::{encode_full, EncodeOptions};
 use salvq_gen::{generate, GenParams};
 
@@ -31,19 +30,28 @@ fn tiled(m: &salvq::SceneModel, per_tile: u32) -> salvq_encoder::Encoded {
     .unwrap()
 }
 
-fn with(threads: Option<usize>, region: Option<[f64; 6]>) -> DecodeOptions {
-    DecodeOptions::default()
-        .with_threads(threads)
-        .with_region(region.map(|r| salvq::RegionBox::from_array(r).unwrap()))
+fn with(threads: Option<usize>, region: Option<[f64; 6]>) -> DecoderBuilder {
+    salvq::Decoder::builder()
+        .threads(threads)
+        .region(region.map(|r| salvq::RegionBox::from_array(r).unwrap()))
 }
 
 #[test]
 fn every_thread_count_decodes_the_same_model() {
     let m = model(1000);
     let e = tiled(&m, 97);
-    assert_eq!(&decode(&e.stream).unwrap(), e.expected());
+    assert_eq!(
+        &decode(&e.stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap(),
+        e.expected()
+    );
     for threads in [1, 2, 3, 8] {
-        let d = decode_with_options(&e.stream, &with(Some(threads), None)).unwrap();
+        let d = (with(Some(threads), None))
+            .build()
+            .decode(&e.stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap();
         assert_eq!(&d, e.expected(), "{threads} threads");
     }
     // Extraction of a tiled multi-rate stream is still byte-identical.
@@ -67,7 +75,7 @@ fn a_region_decodes_the_intersecting_tiles_only() {
     let m = model(1200);
     let e = tiled(&m, 100);
     let full = e.expected();
-    let tiles = TileTable::cut(&full.anchors.voxel, 100);
+    let tiles = salvq_encoder::writers::cut(&full.anchors.voxel, 100);
     let nt = tiles.len();
     assert!(nt >= 12, "{nt} tiles");
     assert!((0..nt).all(|t| tiles.range(t).len() <= 100));
@@ -92,7 +100,11 @@ fn a_region_decodes_the_intersecting_tiles_only() {
     );
     assert!(selected[pick]);
     assert!(selected.iter().filter(|&&s| s).count() < nt / 2);
-    let part = decode_with_options(&e.stream, &with(Some(2), Some(region))).unwrap();
+    let part = (with(Some(2), Some(region)))
+        .build()
+        .decode(&e.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     let kept: Vec<usize> = (0..nt)
         .filter(|&t| selected[t])
         .flat_map(|t| tiles.range(t))
@@ -131,15 +143,19 @@ fn the_parts_of_a_stream_are_its_tiles_once_each() {
     let m = model(1200);
     let e = tiled(&m, 100);
     let full = e.expected();
-    let tiles = TileTable::cut(&full.anchors.voxel, 100);
+    let tiles = salvq_encoder::writers::cut(&full.anchors.voxel, 100);
     let (f, k) = (16, usize::from(full.dims.offsets));
     for count in [1, 2, 3, 5] {
         let mut owner = vec![None; tiles.len()];
         let mut sizes = Vec::new();
         for index in 0..count {
             let part = salvq::TilePart::new(index, count).unwrap();
-            let options = with(Some(2), None).with_part(Some(part));
-            let d = decode_with_options(&e.stream, &options).unwrap();
+            let options = with(Some(2), None).part(Some(part));
+            let d = options
+                .build()
+                .decode(&e.stream)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap();
             let mine = tiles.select(full.origin, full.voxel_size, None, Some(part));
             let rows: Vec<usize> = (0..tiles.len())
                 .filter(|&t| mine[t])
@@ -191,13 +207,17 @@ fn three_regions_in_tiles_of_100() -> salvq_encoder::Encoded {
 fn region_decodes_rebase_spatial_quantizer_regions() {
     let e = three_regions_in_tiles_of_100();
     let full = e.expected();
-    let tiles = TileTable::cut(&full.anchors.voxel, 100);
+    let tiles = salvq_encoder::writers::cut(&full.anchors.voxel, 100);
     // Tiles 2 and 3 (anchors 200..400) straddle region boundary 300.
     let b2 = tiles.boxes[2];
     let vs = f64::from(full.voxel_size);
     let o = full.origin.map(f64::from);
     let region = [0, 1, 2, 3, 4, 5].map(|c| o[c % 3] + (f64::from(b2[c]) + 0.5) * vs);
-    let part = decode_with_options(&e.stream, &with(None, Some(region))).unwrap();
+    let part = (with(None, Some(region)))
+        .build()
+        .decode(&e.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     let bytes = salvq_render::interchange::model_to_safetensors(&part);
     let back = salvq_render::interchange::model_from_safetensors(&bytes).unwrap();
     assert_eq!(back, part);
@@ -209,11 +229,11 @@ fn a_region_meeting_no_tile_outputs_no_anchors_and_keeps_region_0() {
     let e = three_regions_in_tiles_of_100();
     let full = e.expected();
     let far = full.origin.map(|x| f64::from(x) - 1.0e3);
-    let part = decode_with_options(
-        &e.stream,
-        &with(None, Some([far[0], far[1], far[2], far[0], far[1], far[2]])),
-    )
-    .unwrap();
+    let part = (with(None, Some([far[0], far[1], far[2], far[0], far[1], far[2]])))
+        .build()
+        .decode(&e.stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     // §10.3.1 step 6: no anchors, every shared tensor; step 5: region 0 kept alone.
     assert_eq!(part.dims.anchors, 0);
     assert!(part.anchors.voxel.is_empty() && part.anchors.feat.is_empty());
@@ -264,7 +284,9 @@ fn broken_tile_tables_are_typed_errors() {
         p[1..5].copy_from_slice(&0u32.to_le_bytes())
     });
     assert_eq!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::TileCount,
             value: 0,
@@ -276,7 +298,9 @@ fn broken_tile_tables_are_typed_errors() {
         p[1..5].copy_from_slice(&501u32.to_le_bytes())
     });
     assert!(matches!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::TileCount,
             ..
@@ -288,7 +312,9 @@ fn broken_tile_tables_are_typed_errors() {
         p[count_at(0)..count_at(0) + 4].copy_from_slice(&500u32.to_le_bytes())
     });
     assert_eq!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::TileAnchors,
             value: 500,
@@ -300,7 +326,9 @@ fn broken_tile_tables_are_typed_errors() {
         p[count_at(0)..count_at(0) + 4].copy_from_slice(&(count0 - 1).to_le_bytes())
     });
     assert!(matches!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::TileAnchors,
             ..
@@ -310,7 +338,9 @@ fn broken_tile_tables_are_typed_errors() {
     let bits = e.expected().coord_bits();
     let bad = edit_payload(s, ChunkTag::TILS, |p| p[count_at(0) + 4] = bits + 1);
     assert!(matches!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::TileCellLevel,
             ..
@@ -321,7 +351,9 @@ fn broken_tile_tables_are_typed_errors() {
         p[at..at + 4].copy_from_slice(&(1u32 << bits).to_le_bytes())
     });
     assert!(matches!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::TileCell,
             ..
@@ -330,7 +362,9 @@ fn broken_tile_tables_are_typed_errors() {
     // A box that is not its anchors'.
     let bad = edit_payload(s, ChunkTag::TILS, |p| p[count_at(2) + 17] ^= 1);
     assert!(matches!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::TileBoxMismatch { tile: 2, .. }
     ));
     // Tile lengths that do not add up to the chunk.
@@ -339,7 +373,9 @@ fn broken_tile_tables_are_typed_errors() {
         p[5..9].copy_from_slice(&l.to_le_bytes());
     });
     assert!(matches!(
-        decode(&bad).unwrap_err(),
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
         Error::ChunkSizeMismatch {
             tag: ChunkTag::AFEA,
             ..
@@ -385,7 +421,12 @@ fn tiles_out_of_order_are_refused() {
         }
         *p = out;
     });
-    assert_eq!(decode(&bad).unwrap_err(), Error::TileOrder { tile: 1 });
+    assert_eq!(
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
+        Error::TileOrder { tile: 1 }
+    );
 }
 
 #[test]
@@ -414,10 +455,14 @@ fn the_lowest_tile_error_is_reported() {
     let bad = edit_payload(&bad, ChunkTag::AFEA, |p| zero_top(p, 3));
     for threads in [1, 4] {
         assert_eq!(
-            decode_with_options(&bad, &with(Some(threads), None)).unwrap_err(),
+            (with(Some(threads), None))
+                .build()
+                .decode(&bad)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap_err(),
             Error::AnsStreamInvalid {
                 tag: ChunkTag::AOFF,
-                fault: salvq::error::AnsFault::ZeroTopWord
+                fault: salvq_bitstream::error::AnsFault::ZeroTopWord
             }
         );
     }
@@ -445,13 +490,24 @@ fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
     });
     let zero_top = Error::AnsStreamInvalid {
         tag: ChunkTag::AFEA,
-        fault: salvq::error::AnsFault::ZeroTopWord,
+        fault: salvq_bitstream::error::AnsFault::ZeroTopWord,
     };
     for threads in [1, 2, 4] {
         let options = with(Some(threads), None);
-        let other = decode_with_options(&later, &options).unwrap_err();
+        let other = options
+            .build()
+            .decode(&later)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err();
         assert_ne!(other, zero_top, "tiles 2.. alone must fail otherwise");
-        assert_eq!(decode_with_options(&both, &options).unwrap_err(), zero_top);
+        assert_eq!(
+            options
+                .build()
+                .decode(&both)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap_err(),
+            zero_top
+        );
     }
 }
 
@@ -460,7 +516,9 @@ fn the_lowest_tile_error_is_reported_whichever_tile_runs_first() {
 /// 2 048 stays whole, and a large one keeps tiles of at most 16 384.
 #[test]
 fn the_default_tiles_split_a_small_scene_but_not_a_tiny_one() {
-    use salvq::tiles::{auto_tile_anchors, DEFAULT_TILE_ANCHORS, MIN_AUTO_TILE_ANCHORS};
+    use salvq_encoder::writers::tile_cut::{
+        auto_tile_anchors, DEFAULT_TILE_ANCHORS, MIN_AUTO_TILE_ANCHORS,
+    };
     assert_eq!(auto_tile_anchors(0), MIN_AUTO_TILE_ANCHORS);
     assert_eq!(auto_tile_anchors(4_721), MIN_AUTO_TILE_ANCHORS);
     assert_eq!(auto_tile_anchors(22_589), 2_824);

@@ -2,9 +2,9 @@
 //! keeps CRCs valid so a test reaches the rule it targets.
 #![allow(dead_code)]
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::surgery;
 use salvq::SceneModel;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_encoder::writers::surgery;
 use salvq_gen::{generate, GenParams};
 
 /// 13 anchors of the small configuration with the identity basis (what format 0.2 codes).
@@ -68,22 +68,43 @@ pub fn chunk_offset(stream: &[u8], tag: ChunkTag) -> usize {
     surgery::chunk_offset(stream, tag).unwrap_or_else(|| panic!("no chunk {tag}"))
 }
 
-/// A file of `../shared/data` (the real scenes beside the checkout), or `None` with a
-/// "skipped" note when it is not there (a panic where `SALVQ_REQUIRE_DATA` is set).
+/// A file of the real scenes beside the checkout (`../shared/data`, or the folder named by
+/// `SALVQ_DATA_DIR`), or `None` when it is not there: the caller returns, its work skipped.
+///
+/// What a missing file does: where `SALVQ_REQUIRE_DATA` is set or `CI=true` (`.ci/run` runs
+/// with `CI=true`, and also sets `SALVQ_REQUIRE_DATA` where the scenes are present) the test
+/// fails. Elsewhere it passes and says so with a `SKIPPED` line written to the process's
+/// stderr through `std::io::stderr()`, which libtest does not capture (it captures `print!` /
+/// `eprint!` only), so `cargo test` shows the line even though the test passes.
 pub fn shared_data(name: &str) -> Option<Vec<u8>> {
-    let path = repo_root().join("../shared/data").join(name);
+    use std::io::Write;
+    let dir = std::env::var_os("SALVQ_DATA_DIR")
+        .map_or_else(|| repo_root().join("../shared/data"), Into::into);
+    let path = dir.join(name);
     match std::fs::read(&path) {
         Ok(b) => Some(b),
-        // Where the scenes are known to be present (CI sets SALVQ_REQUIRE_DATA), a missing
-        // one is a failure, not a test that passes by doing nothing.
-        Err(e) if std::env::var_os("SALVQ_REQUIRE_DATA").is_some() => {
-            panic!("{}: {e} (SALVQ_REQUIRE_DATA is set)", path.display())
-        }
+        Err(e) if data_required() => panic!(
+            "{}: {e} (SALVQ_REQUIRE_DATA or CI=true: the real scenes must be present)",
+            path.display()
+        ),
         Err(_) => {
-            eprintln!("skipped: {} not found", path.display());
+            let thread = std::thread::current();
+            let test = thread.name().unwrap_or("a test");
+            let _ = writeln!(
+                std::io::stderr(),
+                "SKIPPED {test}: {} not found (passes without its work)",
+                path.display()
+            );
             None
         }
     }
+}
+
+/// Whether a missing scene of [`shared_data`] fails the test: `SALVQ_REQUIRE_DATA` set, or
+/// `CI=true`.
+fn data_required() -> bool {
+    std::env::var_os("SALVQ_REQUIRE_DATA").is_some()
+        || std::env::var("CI").is_ok_and(|v| v.eq_ignore_ascii_case("true") || v == "1")
 }
 
 /// The repository root (the workspace root, which holds `spec/`), from whichever crate of

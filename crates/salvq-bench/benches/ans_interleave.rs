@@ -21,9 +21,10 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use salvq::container::chunk::ChunkTag;
-use salvq::entropy::{scale_index, GaussianTables, SymbolReader, SymbolWriter};
 use salvq_bench::coder::{median, sigma_to_q16, synthetic_samples};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::entropy::{scale_index, GaussianTables, SymbolReader};
+use salvq_encoder::writers::SymbolWriter;
 
 const SEED: u64 = 2026;
 const TAG: ChunkTag = ChunkTag::AFEA;

@@ -6,17 +6,16 @@
 
 use std::time::Instant;
 
-use salvq::attributes::layer_bodies;
-use salvq::container::chunk::{ChunkReader, ChunkTag};
-use salvq::container::payload::{read_mlps, read_quan};
-use salvq::container::preflight::Preflight;
-use salvq::decoder::decode_with_symbols;
-use salvq::entropy::{GaussianTables, SymbolReader};
-use salvq::hyperprior::grid::GridRef;
-use salvq::hyperprior::prior::{Group, Prior, BATCH};
-use salvq::tiles::TileTable;
 use salvq::Limits;
 use salvq_bench::coder as measure;
+use salvq_bitstream::attributes::layer_bodies;
+use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag};
+use salvq_bitstream::container::payload::{read_mlps, read_quan};
+use salvq_bitstream::container::preflight::Preflight;
+use salvq_bitstream::entropy::{GaussianTables, SymbolReader};
+use salvq_bitstream::hyperprior::grid::GridRef;
+use salvq_bitstream::hyperprior::prior::{Group, Prior, BATCH};
+use salvq_bitstream::tiles::TileTable;
 use salvq_encoder::{encode_full, EncodeOptions};
 use salvq_gen::{generate, GenParams};
 
@@ -75,7 +74,9 @@ fn main() {
     // Full decode.
     let runs = 5;
     let t_full = median_secs(runs, || {
-        let m = salvq::decode(stream).expect("decodes");
+        let m = salvq::decode(stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .expect("decodes");
         assert_eq!(m.anchors.voxel.len(), n as usize);
     });
 
@@ -216,7 +217,9 @@ fn main() {
     });
     // What the bench measures is the stream's: the symbols fed to the bare coder are the ones
     // the decoder reads (§11.1's symbol tensors, in the same tile and group order).
-    let (decoded, sy) = decode_with_symbols(stream, &Default::default()).expect("decodes");
+    let (decoded, sy) = salvq::Decoder::default()
+        .decode_with_symbols(stream)
+        .expect("decodes");
     assert_eq!(
         &decoded, expected,
         "the decode timed is the encoder's prediction"
@@ -250,7 +253,11 @@ fn main() {
     let mut ratios: Vec<f64> = (0..rounds)
         .map(|_| {
             let full = median_secs(1, || {
-                std::hint::black_box(salvq::decode(stream).expect("decodes"));
+                std::hint::black_box(
+                    salvq::decode(stream)
+                        .and_then(salvq::Scene::try_into_anchors)
+                        .expect("decodes"),
+                );
             });
             let bare = measure::bare_coder_decode_ns(&symbols, tables.precision(), 1)
                 * 1e-9

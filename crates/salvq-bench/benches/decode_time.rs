@@ -15,7 +15,7 @@
 
 use std::time::Instant;
 
-use salvq::decoder::Decoded;
+use salvq::Scene;
 use salvq_conformance::explicit_vectors::encode_synthetic;
 use salvq_encoder::explicit::{ExplicitOptions, RatePlan};
 use salvq_encoder::{encode_full, EncodeOptions};
@@ -107,14 +107,14 @@ fn main() {
     };
     // Per (file, thread count): each round's median and minimum, in seconds.
     let mut rows: Vec<(String, usize, Vec<f64>, Vec<f64>)> = Vec::new();
-    let mut first: Vec<Option<Decoded>> = vec![None; streams.len()];
+    let mut first: Vec<Option<Scene>> = vec![None; streams.len()];
     for round in 0..rounds {
         let mut row = 0;
         for (s, (name, bytes)) in streams.iter().enumerate() {
             for &threads in &args.threads {
                 let mut builder = salvq::Decoder::builder().threads(threads);
                 if args.gaussians_only {
-                    builder = builder.gaussians_only();
+                    builder = builder.gaussians_only(true);
                 }
                 let decoder = builder.build();
                 let mut times = Vec::with_capacity(runs);

@@ -20,12 +20,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use plotters::prelude::*;
-use salvq::container::chunk::ChunkTag;
-use salvq::entropy::analysis::discretized_gaussian_bits;
-use salvq::entropy::{
-    scale_index, GaussianTables, SymbolReader, SymbolWriter, PRECISION, R_MAX, SIGMA_Q16, TAIL_Q4,
-};
 use salvq_bench::coder::{bare_coder_decode_ns, median, sigma_to_q16, synthetic_samples, Sample};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::entropy::{
+    scale_index, GaussianTables, SymbolReader, PRECISION, R_MAX, SIGMA_Q16, TAIL_Q4,
+};
+use salvq_encoder::entropy_analysis::discretized_gaussian_bits;
+use salvq_encoder::writers::SymbolWriter;
 
 const PRECISIONS: [u32; 5] = [12, 14, 16, 20, 24];
 /// TAIL in 1/16 units: 3, 4, 5, 6.

@@ -1,5 +1,5 @@
 //! Time to first tile: an explicit-profile stream of N generated Gaussians fed to
-//! `salvq::stream::StreamDecoder` in 64 KiB pieces, as a viewer receives it, against the
+//! `salvq::StreamDecoder` in 64 KiB pieces, as a viewer receives it, against the
 //! whole-buffer decode of the same bytes on one thread and on rayon's pool. Prints the bytes
 //! and the decode time at which the first tile is handed out, and the whole decode's time.
 //! Checks what it measures: the streamed Gaussians equal the whole decode's.
@@ -9,21 +9,22 @@
 
 use std::time::Instant;
 
-use salvq::decoder::{decode_any, DecodeOptions, Decoded};
-use salvq::stream::StreamDecoder;
+use salvq::Scene;
 use salvq_conformance::explicit_vectors::encode_synthetic;
 use salvq_encoder::explicit::{ExplicitOptions, RatePlan};
 use salvq_gen::gaussians::GaussianParams;
 
 const PIECE: usize = 64 << 10;
 
-fn whole(stream: &[u8], threads: Option<usize>) -> (f64, Decoded) {
+fn whole(stream: &[u8], threads: Option<usize>) -> (f64, Scene) {
     let mut best = f64::INFINITY;
     let mut out = None;
     for _ in 0..3 {
         let t = Instant::now();
-        let d =
-            decode_any(stream, &DecodeOptions::default().with_threads(threads)).expect("decodes");
+        let d = (salvq::Decoder::builder().threads(threads))
+            .build()
+            .decode(stream)
+            .expect("decodes");
         best = best.min(t.elapsed().as_secs_f64());
         out = Some(d);
     }
@@ -74,7 +75,7 @@ fn generated(n: usize) -> Vec<u8> {
 fn measure(stream: &[u8]) {
     let (one, reference) = whole(stream, Some(1));
     let (pool, _) = whole(stream, None);
-    let Decoded::Gaussians(reference) = reference else {
+    let salvq::Scene::Gaussians(reference) = reference else {
         panic!("an explicit-profile stream")
     };
     println!(
@@ -83,7 +84,7 @@ fn measure(stream: &[u8]) {
         reference.tiles.len()
     );
 
-    let mut decoder = StreamDecoder::new(DecodeOptions::default());
+    let mut decoder = salvq::Decoder::builder().build().stream();
     let mut spent = 0.0;
     let mut first = None;
     for piece in stream.chunks(PIECE) {
@@ -98,7 +99,7 @@ fn measure(stream: &[u8]) {
     let t = Instant::now();
     let streamed = decoder.finish().expect("a valid stream");
     spent += t.elapsed().as_secs_f64();
-    let Decoded::Gaussians(streamed) = streamed else {
+    let salvq::Scene::Gaussians(streamed) = streamed else {
         panic!("an explicit-profile stream")
     };
     assert_eq!(

@@ -36,7 +36,7 @@
 
 use std::time::Instant;
 
-use salvq::model::{LatticeKind, SceneModel};
+use salvq_bitstream::model::{LatticeKind, SceneModel};
 use salvq_encoder::{encode_full, EncodeOptions, GroupStats, Search};
 use salvq_gen::{generate, GenParams};
 
@@ -77,7 +77,9 @@ fn measure(
         .iter()
         .map(|c| {
             let (_, g, e) = encode(c);
-            let decoded = salvq::decode(&e.stream).expect("the stream decodes");
+            let decoded = salvq::decode(&e.stream)
+                .and_then(salvq::Scene::try_into_anchors)
+                .expect("the stream decodes");
             assert!(
                 &decoded == e.expected(),
                 "{}: the stream decodes to another model than the encoder's prediction",

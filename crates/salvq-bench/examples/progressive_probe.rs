@@ -28,7 +28,8 @@ fn main() {
         ratios::QUALITY_HEIGHT,
     )
     .unwrap();
-    let psnr = |x: &salvq::explicit::Gaussians| -10.0 * q.mse(x).unwrap().max(1e-30).log10();
+    let psnr =
+        |x: &salvq_bitstream::explicit::Gaussians| -10.0 * q.mse(x).unwrap().max(1e-30).log10();
     let mut lines = Vec::new();
     for progressive in [false, true] {
         let (plans, klt) = fit(progressive);
@@ -40,27 +41,37 @@ fn main() {
         };
         let e = encode_prepared(&p, &plans, &options).unwrap();
         for (rep, _, out) in &e.layers {
-            let d =
-                salvq::explicit::decode_gaussians(&e.stream, &Default::default(), Some(rep.rate))
-                    .unwrap();
+            let d = salvq::Decoder::builder()
+                .limits(Default::default())
+                .rate(Some(rep.rate))
+                .build()
+                .decode(&e.stream)
+                .and_then(salvq::Scene::try_into_gaussians)
+                .unwrap();
             assert!(d.gaussians == *out, "rate {} decodes differently", rep.rate);
-            let x = salvq::extract::extract_rate(&e.stream, rep.rate, &Default::default()).unwrap();
-            let d2 = salvq::explicit::decode_gaussians(&x, &Default::default(), None).unwrap();
+            let x = salvq::extract_rate(&e.stream, rep.rate, &Default::default()).unwrap();
+            let d2 = salvq::Decoder::builder()
+                .limits(Default::default())
+                .rate(None)
+                .build()
+                .decode(&x)
+                .and_then(salvq::Scene::try_into_gaussians)
+                .unwrap();
             assert!(
                 d2.gaussians == *out,
                 "extracted rate {} decodes differently",
                 rep.rate
             );
-            let opts = salvq::DecodeOptions::default().with_accept_prefix(true);
+            let opts = salvq::Decoder::builder().accept_prefix(true);
             let cut = &x[..x.len() - 12];
-            let d3 = salvq::decoder::decode_any(cut, &opts);
+            let d3 = opts.build().decode(cut);
             println!(
                 "rate {} ok; extracted {} bytes; cut decodes: {:?}",
                 rep.rate,
                 x.len(),
                 d3.as_ref()
                     .map(|d| match d {
-                        salvq::decoder::Decoded::Gaussians(g) => (g.rate, g.truncated),
+                        salvq::Scene::Gaussians(g) => (g.rate, g.truncated),
                         _ => (99, false),
                     })
                     .map_err(|e| e.to_string())

@@ -3,7 +3,7 @@
 //! of the positions, so stray Gaussians do not space the copies apart) plus a tenth. For
 //! scale, never for compression claims: its copies repeat one another exactly.
 //! `cargo run --release -p salvq-bench --example tiled_scene -- SCENE.ply K OUT.ply`
-use salvq::explicit::Gaussians;
+use salvq_bitstream::explicit::Gaussians;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();

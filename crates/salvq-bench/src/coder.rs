@@ -14,7 +14,7 @@ use constriction::stream::stack::DefaultAnsCoder;
 use constriction::stream::{Decode, Encode};
 use constriction::UnwrapInfallible;
 
-use salvq::entropy::ans::with_precision;
+use salvq_bitstream::entropy::ans::with_precision;
 use salvq_gen::rng::Stream;
 
 /// One symbol of a measurement set: the true standard deviation in symbol units and the

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::bdrate::{bd_rate, Curve, Interpolation};
-use salvq::model::{Basis, LatticeKind, SceneModel};
+use salvq_bitstream::model::{Basis, LatticeKind, SceneModel};
 use salvq_encoder::{encode_full, EncodeOptions, Search};
 use salvq_encoder::{Error, Result};
 use salvq_gen::linalg::orthogonal;
@@ -505,7 +505,7 @@ pub fn run(p: &RdOptions) -> Result<String> {
             let o = options(q, Search::Auto);
             let line = match encode_full(&mg, &o) {
                 Ok(e) => {
-                    let decoded = salvq::decode(&e.stream);
+                    let decoded = salvq::decode(&e.stream).and_then(salvq::Scene::try_into_anchors);
                     let same = matches!(&decoded, Ok(d) if d == e.expected());
                     let gstats = &e.report().groups[0];
                     format!(

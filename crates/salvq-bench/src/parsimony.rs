@@ -8,8 +8,8 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use salvq::container::payload::{ContextPrecision, ScaffoldPrecision};
-use salvq::limits::Limits;
+use salvq_bitstream::container::payload::{ContextPrecision, ScaffoldPrecision};
+use salvq_bitstream::limits::Limits;
 use salvq_encoder::info::{inspect, ByteClass};
 use salvq_encoder::parsimony::prune_grid_levels;
 use salvq_encoder::{encode_full, EncodeOptions};

@@ -18,9 +18,9 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use salvq::container::payload::{ContextPrecision, ScaffoldPrecision};
-use salvq::limits::Limits;
-use salvq::model::{Mlp, SceneModel};
+use salvq_bitstream::container::payload::{ContextPrecision, ScaffoldPrecision};
+use salvq_bitstream::limits::Limits;
+use salvq_bitstream::model::{Mlp, SceneModel};
 use salvq_encoder::info::{inspect, ByteClass};
 use salvq_encoder::precision::{max_change, rounded};
 use salvq_encoder::Result;

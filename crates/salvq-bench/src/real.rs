@@ -11,8 +11,7 @@ use std::time::Instant;
 
 use plotters::prelude::*;
 
-use salvq::explicit::decode_gaussians;
-use salvq::limits::Limits;
+use salvq_bitstream::limits::Limits;
 use salvq_encoder::explicit::{
     encode_prepared, rate_plans, EncodedGaussians, ExplicitOptions, PreparedGaussians, RateControl,
     Variant,
@@ -89,7 +88,12 @@ fn salvq_rows(
     // Each rate's bytes: what `salvq extract` writes (a progressive rate's prefix, §3.8).
     for ((report, _, expected), read) in e.layers.iter().zip(e.rate_stream_bytes()) {
         let t = Instant::now();
-        let d = decode_gaussians(&e.stream, &Limits::default(), Some(report.rate))?;
+        let d = salvq::Decoder::builder()
+            .limits(Limits::default())
+            .rate(Some(report.rate))
+            .build()
+            .decode(&e.stream)
+            .and_then(salvq::Scene::try_into_gaussians)?;
         let decode_s = t.elapsed().as_secs_f64();
         if &d.gaussians != expected {
             return Err(Error::FitFailed {

@@ -5,7 +5,7 @@
 
 use std::borrow::Cow;
 
-use salvq::model::SceneModel;
+use salvq_bitstream::model::SceneModel;
 use salvq_encoder::Result;
 use salvq_render::camera::Bounds;
 use salvq_render::compare::{psnr_of, RingTarget};

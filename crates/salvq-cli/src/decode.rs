@@ -42,7 +42,7 @@ pub(crate) struct DecodeArgs {
     /// Decode with a deliberate bug (`table:K`: one wrong entry in scale K's frequency
     /// table), to show that the conformance vectors catch it (spec §11).
     #[arg(long, hide = true, value_parser = parse_fault)]
-    pub(crate) inject_fault: Option<salvq::decoder::Fault>,
+    pub(crate) inject_fault: Option<salvq::Fault>,
     /// Print what was decoded as JSON on standard output.
     #[arg(long)]
     pub(crate) json: bool,
@@ -109,7 +109,7 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
     let stream = files::read_input(&args.input)?;
     // What the input is comes first: a file that is no stream fails as such, before its
     // output's name is judged by a profile it does not have.
-    if let Err(e) = salvq::container::signature::Signature::parse(&stream) {
+    if let Err(e) = salvq_bitstream::container::signature::Signature::parse(&stream) {
         if stream.starts_with(b"ply") {
             return Err(Error::UnsupportedInput {
                 found: "a 3DGS PLY, not a SALVQ stream".into(),
@@ -118,7 +118,7 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
         }
         return Err(e.into());
     }
-    let explicit = salvq::decoder::is_explicit(&stream);
+    let explicit = salvq_bitstream::container::is_explicit(&stream);
     let output = if args.measure {
         None
     } else {
@@ -134,16 +134,16 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
         strict,
         ..
     } = args;
-    let options = salvq::DecodeOptions::default()
-        .with_rate(rate)
-        .with_threads(threads.map(|n| n as usize))
-        .with_region(region)
-        .with_fault(inject_fault);
+    let mut options = salvq::Decoder::builder()
+        .rate(rate)
+        .region(region)
+        .fault(inject_fault);
+    if let Some(n) = threads {
+        options = options.threads(n as usize);
+    }
     if explicit {
         // The canonical form holds the symbols (§11.6); a PLY file only the Gaussians.
-        let options = options
-            .with_gaussians_only(!canonical)
-            .with_accept_prefix(!strict);
+        let options = options.gaussians_only(!canonical).accept_prefix(!strict);
         let how = decode_explicit::How {
             canonical,
             json,
@@ -155,12 +155,15 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
         return measure_anchors(&stream, &options, t);
     };
     if canonical {
-        let (model, symbols) = salvq::decoder::decode_with_symbols(&stream, &options)?;
+        let (model, symbols) = options.build().decode_with_symbols(&stream)?;
         let tensors = salvq_conformance::canonical::canonical_tensors(&model, &symbols);
         let bytes = salvq_conformance::canonical::to_safetensors(&tensors);
         return output.write_bytes(&bytes);
     }
-    let model = salvq::decode_with_options(&stream, &options)?;
+    let model = options
+        .build()
+        .decode(&stream)
+        .and_then(salvq::Scene::try_into_anchors)?;
     if model.dims.anchors == 0 {
         ctx.say("salvq: the region intersects no tile; nothing written");
         return Ok(());
@@ -194,14 +197,21 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
 }
 
 /// `decode --measure` of an anchors stream: the time and peak memory, nothing written.
-fn measure_anchors(stream: &[u8], options: &salvq::DecodeOptions, t: Instant) -> Result<(), Error> {
-    let model = salvq::decode_with_options(stream, options)?;
+fn measure_anchors(
+    stream: &[u8],
+    options: &salvq::DecoderBuilder,
+    t: Instant,
+) -> Result<(), Error> {
+    let model = options
+        .build()
+        .decode(stream)
+        .and_then(salvq::Scene::try_into_anchors)?;
     out!(
         "measure decode_secs={} peak_rss_bytes={} anchors={} decoded_bytes={}",
         secs(t),
         salvq_bench::scale::peak_rss_bytes().unwrap_or(0),
         model.dims.anchors,
-        salvq::model::decoded_bytes(&model.dims)
+        salvq_bitstream::model::decoded_bytes(&model.dims)
     );
     Ok(())
 }

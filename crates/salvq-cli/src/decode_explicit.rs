@@ -23,18 +23,18 @@ pub(crate) struct How {
 /// and peak memory.
 pub(crate) fn run(
     stream: &[u8],
-    options: &salvq::DecodeOptions,
+    options: &salvq::DecoderBuilder,
     output: Option<&Output>,
     how: How,
     t: Instant,
 ) -> Result<(), Error> {
-    let decoded = match salvq::decoder::decode_any(stream, options)? {
-        salvq::decoder::Decoded::Gaussians(d) => d,
-        salvq::decoder::Decoded::Anchors(_) => unreachable!("is_explicit chose the profile"),
+    let decoded = match options.build().decode(stream)? {
+        salvq::Scene::Gaussians(d) => d,
+        salvq::Scene::Anchors(_) => unreachable!("is_explicit chose the profile"),
     };
     let n = decoded.gaussians.len();
     if decoded.truncated {
-        let asked = match options.rate {
+        let asked = match options.build().rate() {
             Some(r) if r != decoded.rate => format!(" (rate {r} was asked for)"),
             _ => String::new(),
         };

@@ -36,10 +36,13 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Res
     };
     out!(
         "salvq demo: format {}.{}, {anchors} anchors, seed {seed}, HAC-size model, USQ (identity basis), rate 0\n",
-        salvq::container::FORMAT_MAJOR,
-        salvq::container::FORMAT_MINOR
+        salvq_bitstream::container::FORMAT_MAJOR,
+        salvq_bitstream::container::FORMAT_MINOR
     );
-    salvq::model::validate::check_field(salvq::error::Field::AnchorCount, anchors.into())?;
+    salvq_bitstream::model::validate::check_field(
+        salvq_bitstream::error::Field::AnchorCount,
+        anchors.into(),
+    )?;
     let params = GenParams {
         feat_basis: false,
         ..GenParams::new(anchors, seed)
@@ -63,7 +66,7 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Res
     salvq_render::io::write_bytes_atomic(&dir.join(stream_name), stream)?;
 
     let t = Instant::now();
-    let decoded = salvq::decode(stream)?;
+    let decoded = salvq::decode(stream).and_then(salvq::Scene::try_into_anchors)?;
     let t_dec = secs(t);
     write_model(&decoded, &dir.join(decoded_name))?;
 
@@ -121,7 +124,7 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Res
     // Verify: geometry and masks exact, the MLPs as stored, attributes within half a step.
     // The quantizer is lossless but for the base step the encoder may refine to hold the
     // distortion with i8 context-MLP weights (spec Annex A.5.4).
-    let feat_quantizer = salvq::model::GroupQuantizer {
+    let feat_quantizer = salvq_bitstream::model::GroupQuantizer {
         step: (f64::from(model.quant_feat.step) * encoded.context.step_factors[0]) as f32,
         ..model.quant_feat.clone()
     };

@@ -163,13 +163,15 @@ pub fn run_model(
     let mut model = model_from_safetensors(&bytes)?;
     drop(bytes);
     let feat_lattice = match a.quantizer.as_str() {
-        "usq" => Some(salvq::LatticeKind::Identity),
-        "dn" => Some(salvq::LatticeKind::Dn),
-        "e8" => Some(salvq::LatticeKind::E8Product),
-        "salvq" => Some(salvq::LatticeKind::General),
+        "usq" => Some(salvq_bitstream::model::LatticeKind::Identity),
+        "dn" => Some(salvq_bitstream::model::LatticeKind::Dn),
+        "e8" => Some(salvq_bitstream::model::LatticeKind::E8Product),
+        "salvq" => Some(salvq_bitstream::model::LatticeKind::General),
         _ => None,
     };
-    if feat_lattice == Some(salvq::LatticeKind::General) && model.quant_feat.basis.is_none() {
+    if feat_lattice == Some(salvq_bitstream::model::LatticeKind::General)
+        && model.quant_feat.basis.is_none()
+    {
         return Err(Error::OptionUnsupported {
             option: "--quantizer salvq",
             reason: "the model has no learned lattice basis (quant.feat.basis_u, _s, _v)",
@@ -187,13 +189,13 @@ pub fn run_model(
         fit_scales: a.fit_scales,
         tile_anchors: a.tile_anchors.unwrap_or(0),
         scaffold_precision: match a.scaffold_precision.as_str() {
-            "f32" => Some(salvq::container::payload::ScaffoldPrecision::F32),
-            "f16" => Some(salvq::container::payload::ScaffoldPrecision::F16),
+            "f32" => Some(salvq_bitstream::container::payload::ScaffoldPrecision::F32),
+            "f16" => Some(salvq_bitstream::container::payload::ScaffoldPrecision::F16),
             _ => None,
         },
         context_precision: match a.context_precision.as_str() {
-            "i16" => Some(salvq::container::payload::ContextPrecision::I16),
-            "i8" => Some(salvq::container::payload::ContextPrecision::I8),
+            "i16" => Some(salvq_bitstream::container::payload::ContextPrecision::I16),
+            "i8" => Some(salvq_bitstream::container::payload::ContextPrecision::I8),
             _ => None,
         },
     };

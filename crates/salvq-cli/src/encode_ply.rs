@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use salvq::explicit::Gaussians;
+use salvq_bitstream::explicit::Gaussians;
 use salvq_encoder::explicit::prepare::{drop_invalid, value_changes, Dropped, ValueChange};
 use salvq_encoder::explicit::ratios::{QUALITY_HEIGHT, QUALITY_VIEWS, QUALITY_WIDTH};
 use salvq_encoder::explicit::{self, ExplicitOptions, RateControl};

@@ -1,7 +1,8 @@
 //! What a command reads and writes, as gzip and zstd do it: `-` is standard input or
 //! output; an output is named from its input when none is given; an output that exists is
 //! replaced only with `--force`; an input is never written over, by any name; messages go
-//! to standard error, so standard output holds data alone (DESIGN §1d, spec §9.2).
+//! to standard error, so standard output holds data alone and commands compose in pipes
+//! (spec §9.2).
 
 use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};

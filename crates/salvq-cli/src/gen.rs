@@ -68,7 +68,10 @@ pub(crate) fn run(a: GenArgs, ctx: Ctx) -> Result<(), Error> {
     };
     params.feat_basis = a.quantizer == "salvq";
     params.feat_decay = a.feat_decay;
-    salvq::model::validate::check_field(salvq::error::Field::AnchorCount, a.anchors.into())?;
+    salvq_bitstream::model::validate::check_field(
+        salvq_bitstream::error::Field::AnchorCount,
+        a.anchors.into(),
+    )?;
     let t = Instant::now();
     let model = generate(&params);
     let bytes = model_to_safetensors(&model);

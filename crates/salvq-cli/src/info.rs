@@ -43,7 +43,7 @@ struct PlyInfo {
 pub(crate) fn run(a: InfoArgs) -> Result<(), Error> {
     let bytes = files::read_input(&a.input)?;
     // Anything without the stream's magic (§1.2) is a file to encode, or named as what it is.
-    let magic = salvq::container::signature::MAGIC;
+    let magic = salvq_bitstream::container::signature::MAGIC;
     let head = &bytes[..bytes.len().min(magic.len())];
     if head.is_empty() || !magic.starts_with(head) {
         return match input_kind(&bytes)? {
@@ -54,7 +54,7 @@ pub(crate) fn run(a: InfoArgs) -> Result<(), Error> {
             }),
         };
     }
-    if salvq::decoder::is_explicit(&bytes) {
+    if salvq_bitstream::container::is_explicit(&bytes) {
         let info = salvq_encoder::info::explicit::inspect_explicit(&bytes, &Limits::default())?;
         if a.json {
             files::print_json(&info);

@@ -1,4 +1,4 @@
-//! `salvq`: the command-line interface (DESIGN §4 CLI contract, §1d).
+//! `salvq`: the command-line interface, a Unix tool that composes in pipes.
 //!
 //! Standard output carries data alone (`-o -`, reports, `--json`); messages and progress go
 //! to standard error. Errors are one line naming the rule broken and its spec section; the
@@ -184,8 +184,8 @@ fn version() -> String {
     format!(
         "{} (format {}.{}, commit {})",
         env!("CARGO_PKG_VERSION"),
-        salvq::container::FORMAT_MAJOR,
-        salvq::container::FORMAT_MINOR,
+        salvq_bitstream::container::FORMAT_MAJOR,
+        salvq_bitstream::container::FORMAT_MINOR,
         env!("SALVQ_COMMIT")
     )
 }

@@ -228,7 +228,9 @@ pub(crate) fn export_ply(a: ExportPlyArgs, ctx: Ctx) -> Result<(), Error> {
     let model = match &scene {
         Scene::Model(m) => m,
         // An explicit-profile stream (spec §3): its Gaussians are the export.
-        Scene::Gaussians { gaussians: g, .. } if salvq::decoder::is_explicit(&bytes) => {
+        Scene::Gaussians { gaussians: g, .. }
+            if salvq_bitstream::container::is_explicit(&bytes) =>
+        {
             output.write(|w| ply::write_ply(g, w))?;
             if a.json {
                 files::print_json(&written(g.len()));

@@ -6,12 +6,12 @@ use std::time::Instant;
 
 use super::secs;
 
-pub(crate) fn parse_fault(s: &str) -> Result<salvq::decoder::Fault, String> {
+pub(crate) fn parse_fault(s: &str) -> Result<salvq::Fault, String> {
     let k = s
         .strip_prefix("table:")
         .and_then(|k| k.parse::<u8>().ok())
         .ok_or_else(|| format!("`{s}`: expected table:K"))?;
-    Ok(salvq::decoder::Fault::FrequencyTable { scale: k })
+    Ok(salvq::Fault::FrequencyTable { scale: k })
 }
 
 pub(crate) fn conformance(

@@ -94,7 +94,7 @@ fn broken_decoder_fails() -> Result<(), Failed> {
 /// least one valid vector: an error, or an integer-domain hash that differs (§11.2).
 fn every_table_fault_is_caught() -> Result<(), Failed> {
     use rayon::prelude::*;
-    use salvq::decoder::{decode_with_symbols, DecodeOptions, Fault};
+    use salvq::Fault;
     use salvq_conformance::canonical::{canonical_tensors, integer_hash};
     let dir = vectors();
     let manifest = runner::read_manifest(&dir)?;
@@ -118,10 +118,10 @@ fn every_table_fault_is_caught() -> Result<(), Failed> {
         .into_par_iter()
         .filter(|&k| {
             !decodes.iter().any(|(_, stream, rate, hash)| {
-                let options = DecodeOptions::default()
-                    .with_rate(Some(*rate))
-                    .with_fault(Some(Fault::FrequencyTable { scale: k }));
-                match decode_with_symbols(stream, &options) {
+                let options = salvq::Decoder::builder()
+                    .rate(Some(*rate))
+                    .fault(Some(Fault::FrequencyTable { scale: k }));
+                match options.build().decode_with_symbols(stream) {
                     Err(_) => true,
                     Ok((m, sy)) => &integer_hash(&canonical_tensors(&m, &sy)) != hash,
                 }

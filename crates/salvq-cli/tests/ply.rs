@@ -13,7 +13,7 @@ use salvq_render::Gaussians;
 /// `n` Gaussians of SH degree `degree` with awkward binary32 values (negative zero,
 /// subnormals, large exponents) so that a round trip has something to lose.
 fn awkward_gaussians(n: usize, degree: u8) -> Gaussians {
-    let b = salvq::explicit::rest_per_channel(degree);
+    let b = salvq_bitstream::explicit::rest_per_channel(degree);
     let v = |i: usize, j: usize| -> f32 {
         match (i * 31 + j * 7) % 6 {
             0 => -0.0,

@@ -240,7 +240,9 @@ fn export_ply_writes_one_gaussian_per_kept_offset_and_render_writes_a_png() {
     let stream_path = dir.path().join("m.salvq");
     salvq_render::interchange::write_model(&m, &model_path).unwrap();
     std::fs::write(&stream_path, salvq_encoder::encode(&m).unwrap()).unwrap();
-    let decoded = salvq::decode(&std::fs::read(&stream_path).unwrap()).unwrap();
+    let decoded = salvq::decode(&std::fs::read(&stream_path).unwrap())
+        .and_then(salvq::Scene::try_into_anchors)
+        .unwrap();
     for (i, (input, model)) in [(&model_path, &m), (&stream_path, &decoded)]
         .into_iter()
         .enumerate()

@@ -1,8 +1,8 @@
-//! The CLI as a Unix tool (DESIGN §1d): data alone on standard output, messages on standard
-//! error, `-` for standard input, no command writes over one of its inputs or, without
-//! `--force`, over a file that exists; every value changed on input is counted; targets are
-//! sorted so that rate 0 is the finest; progress off a terminal is a line per step; the
-//! encoder's summary is what `compare` measures.
+//! The CLI as a Unix tool, so that it composes in pipes: data alone on standard output,
+//! messages on standard error, `-` for standard input, no command writes over one of its
+//! inputs or, without `--force`, over a file that exists; every value changed on input is
+//! counted; targets are sorted so that rate 0 is the finest; progress off a terminal is a
+//! line per step; the encoder's summary is what `compare` measures.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -406,8 +406,8 @@ fn inputs_it_does_not_read_are_named_by_what_they_are() {
     let v = String::from_utf8_lossy(&o.stdout);
     let format = format!(
         "(format {}.{}, commit ",
-        salvq::container::FORMAT_MAJOR,
-        salvq::container::FORMAT_MINOR
+        salvq_bitstream::container::FORMAT_MAJOR,
+        salvq_bitstream::container::FORMAT_MINOR
     );
     assert!(v.starts_with("salvq 0.") && v.contains(&format), "{v}");
 }

@@ -3,9 +3,9 @@
 
 use sha2::{Digest, Sha256};
 
-use salvq::attributes::Symbols;
-use salvq::model::{names, tensor_table, Dims, SceneModel};
-use salvq::quantizer::LatticeKind;
+use salvq_bitstream::attributes::Symbols;
+use salvq_bitstream::model::{names, tensor_table, Dims, SceneModel};
+use salvq_bitstream::quantizer::LatticeKind;
 use salvq_render::interchange::write_tensor;
 
 /// The reconstructed (floating-point) tensors (§11.2, §11.6): the anchors profile's three
@@ -169,7 +169,7 @@ pub fn canonical_order() -> Vec<&'static str> {
 }
 
 /// The canonical form of an explicit-profile decode (§11.6).
-pub fn explicit_canonical_tensors(d: &salvq::explicit::DecodedGaussians) -> Vec<CanonicalTensor> {
+pub fn explicit_canonical_tensors(d: &salvq::DecodedGaussians) -> Vec<CanonicalTensor> {
     let g = &d.gaussians;
     let n = g.len() as u64;
     let values: u64 = d.groups.iter().map(|g| g.dim as u64).sum();

@@ -3,12 +3,13 @@
 //! would not go, and coded again by the format's own writers. Their oracle is the reference
 //! decode, each checked here to tell apart the readings of the rule it pins.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::surgery;
-use salvq::entropy::{wide_scale, GaussianTables, SymbolWriter};
-use salvq::explicit::attributes::{rest_count_of, walk, BitEvent, Events, TileSymbols};
-use salvq::tiles::{join_bodies, TileTable};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::entropy::{wide_scale, GaussianTables};
+use salvq_bitstream::explicit::attributes::{rest_count_of, walk, BitEvent, Events, TileSymbols};
+use salvq_bitstream::tiles::{join_bodies, TileTable};
 use salvq_encoder::explicit::{ExplicitOptions, RatePlan};
+use salvq_encoder::writers::surgery;
+use salvq_encoder::writers::SymbolWriter;
 use salvq_encoder::Result;
 use salvq_gen::gaussians::GaussianParams;
 
@@ -58,7 +59,12 @@ fn rotation_near_sphere() -> Result<ExplicitVector> {
         }
     })
     .expect("the stream has a GQUA");
-    let decoded = salvq::explicit::decode_gaussians(&stream, &Default::default(), None)?;
+    let decoded = salvq::Decoder::builder()
+        .limits(Default::default())
+        .rate(None)
+        .build()
+        .decode(&stream)
+        .and_then(salvq::Scene::try_into_gaussians)?;
     let g = decoded.gaussians;
     let beyond = g
         .rotations
@@ -104,8 +110,8 @@ fn rotation_near_sphere() -> Result<ExplicitVector> {
 /// vectors break one rule of a body with everything decoded before it intact.
 pub(crate) struct LayerEdit {
     stream: Vec<u8>,
-    pub(crate) groups: Vec<salvq::explicit::Group>,
-    pub(crate) layer: salvq::explicit::Layer,
+    pub(crate) groups: Vec<salvq_bitstream::explicit::Group>,
+    pub(crate) layer: salvq_bitstream::explicit::Layer,
     pub(crate) tiles: TileTable,
     pub(crate) voxels: Vec<[u32; 3]>,
     pub(crate) symbols: TileSymbols,
@@ -126,7 +132,12 @@ pub(crate) struct EscapeAt {
 impl LayerEdit {
     /// Decodes layer 0 of `stream`, and checks that coding it again gives the same bytes.
     pub(crate) fn new(stream: Vec<u8>) -> LayerEdit {
-        let d = salvq::explicit::decode_gaussians(&stream, &Default::default(), None)
+        let d = salvq::Decoder::builder()
+            .limits(Default::default())
+            .rate(None)
+            .build()
+            .decode(&stream)
+            .and_then(salvq::Scene::try_into_gaussians)
             .expect("the stream decodes");
         assert!(!d.header.progressive, "a layered stream");
         let values = d.groups.iter().map(|g| g.dim).sum();
@@ -168,7 +179,7 @@ impl LayerEdit {
     /// Tile `t`'s `APOS` body (§8) from its voxels.
     pub(crate) fn apos_body(&self, t: usize) -> Vec<u8> {
         let (level, local) = self.local_voxels(t);
-        salvq::geometry::encode(&local, level, GaussianTables::standard())
+        salvq_encoder::writers::encode_geometry(&local, level, GaussianTables::standard())
             .expect("the tile's voxels code")
     }
 
@@ -307,7 +318,12 @@ fn edited(
     sections: &'static [&'static str],
     stream: Vec<u8>,
 ) -> Result<ExplicitVector> {
-    let d = salvq::explicit::decode_gaussians(&stream, &Default::default(), None)?;
+    let d = salvq::Decoder::builder()
+        .limits(Default::default())
+        .rate(None)
+        .build()
+        .decode(&stream)
+        .and_then(salvq::Scene::try_into_gaussians)?;
     Ok(ExplicitVector {
         name,
         description,
@@ -348,7 +364,7 @@ const REST: usize = 10;
 fn rest_prediction(e: &LayerEdit, i: usize, j: usize) -> i32 {
     let shift = |g: usize| e.layer.group_shift(4, usize::from(e.symbols.size_class[g]));
     let u = i64::from(e.coord(i - 1, REST + j));
-    salvq::explicit::attributes::rescale(u, shift(i - 1), shift(i)) as i32
+    salvq_bitstream::explicit::attributes::rescale(u, shift(i - 1), shift(i)) as i32
 }
 
 /// The `sh_rest` count §3.5 codes for Gaussian `i` of an edited [`predicted_scene`].

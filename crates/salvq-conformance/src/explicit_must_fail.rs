@@ -1,9 +1,9 @@
 //! The explicit profile's must-fail vectors (spec §3, §11.4): a base stream of synthetic
 //! Gaussians, layered or progressive, with one rule of §3 broken in each.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::surgery;
+use salvq_bitstream::container::chunk::ChunkTag;
 use salvq_encoder::explicit::ExplicitOptions;
+use salvq_encoder::writers::surgery;
 use salvq_gen::gaussians::GaussianParams;
 
 use super::explicit_must_fail_bodies;

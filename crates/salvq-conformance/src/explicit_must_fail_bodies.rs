@@ -4,9 +4,10 @@
 //! not reached, an escape prefix too long. Each re-codes the base stream's tile 0 (or swaps
 //! tiles) with the format's own writers, everything decoded before the broken rule intact.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::surgery;
-use salvq::entropy::{GaussianTables, SymbolReader, SymbolWriter};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::entropy::{GaussianTables, SymbolReader};
+use salvq_encoder::writers::surgery;
+use salvq_encoder::writers::SymbolWriter;
 
 use super::explicit_edited::{EscapeAt, LayerEdit};
 use super::must_fail::{vector as must_fail, MustFailVector};
@@ -23,7 +24,7 @@ fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
 /// (its `TILS` payload).
 fn tile_bodies(tag: ChunkTag, payload: &[u8], tiles: &[u8]) -> Vec<Vec<u8>> {
     let t = u32::from_le_bytes([tiles[1], tiles[2], tiles[3], tiles[4]]);
-    salvq::tiles::split_bodies(tag, 1, &payload[1..], t as usize)
+    salvq_bitstream::tiles::split_bodies(tag, 1, &payload[1..], t as usize)
         .expect("the chunk's tiles frame")
         .into_iter()
         .map(<[u8]>::to_vec)
@@ -56,7 +57,7 @@ fn tiles_swapped(base: &[u8]) -> Vec<u8> {
                 let mut bodies = tile_bodies(*tag, p, &tils);
                 bodies.swap(0, 1);
                 p.truncate(1);
-                p.extend(salvq::tiles::join_bodies(&bodies));
+                p.extend(salvq_bitstream::tiles::join_bodies(&bodies));
             }
             _ => continue,
         }
@@ -100,10 +101,10 @@ fn octree_changed(base: &[u8], change: impl FnOnce(&mut Vec<[u32; 3]>, u8)) -> V
     let e = LayerEdit::new(base.to_vec());
     let (level, mut local) = e.local_voxels(0);
     change(&mut local, level);
-    local.sort_by_key(|&v| salvq::model::morton3(v));
+    local.sort_by_key(|&v| salvq_bitstream::model::morton3(v));
     let tils = payload_of(base, ChunkTag::TILS);
     let mut apos = tile_bodies(ChunkTag::APOS, &payload_of(base, ChunkTag::APOS), &tils);
-    apos[0] = salvq::geometry::encode(&local, level, GaussianTables::standard())
+    apos[0] = salvq_encoder::writers::encode_geometry(&local, level, GaussianTables::standard())
         .expect("the voxels code");
     let gatt = tile_bodies(ChunkTag::GATT, &payload_of(base, ChunkTag::GATT), &tils);
     e.stream_with(&apos, &gatt)
@@ -197,7 +198,7 @@ fn tile0_body(base: &[u8], tag: ChunkTag, f: impl FnOnce(&mut Vec<u8>)) -> Vec<u
         let mut bodies = tile_bodies(tag, p, &tils);
         f(&mut bodies[0]);
         p.truncate(1);
-        p.extend(salvq::tiles::join_bodies(&bodies));
+        p.extend(salvq_bitstream::tiles::join_bodies(&bodies));
     })
 }
 
@@ -217,13 +218,17 @@ fn apos_extra_event(base: &[u8]) -> Vec<u8> {
         reader: SymbolReader<'a>,
         writer: SymbolWriter<'a>,
     }
-    impl salvq::geometry::Events for Transcribe<'_> {
-        fn bit(&mut self, freq_one: u32, _: salvq::geometry::Event) -> salvq::Result<bool> {
+    impl salvq_bitstream::geometry::Events for Transcribe<'_> {
+        fn bit(
+            &mut self,
+            freq_one: u32,
+            _: salvq_bitstream::geometry::Event,
+        ) -> salvq::Result<bool> {
             let b = self.reader.bit(freq_one)?;
             self.writer.bit(b, freq_one);
             Ok(b)
         }
-        fn octant(&mut self, _: salvq::geometry::DirectOctant) -> salvq::Result<u32> {
+        fn octant(&mut self, _: salvq_bitstream::geometry::DirectOctant) -> salvq::Result<u32> {
             let v = self.reader.uniform(3)?;
             self.writer.uniform(v, 3);
             Ok(v)
@@ -239,7 +244,8 @@ fn apos_extra_event(base: &[u8]) -> Vec<u8> {
     };
     let (level, _) = e.local_voxels(0);
     let n = e.tiles.count(0);
-    salvq::geometry::walk(level, n, tables.precision(), &mut copy).expect("the body decodes");
+    salvq_bitstream::geometry::walk(level, n, tables.precision(), &mut copy)
+        .expect("the body decodes");
     copy.reader
         .finish()
         .expect("the body ends where its events do");

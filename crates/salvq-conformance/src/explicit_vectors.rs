@@ -2,7 +2,7 @@
 //! synthetic Gaussians (Annex B.6) coded with fixed plans (no rendering, so regenerating
 //! gives the same bytes), and must-fail streams that each break one rule of §3.
 
-use salvq::explicit::Gaussians;
+use salvq_bitstream::explicit::Gaussians;
 use salvq_encoder::explicit::{
     encode_prepared, EncodedGaussians, ExplicitOptions, PreparedGaussians, RateControl, RatePlan,
 };

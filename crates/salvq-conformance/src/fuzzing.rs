@@ -3,13 +3,13 @@
 //! that found it. Each function panics only when a property is broken: any input the
 //! decoder refuses with an error is a pass.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::signature::Signature;
-use salvq::decoder::{decode_with_options, DecodeOptions};
-use salvq::entropy::GaussianTables;
-use salvq::extract::extract_rate;
-use salvq::limits::Limits;
-use salvq::model::{decoded_bytes, morton3, LatticeKind};
+use salvq::extract_rate;
+use salvq::DecoderBuilder;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::container::signature::Signature;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::limits::Limits;
+use salvq_bitstream::model::{decoded_bytes, morton3, LatticeKind};
 use salvq_encoder::{encode_full, EncodeOptions, Search};
 use salvq_gen::{generate, GenParams};
 
@@ -38,17 +38,19 @@ pub fn allocation_bound(decoded_bytes: u64, stream_len: u64) -> u64 {
 /// payload reaches the payload's own checks instead of stopping at its CRC.
 pub fn with_fixed_crcs(data: &[u8]) -> Vec<u8> {
     let mut out = data.to_vec();
-    let mut at = salvq::container::signature::SIGNATURE_LEN;
+    let mut at = salvq_bitstream::container::signature::SIGNATURE_LEN;
     while let Some(header) = out.get(at..at + 8) {
         let len = u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
-        let tag = salvq::container::chunk::ChunkTag([header[4], header[5], header[6], header[7]]);
+        let tag = salvq_bitstream::container::chunk::ChunkTag([
+            header[4], header[5], header[6], header[7],
+        ]);
         let Some(end) = (at + 8).checked_add(len) else {
             break;
         };
         if end + 4 > out.len() {
             break;
         }
-        let crc = salvq::container::chunk::chunk_crc(tag, &out[at + 8..end]);
+        let crc = salvq_bitstream::container::chunk::chunk_crc(tag, &out[at + 8..end]);
         out[end..end + 4].copy_from_slice(&crc.to_le_bytes());
         at = end + 4;
     }
@@ -76,18 +78,18 @@ pub fn stated_decoded_bytes(data: &[u8], limits: &Limits) -> u64 {
     let Ok((_, rest)) = Signature::parse(data) else {
         return 0;
     };
-    let mut reader = salvq::container::chunk::ChunkReader::new(
+    let mut reader = salvq_bitstream::container::chunk::ChunkReader::new(
         rest,
-        salvq::container::signature::SIGNATURE_LEN as u64,
+        salvq_bitstream::container::signature::SIGNATURE_LEN as u64,
         limits,
     );
     match reader.next_chunk() {
-        Ok(Some(c)) if c.tag == salvq::container::chunk::ChunkTag::HEAD => {
-            salvq::container::preflight::Preflight::parse(c.payload, limits)
+        Ok(Some(c)) if c.tag == salvq_bitstream::container::chunk::ChunkTag::HEAD => {
+            salvq_bitstream::container::preflight::Preflight::parse(c.payload, limits)
                 .map_or(0, |p| p.decoded_bytes)
         }
-        Ok(Some(c)) if c.tag == salvq::container::chunk::ChunkTag::GHED => {
-            salvq::explicit::GaussianHeader::parse(c.payload, limits)
+        Ok(Some(c)) if c.tag == salvq_bitstream::container::chunk::ChunkTag::GHED => {
+            salvq_bitstream::explicit::GaussianHeader::parse(c.payload, limits)
                 .map_or(0, |h| h.decoded_bytes())
         }
         _ => 0,
@@ -111,17 +113,17 @@ pub fn decode_input_metered(data: &[u8], meter: &dyn AllocationMeter) {
 /// the encoder accepts re-encodes to a stream that decodes.
 pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
     let limits = fuzz_limits();
-    let options = DecodeOptions::default()
-        .with_limits(limits)
-        .with_rate(data.last().map(|b| b % 4));
+    let options = salvq::Decoder::builder()
+        .limits(limits)
+        .rate(data.last().map(|b| b % 4));
     let allowed = stated_decoded_bytes(data, &limits).min(limits.max_alloc_bytes);
     meter.cap(Some(allocation_bound(allowed, data.len() as u64)));
-    let decoded = salvq::decoder::decode_any(data, &options);
+    let decoded = options.build().decode(data);
     meter.cap(None);
-    if salvq::decoder::is_explicit(data) {
+    if salvq_bitstream::container::is_explicit(data) {
         // Fed in pieces, the stream decodes to the same result or the same error.
         let piece = 1 + usize::from(data.first().copied().unwrap_or(0)) * 7;
-        let mut streaming = salvq::stream::StreamDecoder::new(options.clone());
+        let mut streaming = options.build().stream();
         for p in data.chunks(piece) {
             if streaming.feed(p).is_err() {
                 break;
@@ -135,8 +137,8 @@ pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
         check_parts(data, &options, &decoded);
     }
     let model = match decoded {
-        Ok(salvq::decoder::Decoded::Anchors(model)) => model,
-        Ok(salvq::decoder::Decoded::Gaussians(d)) => {
+        Ok(salvq::Scene::Anchors(model)) => model,
+        Ok(salvq::Scene::Gaussians(d)) => {
             check_explicit_decode(&d, &limits);
             return;
         }
@@ -148,25 +150,24 @@ pub fn decode_checked(data: &[u8], meter: &dyn AllocationMeter) {
         "decoded {size} bytes past the limit"
     );
     if let Ok(e) = encode_full(&model, &EncodeOptions::default()) {
-        let again = decode_with_options(&e.stream, &DecodeOptions::default());
+        let again = (salvq::Decoder::builder())
+            .build()
+            .decode(&e.stream)
+            .and_then(salvq::Scene::try_into_anchors);
         assert!(again.is_ok(), "re-encoded stream fails: {:?}", again.err());
     }
 }
 
 /// Part decodes (§10.3.2) of an explicit-profile stream never panic, and where the whole
 /// stream decodes, so does each of two parts, to its tiles' Gaussians of the whole decode.
-fn check_parts(
-    data: &[u8],
-    options: &DecodeOptions,
-    whole: &salvq::Result<salvq::decoder::Decoded>,
-) {
+fn check_parts(data: &[u8], options: &DecoderBuilder, whole: &salvq::Result<salvq::Scene>) {
     for index in 0..2 {
         let part = salvq::TilePart::new(index, 2);
-        let decoded = salvq::decoder::decode_any(data, &options.clone().with_part(part));
-        let Ok(salvq::decoder::Decoded::Gaussians(whole)) = whole else {
+        let decoded = (options.clone().part(part)).build().decode(data);
+        let Ok(salvq::Scene::Gaussians(whole)) = whole else {
             continue;
         };
-        let Ok(salvq::decoder::Decoded::Gaussians(mine)) = decoded else {
+        let Ok(salvq::Scene::Gaussians(mine)) = decoded else {
             panic!("part {index} of 2 fails where the whole stream decodes: {decoded:?}");
         };
         let t = &whole.tiles;
@@ -189,7 +190,7 @@ fn check_parts(
 
 /// An explicit-profile decode (§3): within the limits, and Gaussians the encoder accepts
 /// re-encode (with a fixed plan) to a stream that decodes to the encoder's prediction.
-fn check_explicit_decode(d: &salvq::explicit::DecodedGaussians, limits: &Limits) {
+fn check_explicit_decode(d: &salvq::DecodedGaussians, limits: &Limits) {
     let size = d.header.decoded_bytes();
     assert!(
         size <= limits.max_alloc_bytes,
@@ -205,7 +206,12 @@ fn check_explicit_decode(d: &salvq::explicit::DecodedGaussians, limits: &Limits)
         ..Default::default()
     };
     if let Ok(e) = salvq_encoder::explicit::encode_prepared(&p, &[plan], &options) {
-        let again = salvq::explicit::decode_gaussians(&e.stream, &Limits::default(), None);
+        let again = salvq::Decoder::builder()
+            .limits(Limits::default())
+            .rate(None)
+            .build()
+            .decode(&e.stream)
+            .and_then(salvq::Scene::try_into_gaussians);
         match again {
             Ok(a) => assert!(
                 a.gaussians == e.layers[0].2,
@@ -258,12 +264,12 @@ pub fn payload_base() -> &'static [u8] {
 
 /// The explicit profile's payload chunks [`payload_input`] replaces (§3).
 pub const EXPLICIT_PAYLOAD_TAGS: [ChunkTag; 6] = [
-    salvq::explicit::decode::CRITICAL_CHUNKS[0],
-    salvq::explicit::decode::CRITICAL_CHUNKS[1],
-    salvq::explicit::decode::CRITICAL_CHUNKS[2],
-    salvq::explicit::decode::CRITICAL_CHUNKS[3],
-    salvq::explicit::decode::CRITICAL_CHUNKS[4],
-    salvq::explicit::decode::CRITICAL_CHUNKS[5],
+    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[0],
+    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[1],
+    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[2],
+    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[3],
+    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[4],
+    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[5],
 ];
 
 /// The explicit-profile stream [`payload_input`] splices into: 40 synthetic Gaussians of SH
@@ -306,7 +312,7 @@ pub fn payload_input(data: &[u8]) {
         ),
     };
     if let Some(stream) =
-        salvq::container::surgery::edit_payload(base, tag, |p| *p = payload.to_vec())
+        salvq_encoder::writers::surgery::edit_payload(base, tag, |p| *p = payload.to_vec())
     {
         decode_checked(&stream, &NoMeter);
     }
@@ -317,7 +323,7 @@ pub fn payload_input(data: &[u8]) {
 /// preflight).
 pub fn preflight_input(data: &[u8]) {
     let limits = fuzz_limits();
-    let Ok(p) = salvq::container::preflight::Preflight::parse(data, &limits) else {
+    let Ok(p) = salvq_bitstream::container::preflight::Preflight::parse(data, &limits) else {
         return;
     };
     assert!(p.decoded_bytes <= limits.max_alloc_bytes);
@@ -342,12 +348,10 @@ pub fn extract_input(data: &[u8]) {
     assert!(Signature::parse(&single).is_ok());
     let again = extract_rate(&single, rate, &limits).expect("an extracted stream extracts");
     assert_eq!(again, single, "extraction is not idempotent");
-    let _ = decode_with_options(
-        &single,
-        &DecodeOptions::default()
-            .with_limits(limits)
-            .with_rate(Some(rate)),
-    );
+    let _ = (salvq::Decoder::builder().limits(limits).rate(Some(rate)))
+        .build()
+        .decode(&single)
+        .and_then(salvq::Scene::try_into_anchors);
 }
 
 /// The octree decoder (§8) on arbitrary bytes: never panics; what it decodes has the asked
@@ -360,7 +364,7 @@ pub fn geometry_input(data: &[u8]) {
     let depth = d % 22;
     let anchors = 1 + u32::from(u16::from_le_bytes([*a0, *a1]) % 4096);
     let tables = GaussianTables::standard();
-    let Ok(voxels) = salvq::geometry::decode(body, depth, anchors, tables) else {
+    let Ok(voxels) = salvq_bitstream::geometry::decode(body, depth, anchors, tables) else {
         return;
     };
     assert_eq!(voxels.len(), anchors as usize);
@@ -369,8 +373,10 @@ pub fn geometry_input(data: &[u8]) {
         .flatten()
         .all(|&c| u64::from(c) < 1u64 << depth));
     assert!(voxels.windows(2).all(|w| morton3(w[0]) <= morton3(w[1])));
-    let again = salvq::geometry::encode(&voxels, depth, tables).expect("decoded voxels encode");
-    let back = salvq::geometry::decode(&again, depth, anchors, tables).expect("re-encoded decodes");
+    let again = salvq_encoder::writers::encode_geometry(&voxels, depth, tables)
+        .expect("decoded voxels encode");
+    let back = salvq_bitstream::geometry::decode(&again, depth, anchors, tables)
+        .expect("re-encoded decodes");
     assert_eq!(back, voxels);
 }
 
@@ -449,11 +455,11 @@ pub fn round_trip(p: RoundTrip) {
         return;
     };
     for layer in &e.layers {
-        let d = decode_with_options(
-            &e.stream,
-            &DecodeOptions::default().with_rate(Some(layer.rate)),
-        )
-        .expect("an encoded stream decodes");
+        let d = (salvq::Decoder::builder().rate(Some(layer.rate)))
+            .build()
+            .decode(&e.stream)
+            .and_then(salvq::Scene::try_into_anchors)
+            .expect("an encoded stream decodes");
         assert_eq!(d, layer.expected, "rate {}", layer.rate);
     }
 }

@@ -18,10 +18,7 @@ use super::manifest::{
 use super::must_fail::must_fail_vectors;
 use super::region_vectors::{anchors_tiles, region_cases, selected_tiles};
 use super::vectors::{valid_vectors, BASE_SECTIONS};
-use salvq::container::signature::{FORMAT_MAJOR, FORMAT_MINOR};
-use salvq::decoder::{decode_with_symbols, DecodeOptions};
-use salvq::explicit::decode::decode_gaussians_in;
-use salvq::explicit::decode_gaussians;
+use salvq_bitstream::container::signature::{FORMAT_MAJOR, FORMAT_MINOR};
 
 use super::canonical::{explicit_canonical_tensors, EXPLICIT_INTEGER_TENSORS};
 use super::explicit_edited::edited_valid_vectors;
@@ -103,8 +100,10 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         let file = format!("{}.salvq", v.name);
         let mut decodes = Vec::new();
         for (i, &rate) in v.rates.iter().enumerate() {
-            let options = DecodeOptions::default().with_rate(Some(rate));
-            let (model, symbols) = decode_with_symbols(&v.stream, &options)
+            let options = salvq::Decoder::builder().rate(Some(rate));
+            let (model, symbols) = options
+                .build()
+                .decode_with_symbols(&v.stream)
                 .map_err(|e| format!("{} rate {rate}: the reference decoder fails: {e}", v.name))?;
             if v.oracle.get(i) != Some(&model) {
                 return Err(format!(
@@ -138,7 +137,12 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         let file = format!("{}.salvq", v.name);
         let mut decodes = Vec::new();
         for (i, &rate) in v.rates.iter().enumerate() {
-            let d = decode_gaussians(&v.stream, &Default::default(), Some(rate))
+            let d = salvq::Decoder::builder()
+                .limits(Default::default())
+                .rate(Some(rate))
+                .build()
+                .decode(&v.stream)
+                .and_then(salvq::Scene::try_into_gaussians)
                 .map_err(|e| format!("{} rate {rate}: the reference decoder fails: {e}", v.name))?;
             if v.oracle.get(i) != Some(&d.gaussians) {
                 return Err(format!(
@@ -168,8 +172,8 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         .into_iter()
         .chain(explicit_must_fail_vectors())
     {
-        let options = DecodeOptions::default().with_rate(Some(v.rate));
-        match salvq::decoder::decode_any(&v.stream, &options) {
+        let options = salvq::Decoder::builder().rate(Some(v.rate));
+        match options.build().decode(&v.stream) {
             Err(e) if e.class() == v.class => {}
             other => {
                 return Err(format!(
@@ -268,17 +272,25 @@ fn region_decodes(
         let rate = case.rate;
         let fail = |e: salvq::Error| format!("{name} region {k}: the reference decoder fails: {e}");
         let tiles = selected_tiles(stream, rate, case.region);
-        let (tensors, count) = if salvq::decoder::is_explicit(stream) {
-            let d = decode_gaussians_in(stream, &Default::default(), Some(rate), Some(case.region))
+        let (tensors, count) = if salvq_bitstream::container::is_explicit(stream) {
+            let d = salvq::Decoder::builder()
+                .limits(Default::default())
+                .rate(Some(rate))
+                .region(Some(case.region))
+                .build()
+                .decode(stream)
+                .and_then(salvq::Scene::try_into_gaussians)
                 .map_err(fail)?;
             (explicit_canonical_tensors(&d), d.gaussians.len() as u64)
         } else {
-            let options = DecodeOptions::default()
-                .with_rate(Some(rate))
-                .with_region(Some(case.region));
-            let (model, symbols) = decode_with_symbols(stream, &options).map_err(fail)?;
-            if let Ok(whole) =
-                salvq::decode_with_options(stream, &options.clone().with_region(None))
+            let options = salvq::Decoder::builder()
+                .rate(Some(rate))
+                .region(Some(case.region));
+            let (model, symbols) = options.build().decode_with_symbols(stream).map_err(fail)?;
+            if let Ok(whole) = (options.clone().region(None))
+                .build()
+                .decode(stream)
+                .and_then(salvq::Scene::try_into_anchors)
             {
                 check_region_rows(name, k, stream, &whole, &model, &tiles)?;
             }

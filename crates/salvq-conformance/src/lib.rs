@@ -20,6 +20,7 @@ pub mod generate;
 pub mod manifest;
 pub mod models;
 pub mod must_fail;
+pub mod reference_coder;
 pub mod region_vectors;
 pub mod runner;
 pub mod vectors;

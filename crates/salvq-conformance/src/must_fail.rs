@@ -4,7 +4,7 @@
 //!
 //! Every vector starts from a tiny generated scene (Annex B: 13 anchors, seed 1, narrow MLPs)
 //! encoded by the reference encoder, and changes one thing with the chunk surgery of
-//! [`salvq::container::surgery`], which recomputes CRCs: every CRC a decoder reaches is valid
+//! [`salvq_encoder::writers::surgery`], which recomputes CRCs: every CRC a decoder reaches is valid
 //! except in `x-chunk-crc-mismatch`. The streams are deterministic: the generator is seeded
 //! and nothing else varies.
 //!
@@ -14,12 +14,12 @@
 mod head;
 mod payload;
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::preflight::Preflight;
-use salvq::container::signature::SIGNATURE_LEN;
-use salvq::container::surgery;
-use salvq::limits::Limits;
-use salvq::model::SceneModel;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::container::preflight::Preflight;
+use salvq_bitstream::container::signature::SIGNATURE_LEN;
+use salvq_bitstream::limits::Limits;
+use salvq_bitstream::model::SceneModel;
+use salvq_encoder::writers::surgery;
 use salvq_encoder::{encode_with_options, EncodeOptions};
 use salvq_gen::{generate, GenParams};
 
@@ -47,7 +47,7 @@ pub fn must_fail_vectors() -> Vec<MustFailVector> {
     // (Annex A.5.2), so that the `MLPS` vectors can narrow them (x-scaffold-precision-length,
     // x-scaffold-f16-not-finite).
     let options = EncodeOptions {
-        scaffold_precision: Some(salvq::container::payload::ScaffoldPrecision::F32),
+        scaffold_precision: Some(salvq_bitstream::container::payload::ScaffoldPrecision::F32),
         ..Default::default()
     };
     let base = encode(&small_scene(13, false), &options);
@@ -177,7 +177,7 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "UnsupportedMinorVersion",
             &["§1.2", "§1.2.1"],
             "minor version one above the decoder's in the draft series",
-            with(&|s| s[9] = salvq::container::signature::FORMAT_MINOR + 1),
+            with(&|s| s[9] = salvq_bitstream::container::signature::FORMAT_MINOR + 1),
         ),
         vector(
             "x-older-minor-version",
@@ -185,7 +185,7 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             &["§1.2", "§1.2.1"],
             "minor version one below the decoder's in the draft series (draft versions are \
              never read by a later draft's decoder)",
-            with(&|s| s[9] = salvq::container::signature::FORMAT_MINOR - 1),
+            with(&|s| s[9] = salvq_bitstream::container::signature::FORMAT_MINOR - 1),
         ),
         vector(
             "x-reserved-file-flags",
@@ -314,9 +314,9 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use salvq::decoder::{decode_with_options, DecodeOptions};
-    use salvq::error::{AnsFault, Error, Structure};
-    use salvq::geometry;
+
+    use salvq_bitstream::error::{AnsFault, Error, Structure};
+    use salvq_bitstream::geometry;
     use std::collections::BTreeSet;
 
     /// Table 9-1's classes a stream decoder can report (encoder-only and model-file classes
@@ -357,8 +357,12 @@ mod tests {
     const UNREACHABLE: [&str; 1] = ["ScaleIndexOutOfRange"];
 
     fn decode_vector(v: &MustFailVector) -> Error {
-        let options = DecodeOptions::default().with_rate(Some(v.rate));
-        match decode_with_options(&v.stream, &options) {
+        let options = salvq::Decoder::builder().rate(Some(v.rate));
+        match options
+            .build()
+            .decode(&v.stream)
+            .and_then(salvq::Scene::try_into_anchors)
+        {
             Ok(_) => panic!("{}: decoded", v.name),
             Err(e) => e,
         }
@@ -536,21 +540,21 @@ mod tests {
                 "x-limit-chunk-length" => matches!(
                     e,
                     salvq::Error::LimitExceeded {
-                        limit: salvq::limits::LimitKind::ChunkBytes,
+                        limit: salvq_bitstream::limits::LimitKind::ChunkBytes,
                         ..
                     }
                 ),
                 "x-limit-anchors" => matches!(
                     e,
                     salvq::Error::LimitExceeded {
-                        limit: salvq::limits::LimitKind::Anchors,
+                        limit: salvq_bitstream::limits::LimitKind::Anchors,
                         ..
                     }
                 ),
                 "x-limit-allocation" => matches!(
                     e,
                     salvq::Error::LimitExceeded {
-                        limit: salvq::limits::LimitKind::AllocationBytes,
+                        limit: salvq_bitstream::limits::LimitKind::AllocationBytes,
                         ..
                     }
                 ),

@@ -7,12 +7,12 @@
 //! Each box is checked here against the rule it pins: a face box must select a tile that a
 //! strict (open) test would not, so the vector tells the two readings apart.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::preflight::Preflight;
-use salvq::container::surgery;
-use salvq::limits::Limits;
-use salvq::tiles::TileTable;
 use salvq::RegionBox;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::container::preflight::Preflight;
+use salvq_bitstream::limits::Limits;
+use salvq_bitstream::tiles::TileTable;
+use salvq_encoder::writers::surgery;
 
 /// One region decode of a vector.
 pub struct RegionCase {
@@ -107,7 +107,12 @@ fn anchors_grid(stream: &[u8]) -> TileGrid {
 }
 
 fn explicit_grid(stream: &[u8], rate: u8) -> TileGrid {
-    let d = salvq::explicit::decode_gaussians(stream, &Limits::default(), Some(rate))
+    let d = salvq::Decoder::builder()
+        .limits(Limits::default())
+        .rate(Some(rate))
+        .build()
+        .decode(stream)
+        .and_then(salvq::Scene::try_into_gaussians)
         .expect("a valid explicit vector decodes");
     TileGrid {
         tiles: d.tiles,
@@ -168,7 +173,9 @@ pub fn region_cases(name: &str, stream: &[u8]) -> Vec<RegionCase> {
 
 fn tiles_regions_cases(stream: &[u8]) -> Vec<RegionCase> {
     let g = anchors_grid(stream);
-    let model = salvq::decode(stream).expect("a valid vector decodes");
+    let model = salvq::decode(stream)
+        .and_then(salvq::Scene::try_into_anchors)
+        .expect("a valid vector decodes");
     let starts: Vec<usize> = model
         .quant_feat
         .region_starts()
@@ -232,7 +239,7 @@ pub fn anchors_tiles(stream: &[u8]) -> TileTable {
 
 /// The tiles `region` selects in `stream` at `rate` (for the manifest).
 pub fn selected_tiles(stream: &[u8], rate: u8, region: RegionBox) -> Vec<u32> {
-    let g = if salvq::decoder::is_explicit(stream) {
+    let g = if salvq_bitstream::container::is_explicit(stream) {
         explicit_grid(stream, rate)
     } else {
         anchors_grid(stream)

@@ -1,11 +1,11 @@
 //! The valid conformance vectors (spec §11.4): each a small stream that exercises some syntax
 //! element or option, built from a seeded model so that regenerating gives the same bytes.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::surgery;
-use salvq::limits::Limits;
-use salvq::model::{Dims, Region, SceneModel};
-use salvq::quantizer::LatticeKind;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::limits::Limits;
+use salvq_bitstream::model::{Dims, Region, SceneModel};
+use salvq_bitstream::quantizer::LatticeKind;
+use salvq_encoder::writers::surgery;
 use salvq_encoder::Result;
 use salvq_encoder::{encode_full, EncodeOptions, Encoded};
 use salvq_gen::{generate, GenParams};
@@ -85,7 +85,7 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
     });
     let four = encode_full(&salvq, &options(&[0, 1, 2, 3]))?;
     // §7.5: rate 2 taken out of the four-rate stream, without re-coding.
-    let extracted = salvq::extract::extract_rate(&four.stream, 2, &Limits::default())?;
+    let extracted = salvq::extract_rate(&four.stream, 2, &Limits::default())?;
     out.push(ValidVector {
         name: "extract-rate-2",
         description: "rate 2 extracted from salvq-four-rates (salvq extract)",
@@ -367,7 +367,9 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         encode_full(
             &usq,
             &EncodeOptions {
-                scaffold_precision: Some(salvq::container::payload::ScaffoldPrecision::F16),
+                scaffold_precision: Some(
+                    salvq_bitstream::container::payload::ScaffoldPrecision::F16,
+                ),
                 ..options(&[0])
             },
         )?,
@@ -381,7 +383,7 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         encode_full(
             &usq,
             &EncodeOptions {
-                context_precision: Some(salvq::container::payload::ContextPrecision::I16),
+                context_precision: Some(salvq_bitstream::container::payload::ContextPrecision::I16),
                 ..options(&[0])
             },
         )?,

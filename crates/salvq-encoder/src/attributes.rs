@@ -7,17 +7,18 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
-use salvq::attributes::mask_freq;
-use salvq::container::chunk::ChunkTag;
-use salvq::container::payload::METHOD_CODED;
-use salvq::entropy::{GaussianTables, SymbolWriter};
-use salvq::hyperprior::prior::{Group, Prior};
-use salvq::model::SceneModel;
-use salvq::tiles::{join_bodies, TileTable};
+use crate::writers::SymbolWriter;
+use salvq_bitstream::attributes::mask_freq;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::container::payload::METHOD_CODED;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::hyperprior::prior::{Group, Prior};
+use salvq_bitstream::model::SceneModel;
+use salvq_bitstream::tiles::{join_bodies, TileTable};
 
 use super::float_prior::FloatPrior;
 use super::search::GroupSearches;
-use salvq::quantizer::reconstruct_value;
+use salvq_bitstream::quantizer::reconstruct_value;
 
 /// What coding one attribute group cost (spec §6.6; reported by `salvq info --json`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

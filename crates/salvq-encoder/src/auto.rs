@@ -12,9 +12,9 @@
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use salvq::container::chunk::ChunkTag;
-use salvq::container::surgery;
-use salvq::model::{names, LatticeKind, SceneModel};
+use crate::writers::surgery;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::model::{names, LatticeKind, SceneModel};
 
 use super::parsimony::{feature_mse, subsample};
 use super::{encode_full, EncodeOptions};
@@ -301,7 +301,7 @@ fn split_bytes(stream: &[u8]) -> Result<(u64, u64)> {
     let mut model = 0u64;
     let mut rest = 0u64;
     for (tag, payload) in surgery::chunks(stream)? {
-        let n = payload.len() as u64 + salvq::container::chunk::CHUNK_OVERHEAD;
+        let n = payload.len() as u64 + salvq_bitstream::container::chunk::CHUNK_OVERHEAD;
         if [
             ChunkTag::HEAD,
             ChunkTag::MLPS,
@@ -322,12 +322,12 @@ fn grid_bytes(stream: &[u8]) -> Result<u64> {
     Ok(surgery::chunks(stream)?
         .iter()
         .filter(|(t, _)| *t == ChunkTag::GRID)
-        .map(|(_, p)| p.len() as u64 + salvq::container::chunk::CHUNK_OVERHEAD)
+        .map(|(_, p)| p.len() as u64 + salvq_bitstream::container::chunk::CHUNK_OVERHEAD)
         .sum())
 }
 
 /// `GRID` chunk bytes for all of `model`'s anchors (§1.6.1), without encoding them.
 fn grid_bytes_of(model: &SceneModel) -> u64 {
     super::parsimony::grid_payload_bytes(model, &model.anchors.voxel)
-        + salvq::container::chunk::CHUNK_OVERHEAD
+        + salvq_bitstream::container::chunk::CHUNK_OVERHEAD
 }

@@ -10,8 +10,8 @@
 use serde::Serialize;
 
 use crate::error::Result;
-use salvq::container::payload::{context_bytes, ContextPrecision, ScaffoldPrecision};
-use salvq::model::SceneModel;
+use salvq_bitstream::container::payload::{context_bytes, ContextPrecision, ScaffoldPrecision};
+use salvq_bitstream::model::SceneModel;
 
 use super::parsimony::subsample;
 use super::values_mse as mse;

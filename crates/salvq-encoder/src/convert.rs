@@ -5,10 +5,10 @@
 use rayon::prelude::*;
 
 use crate::error::Result;
-use salvq::container::payload::ContextPrecision;
-use salvq::hyperprior::mlp::{pow2, HIDDEN_MAX};
-use salvq::hyperprior::{GridLayout, IntMlp};
-use salvq::model::{names, Mlp, SceneModel};
+use salvq_bitstream::container::payload::ContextPrecision;
+use salvq_bitstream::hyperprior::mlp::{pow2, HIDDEN_MAX};
+use salvq_bitstream::hyperprior::{GridLayout, IntMlp};
+use salvq_bitstream::model::{names, Mlp, SceneModel};
 
 const I32_LIMIT: f64 = 2_147_483_647.0;
 /// Headroom kept below i16 / i32 limits for values the scene did not exercise.

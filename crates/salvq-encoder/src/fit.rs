@@ -20,8 +20,8 @@ use rayon::prelude::*;
 
 use super::float_prior::FloatPrior;
 use crate::error::{Error, Result};
-use salvq::model::{names, Basis, Region, SceneModel};
-use salvq::quantizer::GroupLattices;
+use salvq_bitstream::model::{names, Basis, Region, SceneModel};
+use salvq_bitstream::quantizer::GroupLattices;
 
 /// At most this many anchors, evenly spaced in the model's order, enter a fit.
 pub const FIT_SAMPLE: usize = 32_768;

@@ -2,8 +2,8 @@
 //! as the spec's hyperprior (§5) indexes it: the float reference the encoder fits the
 //! context MLP against, and the generator's scene builder.
 
-use salvq::hyperprior::grid::{index2, index3, levels, Level};
-use salvq::model::{Dims, HashGrid};
+use salvq_bitstream::hyperprior::grid::{index2, index3, levels, Level};
+use salvq_bitstream::model::{Dims, HashGrid};
 
 /// Interpolation of the hash grid at voxel centres (Annex B.4.2).
 #[derive(Debug, Clone)]

@@ -4,8 +4,8 @@
 //! trained float model have spent", the baseline of the conversion cost (spec §5).
 
 use crate::float_grid::Interp;
-use salvq::hyperprior::prior::Group;
-use salvq::model::SceneModel;
+use salvq_bitstream::hyperprior::prior::Group;
+use salvq_bitstream::model::SceneModel;
 
 /// Smallest probability the float model assigns (as HAC's likelihood lower bound).
 const P_MIN: f64 = 1e-9;
@@ -13,7 +13,7 @@ const P_MIN: f64 = 1e-9;
 /// P(u) of the Gaussian N(0, sigma^2) convolved with the unit uniform, at integer u, floored
 /// at HAC's likelihood bound.
 fn discretized_gaussian(u: f64, sigma: f64) -> f64 {
-    salvq::entropy::analysis::discretized_gaussian(u as i64, sigma).max(P_MIN)
+    crate::entropy_analysis::discretized_gaussian(u as i64, sigma).max(P_MIN)
 }
 
 /// The float model of one stream: interpolation, MLP weights in f64, base steps.
@@ -47,7 +47,7 @@ impl FloatPrior {
             usize::from(d.scaling_dim),
             3 * usize::from(d.offsets),
         );
-        let g = |q: &salvq::model::GroupQuantizer| {
+        let g = |q: &salvq_bitstream::model::GroupQuantizer| {
             f64::from(q.step) * f64::from(q.gains.get(rate).copied().unwrap_or(1.0))
         };
         FloatPrior {

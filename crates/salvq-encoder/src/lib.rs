@@ -8,6 +8,7 @@ pub mod attributes;
 pub mod auto;
 pub mod context_precision;
 pub mod convert;
+pub mod entropy_analysis;
 pub mod error;
 pub mod explicit;
 pub mod fit;
@@ -19,20 +20,20 @@ pub mod lattice;
 pub mod parsimony;
 pub mod precision;
 pub mod search;
+pub mod writers;
 
 use serde::{Deserialize, Serialize};
 
-use salvq::container::chunk::{write_chunk, ChunkTag};
-use salvq::container::payload;
-use salvq::container::preflight::Preflight;
-use salvq::container::signature::Signature;
-use salvq::entropy::GaussianTables;
-use salvq::error::Field;
-use salvq::hyperprior::prior::Prior;
-use salvq::hyperprior::GridLayout;
-use salvq::model::validate::{check_lattices, validate_model};
-use salvq::model::{decoded_bytes, names, LatticeKind, SceneModel};
-use salvq::quantizer::GroupLattices;
+use salvq_bitstream::container::chunk::{write_chunk, ChunkTag};
+use salvq_bitstream::container::preflight::Preflight;
+use salvq_bitstream::container::signature::Signature;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::error::Field;
+use salvq_bitstream::hyperprior::prior::Prior;
+use salvq_bitstream::hyperprior::GridLayout;
+use salvq_bitstream::model::validate::{check_lattices, validate_model};
+use salvq_bitstream::model::{decoded_bytes, names, LatticeKind, SceneModel};
+use salvq_bitstream::quantizer::GroupLattices;
 
 pub use attributes::GroupStats;
 pub use error::{Error, Result};
@@ -54,7 +55,7 @@ pub struct EncodeOptions {
     /// How the encoder picks lattice points (§7.3 leaves it free).
     pub search: Search,
     /// Anchors per tile (§10); 0: the reference's automatic tiles
-    /// ([`salvq::tiles::TileTable::cut_auto`]).
+    /// ([`salvq_bitstream::tiles::TileTable::cut_auto`]).
     pub tile_anchors: u32,
     /// Replace the feature group's lattice by a basis fitted to the anchors (the KLT,
     /// [`fit::fit_klt_basis`]); `feat_lattice` must then be `None` or the general kind.
@@ -68,11 +69,11 @@ pub struct EncodeOptions {
     /// How to store the Scaffold-GS MLPs (§1.6.2); `None`: binary16 where its renders match
     /// binary32's within 8-bit rounding, or, for a model that does not render neurally, its
     /// outputs within tolerance ([`precision::choose`], Annex A.5.2).
-    pub scaffold_precision: Option<salvq::container::payload::ScaffoldPrecision>,
+    pub scaffold_precision: Option<salvq_bitstream::container::payload::ScaffoldPrecision>,
     /// How to store the context MLP's weights (§1.6.2 Table 1-7); `None`: i8 when the
     /// measured symbol cost is below the model bytes saved ([`context_precision::choose`],
     /// Annex A.5.4).
-    pub context_precision: Option<salvq::container::payload::ContextPrecision>,
+    pub context_precision: Option<salvq_bitstream::container::payload::ContextPrecision>,
 }
 
 /// What the encoder measured for one layer (written to `ests` when asked; `salvq info`
@@ -284,8 +285,8 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     let searches = [fs?, ss?];
     // §10: tiles of consecutive canonical anchors.
     let tiles = match options.tile_anchors {
-        0 => salvq::tiles::TileTable::cut_auto(&m.anchors.voxel),
-        per => salvq::tiles::TileTable::cut(&m.anchors.voxel, per),
+        0 => crate::writers::cut_auto(&m.anchors.voxel),
+        per => crate::writers::cut(&m.anchors.voxel, per),
     };
     let amsk = attributes::code_masks(m, tables, &tiles);
     let grid_entries_stored = touched
@@ -302,19 +303,19 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     write_chunk(
         &mut out,
         ChunkTag::MLPS,
-        &payload::write_mlps(&int_mlp, context.precision, m, scaffold.precision),
+        &crate::writers::write_mlps(&int_mlp, context.precision, m, scaffold.precision),
     );
-    write_chunk(&mut out, ChunkTag::QUAN, &payload::write_quan(m));
+    write_chunk(&mut out, ChunkTag::QUAN, &crate::writers::write_quan(m));
     write_chunk(&mut out, ChunkTag::TILS, &tiles.to_payload());
     write_chunk(
         &mut out,
         ChunkTag::APOS,
-        &payload::write_apos(&m.anchors, &tiles, tables)?,
+        &crate::writers::write_apos(&m.anchors, &tiles, tables)?,
     );
     write_chunk(
         &mut out,
         ChunkTag::GRID,
-        &payload::write_grid(&m.grid, &touched, usize::from(d.grid_channels)),
+        &crate::writers::write_grid(&m.grid, &touched, usize::from(d.grid_channels)),
     );
     write_chunk(&mut out, ChunkTag::AMSK, &amsk);
     // The decoded model's shared parts: the integer MLP's values, +1 at untouched grid
@@ -327,7 +328,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
             .collect()
     };
     let shared = SceneModel {
-        grid: salvq::model::HashGrid {
+        grid: salvq_bitstream::model::HashGrid {
             grid_3d: keep(&m.grid.grid_3d, &touched[0]),
             grid_xy: keep(&m.grid.grid_xy, &touched[1]),
             grid_xz: keep(&m.grid.grid_xz, &touched[2]),
@@ -365,7 +366,7 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         }
         let [feat, scaling, offsets] = coded.recon;
         let expected = SceneModel {
-            anchors: salvq::model::Anchors {
+            anchors: salvq_bitstream::model::Anchors {
                 voxel: m.anchors.voxel.clone(),
                 mask: m.anchors.mask.clone(),
                 feat,

@@ -6,7 +6,7 @@
 //! stream simply describes a model with fewer levels.
 
 use crate::error::Result;
-use salvq::model::{level_entries, Mlp, SceneModel};
+use salvq_bitstream::model::{level_entries, Mlp, SceneModel};
 
 use super::convert::grid_inputs;
 use super::{encode_full, EncodeOptions};
@@ -70,7 +70,7 @@ pub fn without_level(m: &SceneModel, level: GridLevel) -> Option<SceneModel> {
             .collect(),
         _ => return None,
     };
-    let layout = salvq::hyperprior::GridLayout::new(d, m.coord_bits());
+    let layout = salvq_bitstream::hyperprior::GridLayout::new(d, m.coord_bits());
     let cin = layout.features();
     let x = grid_inputs(m, &layout);
     let n = m.n().max(1) as f64;
@@ -155,7 +155,7 @@ pub const PRUNE_SAMPLE: usize = 40_000;
 /// touched entry, zero-padded).
 pub(crate) fn grid_payload_bytes(m: &SceneModel, voxels: &[[u32; 3]]) -> u64 {
     let d = &m.dims;
-    let layout = salvq::hyperprior::GridLayout::new(d, m.coord_bits());
+    let layout = salvq_bitstream::hyperprior::GridLayout::new(d, m.coord_bits());
     let touched: u64 = layout
         .touched(voxels, d.entries_3d(), d.entries_2d())
         .iter()

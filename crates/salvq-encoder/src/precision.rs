@@ -12,8 +12,8 @@ use std::ops::Range;
 
 use serde::Serialize;
 
-use salvq::container::payload::ScaffoldPrecision;
-use salvq::model::{Anchors, Mlp, SceneModel};
+use salvq_bitstream::container::payload::ScaffoldPrecision;
+use salvq_bitstream::model::{Anchors, Mlp, SceneModel};
 use salvq_render::camera::{Bounds, Ring};
 use salvq_render::neural::ScaffoldMlp;
 use salvq_render::neural::{
@@ -493,7 +493,9 @@ mod tests {
                 ..Default::default()
             };
             let e = crate::encode_full(&m, &options).unwrap();
-            let d = salvq::decode(&e.stream).unwrap();
+            let d = salvq::decode(&e.stream)
+                .and_then(salvq::Scene::try_into_anchors)
+                .unwrap();
             assert_eq!(&d, e.expected());
             assert_eq!(d.mlp_cov, rounded(&m.mlp_cov, p));
             if p == ScaffoldPrecision::F16 {

@@ -1,10 +1,10 @@
-//! The encoder's lattice search per attribute group (informative, spec Annex A.4; DESIGN P8:
-//! any choice of lattice point gives a conformant stream, the decoder only computes `B u`).
+//! The encoder's lattice search per attribute group (informative, spec Annex A.4 and §7: any
+//! choice of lattice point gives a conformant stream, the decoder only computes `B u`).
 
 use crate::error::{Error, Result};
 use crate::lattice::{closest_dn, closest_e8_product, Lattice, SearchMethod, DEFAULT_MAX_NODES};
-use salvq::entropy::GaussianTables;
-use salvq::quantizer::{LatticeKind, LatticeMatrix};
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::quantizer::{LatticeKind, LatticeMatrix};
 
 /// Which lattice point the encoder picks for a target (`salvq encode --search`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -225,7 +225,7 @@ pub struct GroupSearches {
 impl GroupSearches {
     /// A search per region of `lattices`.
     pub fn new(
-        lattices: &salvq::quantizer::GroupLattices,
+        lattices: &salvq_bitstream::quantizer::GroupLattices,
         method: Search,
         tensor: &'static str,
     ) -> Result<GroupSearches> {
@@ -249,7 +249,7 @@ impl GroupSearches {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use salvq::model::Basis;
+    use salvq_bitstream::model::Basis;
     use salvq_gen::rng::Stream;
 
     /// `‖B u − t‖² + λ · bits(u)` computed from scratch.

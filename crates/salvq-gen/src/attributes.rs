@@ -8,7 +8,7 @@ use super::detmath::sigmoid;
 use super::grid::Interp;
 use super::linalg::{fsum, round_f32};
 use super::rng::{tag, Stream};
-use salvq::model::{Anchors, Dims, HashGrid};
+use salvq_bitstream::model::{Anchors, Dims, HashGrid};
 
 /// Fraction of anchors with an all-zero mask (the lowest values of the mask field).
 pub const DEAD_FRACTION: f64 = 0.01;

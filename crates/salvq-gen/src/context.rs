@@ -2,7 +2,7 @@
 //! f64 from the stored f32 weights. The attributes are drawn around these outputs (B.5).
 
 use super::detmath::{exp, ln};
-use salvq::model::{Dims, Mlp};
+use salvq_bitstream::model::{Dims, Mlp};
 
 /// mlp_grid layer 0: std * sqrt(fan_in) of the weights (Octree-GS layer 0s measure 0.75-2.8).
 pub const CONTEXT_W0_GAIN: f64 = 1.5;

@@ -9,7 +9,7 @@ use super::context::*;
 use super::detmath::{exp, ln};
 use super::linalg::{fsum, orthogonal, round_f32};
 use super::rng::{tag, Stream};
-use salvq::model::{Dims, Mlp};
+use salvq_bitstream::model::{Dims, Mlp};
 
 fn gaussian(s: &mut Stream, n: usize, std: f64) -> Vec<f64> {
     (0..n).map(|_| s.normal() * std).collect()

@@ -4,7 +4,7 @@
 pub use salvq_encoder::float_grid::Interp;
 
 use super::rng::{tag, Stream};
-use salvq::model::{Dims, HashGrid};
+use salvq_bitstream::model::{Dims, HashGrid};
 
 /// i.i.d. balanced +-1 values: bit b of draw k of stream GRID/t gives entry value 64k + b.
 pub fn grid(d: &Dims, seed: u64) -> HashGrid {

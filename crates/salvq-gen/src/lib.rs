@@ -32,6 +32,7 @@ pub mod quant;
 pub mod rng;
 pub mod scaffold;
 pub mod scene;
+pub mod stats;
 pub mod surfaces;
 
 #[cfg(test)]
@@ -39,8 +40,8 @@ mod tests;
 #[cfg(test)]
 mod tests_report;
 
-use salvq::model::validate::check_dims;
-use salvq::model::{Dims, LatticeKind, SceneModel};
+use salvq_bitstream::model::validate::check_dims;
+use salvq_bitstream::model::{Dims, LatticeKind, SceneModel};
 
 /// What to generate: the scene size and seed, and the model dimensions (spec §2.1).
 #[derive(Debug, Clone, PartialEq)]
@@ -171,7 +172,7 @@ fn coord_bits(voxels: &[[u32; 3]]) -> u8 {
 }
 
 /// Generates a scene model (Annex B), in canonical (Morton) order, that passes
-/// [`validate_model`](salvq::model::validate::validate_model).
+/// [`validate_model`](salvq_bitstream::model::validate::validate_model).
 ///
 /// # Panics
 /// Only if the dimensions of `p` break a range of spec Table 1-4 (`check_dims`): callers

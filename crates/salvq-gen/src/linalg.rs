@@ -68,8 +68,8 @@ pub fn orthogonal(s: &mut Stream, n: usize) -> Vec<f64> {
     q
 }
 
-/// Eigenvalues of a symmetric n x n matrix (cyclic Jacobi), descending. Tests only.
-#[cfg(test)]
+/// Eigenvalues of a symmetric n x n matrix (cyclic Jacobi), descending. Not part of the
+/// generation: the realism statistics ([`crate::stats`]) use it.
 pub fn sym_eigenvalues(mut a: Vec<f64>, n: usize) -> Vec<f64> {
     for _sweep in 0..100 {
         let off: f64 = (0..n)

@@ -3,7 +3,7 @@
 use super::detmath::{exp, ln};
 use super::linalg::{orthogonal, round_f32};
 use super::rng::{tag, Stream};
-use salvq::model::{Basis, GroupQuantizer};
+use salvq_bitstream::model::{Basis, GroupQuantizer};
 
 /// HAC's base steps: features 1, offsets 0.2 (in units of the anchor's scaling).
 pub const STEP_FEAT: f32 = 1.0;

@@ -3,7 +3,7 @@
 
 use super::linalg::round_f32;
 use super::rng::{tag, Stream};
-use salvq::model::{Dims, Mlp};
+use salvq_bitstream::model::{Dims, Mlp};
 
 /// Measured statistics of one Scaffold-GS MLP.
 pub struct MlpStats {

@@ -10,9 +10,9 @@ use super::detmath::exp;
 use super::linalg::fsum;
 use super::rng::{mix, tag, Stream};
 use super::scene::{Scene, BOX_MIN, BOX_SIZE, CLUSTER_EXTRA};
-use salvq::model::morton3;
+use salvq_bitstream::model::morton3;
 
-/// Fraction of anchors that are floaters, uniform in the box (DESIGN §4: "~1-2%").
+/// Fraction of anchors that are floaters, uniform in the box (spec Annex B.3.4).
 pub const FLOATER_FRACTION: f64 = 0.02;
 /// Expected samples per surface voxel where the density is 1 when N is reached (tuned so that
 /// NN distances and octree occupancy match the real Octree-GS anchors, Table B-2).

@@ -6,7 +6,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
-use salvq::error::Field;
+use salvq_bitstream::error::Field;
 
 /// What a file operation was doing when it failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -12,9 +12,9 @@ use safetensors::tensor::TensorView;
 use safetensors::SafeTensors;
 
 use crate::error::{Error, Result};
-use salvq::error::Field;
-use salvq::model::validate::{check_field, validate_model, MAX_COORD_BITS};
-use salvq::model::{
+use salvq_bitstream::error::Field;
+use salvq_bitstream::model::validate::{check_field, validate_model, MAX_COORD_BITS};
+use salvq_bitstream::model::{
     names, tensor_table, Anchors, Basis, Dims, Dtype, GroupQuantizer, HashGrid, LatticeKind, Mlp,
     Region, SceneModel, TensorEntry,
 };
@@ -112,7 +112,7 @@ fn fields(r: &Reader<'_>, name: &'static str, field: Field) -> Result<Vec<u64>> 
     let values = r.i32s(name)?;
     let mut out = Vec::with_capacity(values.len());
     for (i, &v) in values.iter().enumerate() {
-        let (min, max) = salvq::model::validate::field_range(field);
+        let (min, max) = salvq_bitstream::model::validate::field_range(field);
         if v < 0 {
             return Err(salvq::Error::ValueInvalid {
                 tensor: name,
@@ -232,7 +232,7 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
         .unwrap_or_default();
     let r = Reader { st, lattices };
     let dims = infer_dims(&r)?;
-    salvq::model::validate::check_dims(&dims)?;
+    salvq_bitstream::model::validate::check_dims(&dims)?;
     let table = tensor_table(&dims);
     let mut unknown: Vec<String> =
         r.st.names()

@@ -39,7 +39,7 @@ pub mod scene;
 pub mod sh;
 
 pub use error::{Error, Result};
-pub use salvq::explicit::{rest_per_channel, Gaussians};
+pub use salvq_bitstream::explicit::{rest_per_channel, Gaussians};
 
 /// An RGB image of binary32 values, row-major from the top-left pixel, 3 values a pixel.
 /// Values are what the renderer composited: ≥ 0, and usually but not necessarily ≤ 1.

@@ -23,8 +23,8 @@ use rayon::prelude::*;
 
 use super::Gaussians;
 use crate::error::{Error, Result};
-use salvq::error::Field;
-use salvq::model::{names, Mlp, SceneModel};
+use salvq_bitstream::error::Field;
+use salvq_bitstream::model::{names, Mlp, SceneModel};
 
 /// SH band-0 constant `1 / (2 √π)` in binary64.
 pub const SH_C0: f64 = 0.282_094_791_773_878_14;

@@ -6,8 +6,8 @@ use std::borrow::Cow;
 use super::camera::Bounds;
 use super::{neural, ply, Gaussians};
 use crate::error::{Error, Result};
-use salvq::container::signature::MAGIC;
-use salvq::model::SceneModel;
+use salvq_bitstream::container::signature::MAGIC;
+use salvq_bitstream::model::SceneModel;
 
 /// A renderable scene.
 #[derive(Debug, Clone)]
@@ -38,11 +38,11 @@ impl Scene {
             });
         }
         if stream {
-            let options = salvq::DecodeOptions::default().with_rate(rate);
-            return Ok(match salvq::decoder::decode_any(bytes, &options)? {
-                salvq::decoder::Decoded::Anchors(m) => Scene::Model(m),
+            let options = salvq::Decoder::builder().rate(rate);
+            return Ok(match options.build().decode(bytes)? {
+                salvq::Scene::Anchors(m) => Scene::Model(m),
                 // An explicit-profile stream decodes to the Gaussians themselves (§3).
-                salvq::decoder::Decoded::Gaussians(d) => Scene::Gaussians {
+                salvq::Scene::Gaussians(d) => Scene::Gaussians {
                     gaussians: d.gaussians,
                     ring_bounds: None,
                 },

@@ -18,15 +18,15 @@
 
 use wasm_bindgen::prelude::*;
 
-use salvq::container::chunk::{ChunkReader, ChunkTag};
-use salvq::container::payload::read_apos;
-use salvq::container::preflight::Preflight;
-use salvq::container::signature::{Signature, SIGNATURE_LEN};
-use salvq::entropy::GaussianTables;
-use salvq::explicit::Gaussians;
-use salvq::stream::StreamDecoder;
-use salvq::tiles::TileTable;
-use salvq::{DecodeOptions, Decoded, Limits, SceneModel, TilePart};
+use salvq::StreamDecoder;
+use salvq::{DecoderBuilder, Limits, Scene, SceneModel, TilePart};
+use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag};
+use salvq_bitstream::container::payload::read_apos;
+use salvq_bitstream::container::preflight::Preflight;
+use salvq_bitstream::container::signature::{Signature, SIGNATURE_LEN};
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::Gaussians;
+use salvq_bitstream::tiles::TileTable;
 use salvq_render::camera::{Bounds, Ring};
 use salvq_render::neural;
 
@@ -130,10 +130,8 @@ impl Batch {
 }
 
 /// A viewer needs the Gaussians, not the symbols they came from.
-fn options(rate: Option<u8>) -> DecodeOptions {
-    DecodeOptions::default()
-        .with_rate(rate)
-        .with_gaussians_only(true)
+fn options(rate: Option<u8>) -> DecoderBuilder {
+    salvq::Decoder::builder().rate(rate).gaussians_only(true)
 }
 
 fn to_js(e: impl std::fmt::Display) -> JsError {
@@ -142,10 +140,10 @@ fn to_js(e: impl std::fmt::Display) -> JsError {
 
 /// The Gaussians of a decoded stream: an explicit stream's own, or an anchors-profile
 /// model's neural Gaussians seen from ring camera 0 (Annex C.1, C.2).
-fn gaussians_of(decoded: Decoded) -> Result<Gaussians, JsError> {
+fn gaussians_of(decoded: Scene) -> Result<Gaussians, JsError> {
     match decoded {
-        Decoded::Gaussians(d) => Ok(d.gaussians),
-        Decoded::Anchors(m) => {
+        salvq::Scene::Gaussians(d) => Ok(d.gaussians),
+        salvq::Scene::Anchors(m) => {
             let positions = neural::anchor_positions(&m);
             Ok(anchor_gaussians(&m, &positions)?.0)
         }
@@ -212,15 +210,15 @@ fn tile_list(kept: &[bool], mut count: impl FnMut(usize) -> u32) -> (Vec<u32>, V
 }
 
 /// A decoded stream as one batch: for an explicit stream, with the tiles `part` kept.
-fn batch_of(decoded: Decoded, part: Option<TilePart>) -> Result<Batch, JsError> {
+fn batch_of(decoded: Scene, part: Option<TilePart>) -> Result<Batch, JsError> {
     let (tile_indices, tile_counts) = match &decoded {
-        Decoded::Gaussians(d) => {
+        salvq::Scene::Gaussians(d) => {
             let kept = d
                 .tiles
                 .select(d.header.origin, d.layer.voxel_size, None, part);
             tile_list(&kept, |t| d.tiles.count(t))
         }
-        Decoded::Anchors(_) => (Vec::new(), Vec::new()),
+        salvq::Scene::Anchors(_) => (Vec::new(), Vec::new()),
     };
     Ok(Batch {
         gaussians: gaussians_of(decoded)?,
@@ -234,10 +232,7 @@ fn batch_of(decoded: Decoded, part: Option<TilePart>) -> Result<Batch, JsError> 
 /// Decodes a whole stream at `rate` (default: the lowest coded rate).
 #[wasm_bindgen]
 pub fn decode(bytes: &[u8], rate: Option<u8>) -> Result<Batch, JsError> {
-    batch_of(
-        salvq::decode_any(bytes, &options(rate)).map_err(to_js)?,
-        None,
-    )
+    batch_of((options(rate)).build().decode(bytes).map_err(to_js)?, None)
 }
 
 /// Decodes part `part` (from 0) of `parts` of a stream's tiles at `rate` (spec §10.3.2):
@@ -257,9 +252,9 @@ pub fn decode_part(
             "part {part} of {parts}: a part is from 0 to parts - 1 [§10.3.2]"
         ))
     })?;
-    let options = options(rate).with_part(Some(part));
-    match salvq::decode_any(bytes, &options).map_err(to_js)? {
-        Decoded::Anchors(m) => anchors_part(bytes, &m, part),
+    let options = options(rate).part(Some(part));
+    match options.build().decode(bytes).map_err(to_js)? {
+        salvq::Scene::Anchors(m) => anchors_part(bytes, &m, part),
         explicit => batch_of(explicit, Some(part)),
     }
 }
@@ -301,7 +296,7 @@ impl Stream {
     #[wasm_bindgen(constructor)]
     pub fn new(rate: Option<u8>) -> Stream {
         Stream {
-            inner: Some(StreamDecoder::new(options(rate))),
+            inner: Some(options(rate).build().stream()),
             taken: 0,
             tiles_taken: 0,
         }
@@ -362,10 +357,10 @@ impl Stream {
         let decoded = inner.finish().map_err(to_js)?;
         // An explicit stream's tiles complete in order: the ones not yet taken are the rest.
         let (tile_indices, tile_counts) = match &decoded {
-            Decoded::Gaussians(d) => (self.tiles_taken..d.tiles.len())
+            salvq::Scene::Gaussians(d) => (self.tiles_taken..d.tiles.len())
                 .map(|t| (t as u32, d.tiles.count(t)))
                 .unzip(),
-            Decoded::Anchors(_) => (Vec::new(), Vec::new()),
+            salvq::Scene::Anchors(_) => (Vec::new(), Vec::new()),
         };
         let all = gaussians_of(decoded)?;
         let from = self.taken.min(all.len());

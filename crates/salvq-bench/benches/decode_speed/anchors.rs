@@ -5,16 +5,16 @@
 use std::path::Path;
 use std::time::Instant;
 
-use salvq::container::chunk::{ChunkReader, ChunkTag};
-use salvq::container::preflight::Preflight;
-use salvq::container::signature::SIGNATURE_LEN;
-use salvq::decoder::{decode_with_symbols, DecodeOptions, Decoded};
-use salvq::explicit::Gaussians;
-use salvq::model::SceneModel;
-use salvq::tiles::TileTable;
 use salvq::Decoder;
 use salvq::Limits;
+use salvq::Scene;
 use salvq_bench::coder::median;
+use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag};
+use salvq_bitstream::container::preflight::Preflight;
+use salvq_bitstream::container::signature::SIGNATURE_LEN;
+use salvq_bitstream::explicit::Gaussians;
+use salvq_bitstream::model::SceneModel;
+use salvq_bitstream::tiles::TileTable;
 use salvq_encoder::{encode_full, EncodeOptions};
 use salvq_gen::{generate, GenParams};
 use salvq_render::camera::{Bounds, Ring};
@@ -69,8 +69,8 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
         expected = Some(e.expected().clone());
     }
     let stream = std::fs::read(&path)?;
-    let one_opts = DecodeOptions::default().with_threads(Some(1));
-    let (reference, sy) = decode_with_symbols(&stream, &one_opts)?;
+    let one_opts = salvq::Decoder::builder().threads(1);
+    let (reference, sy) = one_opts.build().decode_with_symbols(&stream)?;
     if let Some(expected) = &expected {
         assert!(
             reference == *expected,
@@ -120,8 +120,8 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
     let mut neural = None;
     drop((d1.decode(&stream), d2.decode(&stream)));
     drop(d2p.as_ref().map(|d| d.decode(&stream)));
-    let same = |got: &salvq::Result<Decoded>| {
-        let Ok(Decoded::Anchors(m)) = got else {
+    let same = |got: &salvq::Result<Scene>| {
+        let Ok(salvq::Scene::Anchors(m)) = got else {
             return false;
         };
         **m == reference
@@ -139,7 +139,7 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
         if pkg.is_some() {
             tw.push(secs(|| {
                 pool1.install(|| {
-                    let Ok(Decoded::Anchors(m)) = d1.decode(&stream) else {
+                    let Ok(salvq::Scene::Anchors(m)) = d1.decode(&stream) else {
                         panic!("decodes")
                     };
                     neural = Some(camera0_gaussians(&m));

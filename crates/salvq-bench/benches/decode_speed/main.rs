@@ -2,7 +2,7 @@
 //! scene (explicit profile): the stream `salvq encode` writes with its
 //! default settings, rate 0 extracted (`salvq extract --rate 0`, what a viewer receives for
 //! the best rate), decoded in process with `salvq::Decoder::builder().threads(1 | 2)
-//! .gaussians_only()` (what a viewer needs; the wasm package decodes so too), the 2-thread
+//! .gaussians_only(true)` (what a viewer needs; the wasm package decodes so too), the 2-thread
 //! decode timed twice in each round (after 50 ms idle, then again at once, its threads awake)
 //! and once more, after 50 ms idle, on a pool whose threads are pinned one per CPU
 //! ([`pinned_pool`]; beside them, how long each pool's sleeping thread takes to start a job,
@@ -45,11 +45,11 @@ use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::Instant;
 
-use salvq::decoder::{decode_any, DecodeOptions, Decoded};
-use salvq::entropy::GaussianTables;
-use salvq::explicit::Gaussians;
 use salvq::Decoder;
+use salvq::Scene;
 use salvq_bench::coder::{bare_coder_decode_ns, median};
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::Gaussians;
 
 /// The link a viewer receives the stream over: 50 Mbit/s.
 mod anchors;
@@ -65,9 +65,9 @@ const LINK_BITS_PER_S: f64 = 50e6;
 /// pool thread woken after the machine had been idle often waited milliseconds on its
 /// waker's CPU ([`pinned_pool`]); back to back, the machine busy, it rarely did, so a
 /// 2-thread decode right after the 1-thread one measured less than a viewer's single decode
-/// meets (twentieth session, docs/speed).
+/// meets (docs/speed).
 const IDLE_BEFORE_TWO: std::time::Duration = std::time::Duration::from_millis(50);
-/// The goal: the native decode on 2 threads at least this many Gaussians per second.
+/// The target: the native decode on 2 threads at least this many Gaussians per second.
 const GOAL_GAUSSIANS_PER_S: f64 = 2e6;
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
@@ -147,8 +147,8 @@ fn args() -> Args {
 /// onto few vCPUs (`sched_vcpu_pack` on its command line), so a pool thread woken by a busy
 /// thread was queued on the waker's CPU and waited there for a scheduler tick: a sleeping
 /// thread took a median 1.9 ms to run, 0.09 ms when the two were pinned to different CPUs
-/// (docs/speed, twentieth session). The unpinned decode is what the machine's scheduler
-/// gives; the pinned one, what the decoder's two threads do on two CPUs.
+/// (docs/speed). The unpinned decode is what the machine's scheduler gives; the pinned one,
+/// what the decoder's two threads do on two CPUs.
 fn pinned_pool(threads: usize) -> Option<Arc<rayon::ThreadPool>> {
     let cores = core_affinity::get_core_ids()?;
     if cores.len() < threads {
@@ -231,7 +231,7 @@ fn round_times(
 fn checked_decode(
     d: &Decoder,
     stream: &[u8],
-    same: impl Fn(&salvq::Result<Decoded>) -> bool,
+    same: impl Fn(&salvq::Result<Scene>) -> bool,
     what: &str,
 ) -> f64 {
     let (t, got) = timed(|| d.decode(stream));
@@ -377,7 +377,8 @@ fn main() -> Res<()> {
     for scene in &a.scenes {
         let ply = a.data.join(format!("{scene}.ply"));
         if !ply.exists() {
-            println!("{scene}: {} not found, skipped", ply.display());
+            // On stderr: CI keeps only some lines of stdout.
+            eprintln!("skipped {scene}: {} not found", ply.display());
             continue;
         }
         rows.push(explicit_scene(
@@ -442,8 +443,8 @@ fn explicit_scene(
 ) -> Res<Row> {
     let path = explicit_stream(a, scene, ply, salvq, cache)?;
     let stream = std::fs::read(&path)?;
-    let one_opts = DecodeOptions::default().with_threads(Some(1));
-    let Decoded::Gaussians(reference) = decode_any(&stream, &one_opts)? else {
+    let one_opts = salvq::Decoder::builder().threads(1);
+    let salvq::Scene::Gaussians(reference) = one_opts.build().decode(&stream)? else {
         return Err(format!("{}: not an explicit-profile stream", path.display()).into());
     };
     let n = reference.gaussians.len();
@@ -492,11 +493,16 @@ fn explicit_scene(
     }
 
     // What a viewer decodes: the Gaussians, not the symbols they came from.
-    let d1 = Decoder::builder().threads(1).gaussians_only().build();
-    let d2 = Decoder::builder().threads(2).gaussians_only().build();
-    let d2p = pinned_pool(2).map(|p| Decoder::builder().thread_pool(p).gaussians_only().build());
-    let same = |got: &salvq::Result<Decoded>| {
-        matches!(got, Ok(Decoded::Gaussians(g))
+    let d1 = Decoder::builder().threads(1).gaussians_only(true).build();
+    let d2 = Decoder::builder().threads(2).gaussians_only(true).build();
+    let d2p = pinned_pool(2).map(|p| {
+        Decoder::builder()
+            .thread_pool(p)
+            .gaussians_only(true)
+            .build()
+    });
+    let same = |got: &salvq::Result<Scene>| {
+        matches!(got, Ok(salvq::Scene::Gaussians(g))
             if g.gaussians == reference.gaussians && g.voxels == reference.voxels)
     };
     // Scratch files stay out of `--out` (which may be docs/).
@@ -521,7 +527,7 @@ fn explicit_scene(
         ratio.push(s2 / s1);
     }
     // The commands in rounds of their own: on this VM a 2-thread decode in process ran
-    // slower for a while after Node had run (docs/speed, sixteenth session).
+    // slower for a while after Node had run (docs/speed).
     for _ in 0..a.rounds {
         cmd.push(run_timed(
             // Each round replaces the last one's PLY, as splat-transform's `-w` below.

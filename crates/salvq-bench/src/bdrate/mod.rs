@@ -1,7 +1,7 @@
 //! Bjøntegaard-delta metrics: BD-rate and BD-PSNR (VCEG-M33), computed exactly as the PyPI
 //! package `bjontegaard` 1.3.0 computes them with `method` ∈ {`cubic`, `pchip`, `akima`}.
 //!
-//! The expected values in `shared/reference/bdrate_cases.csv` were produced by that package
+//! The expected values in `tests/data/reference/bdrate_cases.csv` were produced by that package
 //! (numpy 2.4.6, scipy 1.17.1); `tests/bdrate.rs` checks this module against all of them.
 //!
 //! # The metric

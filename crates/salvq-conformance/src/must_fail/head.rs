@@ -1,8 +1,8 @@
 //! Must-fail vectors of `HEAD` (§1.4) and of the rate selection (§1.5).
 
 use super::{edit, edit_head, encode, small_scene, vector, MustFailVector};
-use salvq::container::chunk::ChunkTag;
-use salvq::model::{decoded_bytes, LatticeKind};
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::model::{decoded_bytes, LatticeKind};
 use salvq_encoder::EncodeOptions;
 
 /// `HEAD` (§1.4) and the selected rate (§1.5).

@@ -2,13 +2,14 @@
 //! layer chunks (§1.6, §6, §8, §10).
 
 use super::{edit, encode, payload_of, small_scene, vector, MustFailVector};
-use salvq::container::chunk::ChunkTag;
-use salvq::container::payload::{context_bytes, read_mlps, read_quan, ContextPrecision};
-use salvq::decoder::decode;
-use salvq::entropy::{reference, GaussianTables};
-use salvq::hyperprior::prior::{Group, Prior};
-use salvq::hyperprior::GridLayout;
-use salvq::model::morton3;
+use crate::reference_coder as reference;
+use salvq::decode;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::container::payload::{context_bytes, read_mlps, read_quan, ContextPrecision};
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::hyperprior::prior::{Group, Prior};
+use salvq_bitstream::hyperprior::GridLayout;
+use salvq_bitstream::model::morton3;
 use salvq_encoder::EncodeOptions;
 
 /// Bytes of one `TILS` entry (§10.1): count, cell level, cell, box.
@@ -273,14 +274,18 @@ fn with_voxels(base: &[u8], f: impl FnOnce(&mut Vec<[u32; 3]>, [u32; 3], u8)) ->
     let level = tils[9];
     let word = |at: usize| u32::from_le_bytes([tils[at], tils[at + 1], tils[at + 2], tils[at + 3]]);
     let cell = [word(10), word(14), word(18)].map(|c| c << level);
-    let mut voxels = decode(base).expect("the base stream decodes").anchors.voxel;
+    let mut voxels = decode(base)
+        .and_then(salvq::Scene::try_into_anchors)
+        .expect("the base stream decodes")
+        .anchors
+        .voxel;
     f(&mut voxels, cell, level);
     voxels.sort_by_key(|v| morton3(*v));
     let local: Vec<[u32; 3]> = voxels
         .iter()
         .map(|v| [0, 1, 2].map(|a| v[a] - cell[a]))
         .collect();
-    let body = salvq::geometry::encode(&local, level, GaussianTables::standard())
+    let body = salvq_encoder::writers::encode_geometry(&local, level, GaussianTables::standard())
         .expect("voxels inside the cell code");
     edit(base, ChunkTag::APOS, |p| {
         p.truncate(1);
@@ -390,7 +395,9 @@ fn escape_overflow(base: &[u8]) -> Vec<u8> {
     let d = &head.dims;
     let (int_mlp, _) = read_mlps(&payload_of(base, ChunkTag::MLPS), d).expect("valid MLPS");
     let quant = read_quan(&payload_of(base, ChunkTag::QUAN), d).expect("valid QUAN");
-    let model = decode(base).expect("the base stream decodes");
+    let model = decode(base)
+        .and_then(salvq::Scene::try_into_anchors)
+        .expect("the base stream decodes");
     let prior = Prior::new(
         d,
         head.coord_bits,
@@ -422,8 +429,8 @@ fn escape_overflow(base: &[u8]) -> Vec<u8> {
 /// Checks that the `APOS` body of a one-tile stream fails on a direct node's child: the last
 /// event read before the error is a direct octant (§8.2), not an occupancy event.
 fn last_event_is_an_octant(stream: &[u8]) {
-    use salvq::entropy::SymbolReader;
-    use salvq::geometry::{self, DirectOctant, Event, Events};
+    use salvq_bitstream::entropy::SymbolReader;
+    use salvq_bitstream::geometry::{self, DirectOctant, Event, Events};
     struct Last<'a> {
         reader: SymbolReader<'a>,
         octant_last: bool,

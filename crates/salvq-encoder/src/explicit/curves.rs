@@ -11,10 +11,11 @@ use super::ratios::{parts, quantized, trial_exponents, Curve, Part};
 use super::sample::Sample;
 use super::{sensitivity, TrialSteps, Variant};
 use crate::error::Result;
-use salvq::entropy::GaussianTables;
-use salvq::explicit::groups::GroupKind;
-use salvq::explicit::Gaussians;
-use salvq::tiles::{TileTable, DEFAULT_TILE_ANCHORS};
+use crate::writers::DEFAULT_TILE_ANCHORS;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::groups::GroupKind;
+use salvq_bitstream::explicit::Gaussians;
+use salvq_bitstream::tiles::TileTable;
 use salvq_render::compare::RingTarget;
 
 /// How hard the encoder searches (Annex A.8.2): how the curves' render errors are found.
@@ -278,7 +279,7 @@ impl<'a> Bits<'a> {
                 voxels.push(v);
             }
         }
-        let tiles = TileTable::cut(&voxels, DEFAULT_TILE_ANCHORS);
+        let tiles = crate::writers::cut(&voxels, DEFAULT_TILE_ANCHORS);
         let share = members.len() as f64 / self.p.len() as f64;
         PartBits {
             members,
@@ -301,7 +302,7 @@ impl<'a> Bits<'a> {
                     return Ok(b * of.share);
                 }
                 let gr = grid(p, p.min.map(|v| v as f32), step);
-                let t = TileTable::cut(&gr.voxels, DEFAULT_TILE_ANCHORS);
+                let t = crate::writers::cut(&gr.voxels, DEFAULT_TILE_ANCHORS);
                 let mut bytes = 0usize;
                 for i in 0..t.len() {
                     let (level, cell) = t.cells[i];
@@ -309,7 +310,7 @@ impl<'a> Bits<'a> {
                         .iter()
                         .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
                         .collect();
-                    bytes += salvq::geometry::encode(&local, level, tables)?.len();
+                    bytes += crate::writers::encode_geometry(&local, level, tables)?.len();
                 }
                 let b = bytes as f64 * 8.0 / p.len() as f64;
                 self.octree.insert(k, b);

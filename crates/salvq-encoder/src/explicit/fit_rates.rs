@@ -9,9 +9,10 @@ use super::prepare::PreparedGaussians;
 use super::sample::{spatial_sample, SAMPLE_GAUSSIANS};
 use super::{fit_groups, ratios, RateControl};
 use crate::error::{Error, Result};
-use salvq::entropy::GaussianTables;
-use salvq::explicit::groups::{write_gqua, Group, GroupKind};
-use salvq::explicit::Gaussians;
+use crate::writers::write_gqua;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::groups::{Group, GroupKind};
+use salvq_bitstream::explicit::Gaussians;
 use salvq_render::compare::RingTarget;
 
 /// Allocations tried per rate after the first, before the closest to its target is kept

@@ -12,17 +12,19 @@ use super::prior::{
 pub use super::prior::{group_bits, BitCost, Variant};
 use super::writer::{rest_count_freq, Writer};
 use crate::error::Result;
-use salvq::container::chunk::{write_chunk, ChunkTag};
-use salvq::container::payload::METHOD_CODED;
-use salvq::entropy::GaussianTables;
-use salvq::explicit::attributes::{walk, TileSymbols, MAX_COORDINATE};
-use salvq::explicit::groups::{Group, GroupKind};
-use salvq::explicit::layer::{rest_count_nodes, rest_values, Layer, MAX_COORD_BITS, SIZE_CLASSES};
-use salvq::explicit::reconstruct::reconstruct_tile_into;
-use salvq::explicit::refinement::Precision;
-use salvq::explicit::Gaussians;
-use salvq::model::morton3;
-use salvq::tiles::{join_bodies, TileTable};
+use salvq_bitstream::container::chunk::{write_chunk, ChunkTag};
+use salvq_bitstream::container::payload::METHOD_CODED;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::attributes::{walk, TileSymbols, MAX_COORDINATE};
+use salvq_bitstream::explicit::groups::{Group, GroupKind};
+use salvq_bitstream::explicit::layer::{
+    rest_count_nodes, rest_values, Layer, MAX_COORD_BITS, SIZE_CLASSES,
+};
+use salvq_bitstream::explicit::reconstruct::reconstruct_tile_into;
+use salvq_bitstream::explicit::refinement::Precision;
+use salvq_bitstream::explicit::Gaussians;
+use salvq_bitstream::model::morton3;
+use salvq_bitstream::tiles::{join_bodies, TileTable};
 
 /// What one rate's layer quantizes with (Annex A.8.2).
 #[derive(Debug, Clone, PartialEq)]
@@ -222,7 +224,7 @@ pub fn group_coordinates(
     shift: &dyn Fn(usize) -> i8,
     order: &[usize],
 ) -> Vec<i32> {
-    let step = |k: usize| delta * salvq::explicit::reconstruct::pow2(shift(k).into());
+    let step = |k: usize| delta * salvq_bitstream::explicit::reconstruct::pow2(shift(k).into());
     group_coordinates_at(values, g, &step, order)
 }
 
@@ -277,8 +279,8 @@ pub fn encode_layer(
 ) -> Result<CodedLayer> {
     let grid = grid(p, origin, plan.voxel);
     let tiles = match tile_gaussians {
-        0 => TileTable::cut_auto(&grid.voxels),
-        per => TileTable::cut(&grid.voxels, per),
+        0 => crate::writers::cut_auto(&grid.voxels),
+        per => crate::writers::cut(&grid.voxels, per),
     };
     let values: usize = groups.iter().map(|g| g.dim).sum();
     let n = grid.order.len();
@@ -504,7 +506,7 @@ pub fn encode_layer(
             .iter()
             .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
             .collect();
-        apos.push(salvq::geometry::encode(&local, level, tables)?);
+        apos.push(crate::writers::encode_geometry(&local, level, tables)?);
         let mut w = writer(range.clone());
         let symbols: TileSymbols = walk(&layer, groups, &grid.voxels[range.clone()], &mut w)?;
         debug_assert_eq!(symbols.size_class, size_class[range.clone()]);

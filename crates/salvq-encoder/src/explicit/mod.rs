@@ -24,12 +24,13 @@ pub use layer::{CodedLayer, LayerReport, RatePlan, SizeClasses, Variant};
 pub use prepare::PreparedGaussians;
 
 use crate::error::{Error, Result};
-use salvq::container::chunk::{write_chunk, ChunkTag};
-use salvq::container::signature::Signature;
-use salvq::entropy::GaussianTables;
-use salvq::explicit::groups::{write_gqua, Group, GroupKind};
-use salvq::explicit::header::GaussianHeader;
-use salvq::explicit::Gaussians;
+use crate::writers::write_gqua;
+use salvq_bitstream::container::chunk::{write_chunk, ChunkTag};
+use salvq_bitstream::container::signature::Signature;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::groups::{Group, GroupKind};
+use salvq_bitstream::explicit::header::GaussianHeader;
+use salvq_bitstream::explicit::Gaussians;
 
 /// Where the rate-distortion curves' trial steps are centred (Annex A.8.2): the voxel edge
 /// and each group's step, in scene units, that the trials scale by powers of two.
@@ -98,7 +99,7 @@ pub struct ExplicitOptions {
     /// included, smaller.
     pub klt: Option<Vec<bool>>,
     /// Gaussians per tile at most (§10); 0: the reference's automatic tiles
-    /// ([`salvq::tiles::TileTable::cut_auto`]).
+    /// ([`salvq_bitstream::tiles::TileTable::cut_auto`]).
     pub tile_gaussians: u32,
     /// Text for an `encd` chunk (§1.7), written after `GQUA`.
     pub note: Option<String>,
@@ -146,7 +147,8 @@ impl EncodedGaussians {
     /// alone in a layered stream (what `extract` writes), the prefix up to the layer in a
     /// progressive one (§3.8).
     pub fn rate_stream_bytes(&self) -> Vec<usize> {
-        let fixed = salvq::container::signature::SIGNATURE_LEN + self.shared_bytes + SEND_BYTES;
+        let fixed =
+            salvq_bitstream::container::signature::SIGNATURE_LEN + self.shared_bytes + SEND_BYTES;
         let mut prefix = 0;
         self.layers
             .iter()
@@ -278,7 +280,7 @@ pub fn encode_prepared(
     for &r in &coded {
         if usize::from(r) >= m {
             return Err(salvq::Error::FieldOutOfRange {
-                field: salvq::error::Field::CodedRate,
+                field: salvq_bitstream::error::Field::CodedRate,
                 value: r.into(),
                 min: 0,
                 max: m as u64 - 1,
@@ -332,7 +334,7 @@ pub fn encode_prepared(
     if let Some(note) = &options.note {
         write_chunk(&mut stream, ChunkTag::ENCD, note.as_bytes());
     }
-    let shared_bytes = stream.len() - salvq::container::signature::SIGNATURE_LEN;
+    let shared_bytes = stream.len() - salvq_bitstream::container::signature::SIGNATURE_LEN;
     let mut layers = Vec::new();
     let mut state: Option<layer::LayerState> = None;
     for r in header.stream_rates() {

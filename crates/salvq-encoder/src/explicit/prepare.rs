@@ -3,8 +3,8 @@
 //! smallest components, each group's values side by side. Every trial encode reuses it.
 
 use crate::error::{Error, Result};
-use salvq::explicit::groups::GroupKind;
-use salvq::explicit::Gaussians;
+use salvq_bitstream::explicit::groups::GroupKind;
+use salvq_bitstream::explicit::Gaussians;
 
 /// Opacity logits beyond ±this are clamped: sigmoid(16) differs from 1 by 1.1e-7, far below
 /// what an 8-bit display or the renderer's 1/255 cut-off can tell.

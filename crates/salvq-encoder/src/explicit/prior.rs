@@ -4,10 +4,10 @@
 
 use rustc_hash::FxHashMap;
 
-use salvq::entropy::{GaussianTables, SCALE_INDEX_COUNT};
-use salvq::explicit::attributes::{context_class, has_reference, offset_scale, rescale};
-use salvq::explicit::layer::{CONTEXT_CLASSES, MAX_SCALE_OFFSET, SIZE_CLASSES};
-use salvq::tiles::TileTable;
+use salvq_bitstream::entropy::{GaussianTables, SCALE_INDEX_COUNT};
+use salvq_bitstream::explicit::attributes::{context_class, has_reference, offset_scale, rescale};
+use salvq_bitstream::explicit::layer::{CONTEXT_CLASSES, MAX_SCALE_OFFSET, SIZE_CLASSES};
+use salvq_bitstream::tiles::TileTable;
 
 /// `pred_level` candidates the encoder tries, as offsets below `coord_bits`.
 pub(super) const PRED_LEVEL_CANDIDATES: [u8; 5] = [0, 2, 4, 6, 8];

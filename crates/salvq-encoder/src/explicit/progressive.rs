@@ -10,18 +10,18 @@ use super::prepare::PreparedGaussians;
 use super::prior::{entropy_bits, fit_prior, BitCost, Histograms, PRED_LEVEL_CANDIDATES};
 use super::writer::{rest_count_freq, Writer};
 use crate::error::Result;
-use salvq::container::chunk::{write_chunk, ChunkTag};
-use salvq::container::payload::METHOD_CODED;
-use salvq::entropy::GaussianTables;
-use salvq::explicit::attributes::{rest_count_of, BitEvent, Events, TileSymbols};
-use salvq::explicit::groups::{Group, GroupKind};
-use salvq::explicit::layer::{
+use salvq_bitstream::container::chunk::{write_chunk, ChunkTag};
+use salvq_bitstream::container::payload::METHOD_CODED;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::attributes::{rest_count_of, BitEvent, Events, TileSymbols};
+use salvq_bitstream::explicit::groups::{Group, GroupKind};
+use salvq_bitstream::explicit::layer::{
     rest_count_nodes, rest_values, CONTEXT_CLASSES, MAX_POSITION_BITS, SIZE_CLASSES,
 };
-use salvq::explicit::reconstruct::reconstruct_tile_into;
-use salvq::explicit::refinement::{refine_walk, Refinement, MAX_FACTOR};
-use salvq::explicit::Gaussians;
-use salvq::tiles::join_bodies;
+use salvq_bitstream::explicit::reconstruct::reconstruct_tile_into;
+use salvq_bitstream::explicit::refinement::{refine_walk, Refinement, MAX_FACTOR};
+use salvq_bitstream::explicit::Gaussians;
+use salvq_bitstream::tiles::join_bodies;
 
 /// The factor that takes a step `from` nearest (in ratio) to `to`: an odd integer, so that
 /// the finer cells nest in the coarser one (§3.8), 1 where `to` is not finer.

@@ -8,9 +8,9 @@
 use super::layer::RatePlan;
 use super::prepare::PreparedGaussians;
 use super::TrialSteps;
-use salvq::explicit::groups::GroupKind;
-use salvq::explicit::layer::SIZE_CLASSES;
-use salvq::explicit::Gaussians;
+use salvq_bitstream::explicit::groups::GroupKind;
+use salvq_bitstream::explicit::layer::SIZE_CLASSES;
+use salvq_bitstream::explicit::Gaussians;
 
 /// Views of the curves' renders.
 pub const CURVE_VIEWS: u32 = 8;
@@ -86,7 +86,7 @@ pub(crate) fn quantized(
 pub fn plan_output(
     g: &Gaussians,
     p: &PreparedGaussians,
-    groups: &[salvq::explicit::groups::Group],
+    groups: &[salvq_bitstream::explicit::groups::Group],
     thresholds: &[f64],
     plan: &RatePlan,
 ) -> Gaussians {
@@ -173,7 +173,7 @@ pub fn plan_output(
                     }
                 }
                 GroupKind::Rotation => {
-                    out.rotations[i] = salvq::explicit::reconstruct::quaternion(
+                    out.rotations[i] = salvq_bitstream::explicit::reconstruct::quaternion(
                         [f(0), f(1), f(2)],
                         p.rotation_index[i],
                     );
@@ -223,7 +223,8 @@ fn quantize_part(
             }
             GroupKind::Rotation => {
                 let s = [q(x[0]), q(x[1]), q(x[2])];
-                out.rotations[i] = salvq::explicit::reconstruct::quaternion(s, p.rotation_index[i]);
+                out.rotations[i] =
+                    salvq_bitstream::explicit::reconstruct::quaternion(s, p.rotation_index[i]);
             }
         }
     }

@@ -7,7 +7,7 @@
 use super::layer::grid;
 use super::prepare::PreparedGaussians;
 use super::TrialSteps;
-use salvq::explicit::Gaussians;
+use salvq_bitstream::explicit::Gaussians;
 
 /// Gaussians in a sample at most (about: whole runs are taken).
 pub const SAMPLE_GAUSSIANS: usize = 1 << 16;

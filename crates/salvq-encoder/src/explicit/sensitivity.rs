@@ -9,7 +9,7 @@
 
 use super::prepare::PreparedGaussians;
 use super::ratios::Part;
-use salvq::explicit::groups::GroupKind;
+use salvq_bitstream::explicit::groups::GroupKind;
 use salvq_render::raster::Sensitivities;
 
 /// `1 / (12 π)`: a coefficient of an orthonormal real spherical harmonic has mean square

@@ -1,10 +1,11 @@
 //! The events of a layer or refinement (spec §3.5, §3.8) as the encoder answers them: the
 //! symbols it knows, written to one ANS body per tile.
 
-use salvq::container::chunk::ChunkTag;
-use salvq::entropy::{GaussianTables, SymbolWriter};
-use salvq::explicit::attributes::{rest_count_of, BitEvent, Events};
-use salvq::explicit::layer::{rest_count_bits, rest_count_nodes};
+use crate::writers::SymbolWriter;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::entropy::GaussianTables;
+use salvq_bitstream::explicit::attributes::{rest_count_of, BitEvent, Events};
+use salvq_bitstream::explicit::layer::{rest_count_bits, rest_count_nodes};
 
 use super::prior::{bit_cost, freq};
 

@@ -6,14 +6,14 @@
 use serde::Serialize;
 
 use crate::error::Result;
-use salvq::container::chunk::{ChunkReader, ChunkTag};
-use salvq::container::signature::{Signature, SIGNATURE_LEN};
-use salvq::entropy::{wide_scale, GaussianTables, SCALE_COUNT, SCALE_INDEX_COUNT};
-use salvq::explicit::attributes::{rest_count_of, walk, BitEvent, Events, TileSymbols};
-use salvq::explicit::decode_gaussians;
-use salvq::explicit::refinement::refine_walk;
-use salvq::explicit::{DecodedGaussians, GroupKind};
-use salvq::limits::Limits;
+use salvq::DecodedGaussians;
+use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag};
+use salvq_bitstream::container::signature::{Signature, SIGNATURE_LEN};
+use salvq_bitstream::entropy::{wide_scale, GaussianTables, SCALE_COUNT, SCALE_INDEX_COUNT};
+use salvq_bitstream::explicit::attributes::{rest_count_of, walk, BitEvent, Events, TileSymbols};
+use salvq_bitstream::explicit::refinement::refine_walk;
+use salvq_bitstream::explicit::GroupKind;
+use salvq_bitstream::limits::Limits;
 
 /// One layer as `info` shows it.
 #[derive(Debug, Clone, Serialize)]
@@ -202,18 +202,28 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
             *sections.last_mut().unwrap_or(&mut 0) += c.payload.len() as u64 + 12;
         }
     }
-    let first = decode_gaussians(data, limits, None)?;
+    let first = salvq::Decoder::builder()
+        .limits(*limits)
+        .rate(None)
+        .build()
+        .decode(data)
+        .and_then(salvq::Scene::try_into_gaussians)?;
     let h = first.header.clone();
     let tables = GaussianTables::standard();
     let n = f64::from(h.count.max(1));
     let mut layers = Vec::new();
     // In stream order, each layer's decode and the one before it (what a refinement refines).
-    let mut before: Option<salvq::explicit::DecodedGaussians> = None;
+    let mut before: Option<salvq::DecodedGaussians> = None;
     for (li, rate) in h.stream_rates().into_iter().enumerate() {
         let d = if rate == first.rate {
             first.clone()
         } else {
-            decode_gaussians(data, limits, Some(rate))?
+            salvq::Decoder::builder()
+                .limits(*limits)
+                .rate(Some(rate))
+                .build()
+                .decode(data)
+                .and_then(salvq::Scene::try_into_gaussians)?
         };
         let values: usize = d.groups.iter().map(|g| g.dim).sum();
         let group_of = group_of(&d);

@@ -11,11 +11,11 @@ use serde::Serialize;
 
 use crate::error::Result;
 use crate::EncodeReport;
-use salvq::container::chunk::{ChunkReader, ChunkTag, CHUNK_OVERHEAD};
-use salvq::container::preflight::Preflight;
-use salvq::container::signature::{Signature, SIGNATURE_LEN};
-use salvq::limits::Limits;
-use salvq::model::Dims;
+use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag, CHUNK_OVERHEAD};
+use salvq_bitstream::container::preflight::Preflight;
+use salvq_bitstream::container::signature::{Signature, SIGNATURE_LEN};
+use salvq_bitstream::limits::Limits;
+use salvq_bitstream::model::Dims;
 
 /// What a chunk's bytes pay for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -222,18 +222,19 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
             // §1.6.2: `context_precision` follows the method byte; `scaffold_precision` the
             // context MLP.
             let context = match c.payload.get(1) {
-                Some(1) => salvq::container::payload::ContextPrecision::I8,
-                _ => salvq::container::payload::ContextPrecision::I16,
+                Some(1) => salvq_bitstream::container::payload::ContextPrecision::I8,
+                _ => salvq_bitstream::container::payload::ContextPrecision::I16,
             };
             context_weight_bytes = context.bytes();
-            let at = 1 + salvq::container::payload::context_bytes(&p.dims, context);
+            let at = 1 + salvq_bitstream::container::payload::context_bytes(&p.dims, context);
             scaffold_value_bytes = match c.payload.get(at as usize) {
                 Some(1) => Some(2),
                 _ => Some(4),
             };
         }
         if let (ChunkTag::TILS, Some(p)) = (c.tag, &preflight) {
-            let t = salvq::tiles::TileTable::parse(c.payload, p.dims.anchors, p.coord_bits)?;
+            let t =
+                salvq_bitstream::tiles::TileTable::parse(c.payload, p.dims.anchors, p.coord_bits)?;
             let counts = (0..t.len()).map(|i| t.count(i));
             tiles = Some(TilesInfo {
                 count: t.len() as u64,

@@ -2,8 +2,8 @@
 
 use serde::Serialize;
 
-use salvq::container::chunk::ChunkTag;
-use salvq::container::preflight::Preflight;
+use salvq_bitstream::container::chunk::ChunkTag;
+use salvq_bitstream::container::preflight::Preflight;
 
 /// Bytes of one stored tensor (or header) of the shared model (`salvq info --json`:
 /// `model_parts`; the byte accounting).

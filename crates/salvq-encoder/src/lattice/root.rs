@@ -11,7 +11,7 @@
 //! the E8 cosets D8 wins, so every result is deterministic.
 
 use super::{check_target, LatticeError, COORD_LIMIT};
-use salvq::quantizer::E8_BASIS_TWICE;
+use salvq_bitstream::quantizer::E8_BASIS_TWICE;
 
 /// A decoded point of D_n, E8 or E8^k.
 #[derive(Debug, Clone, PartialEq)]
