@@ -132,6 +132,7 @@ impl DecoderBuilder {
     /// Decode tiles on a pool of `threads` threads, built once here; default (or `None`):
     /// rayon's global pool. The output does not depend on the count (§10.3). Without the
     /// `parallel` feature every decode runs on the caller's thread and this does nothing.
+    #[cfg_attr(not(feature = "parallel"), allow(unused_mut))]
     pub fn threads(mut self, threads: impl Into<Option<usize>>) -> Self {
         let threads = threads.into();
         #[cfg(feature = "parallel")]

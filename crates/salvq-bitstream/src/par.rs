@@ -25,6 +25,7 @@ pub use sequential::*;
 mod sequential {
     /// `into_par_iter`: the plain iterator.
     pub trait IntoParallelIterator: IntoIterator + Sized {
+        /// The iterator itself, taken in order.
         fn into_par_iter(self) -> Self::IntoIter {
             self.into_iter()
         }
@@ -33,7 +34,9 @@ mod sequential {
 
     /// The slice methods rayon adds, as the plain ones.
     pub trait ParallelSlice<T> {
+        /// `chunks`.
         fn par_chunks(&self, n: usize) -> std::slice::Chunks<'_, T>;
+        /// `chunks_mut`.
         fn par_chunks_mut(&mut self, n: usize) -> std::slice::ChunksMut<'_, T>;
     }
     impl<T> ParallelSlice<T> for [T] {
@@ -47,10 +50,12 @@ mod sequential {
 
     /// The iterator methods rayon adds, as their sequential meaning.
     pub trait ParallelIterator: Iterator + Sized {
+        /// `for_each` with one state made by `init`.
         fn for_each_init<S>(self, init: impl Fn() -> S, mut f: impl FnMut(&mut S, Self::Item)) {
             let mut state = init();
             self.for_each(|item| f(&mut state, item));
         }
+        /// `reduce`.
         fn reduce_with(
             self,
             f: impl FnMut(Self::Item, Self::Item) -> Self::Item,
