@@ -63,7 +63,7 @@ thread_local! {
     static FUSED_SCRATCH: RefCell<(WalkScratch, TileSymbols)> = RefCell::default();
 }
 
-use crate::explicit::order::{expected_critical, layer_of, CRITICAL_CHUNKS};
+use crate::container::order::{ChunkOrder, Position, Profile};
 
 /// Decodes an explicit-profile stream (§3.7) with `options`: its rate, region, part and
 /// limits, keeping the symbols unless `gaussians_only` (on the caller's pool).
@@ -108,14 +108,13 @@ pub(crate) struct ExplicitDecoder {
     rate: Option<u8>,
     region: Option<crate::tiles::RegionBox>,
     part: Option<crate::tiles::TilePart>,
-    /// Position of the next critical chunk (0 = `GHED`).
-    next: usize,
+    /// The walk through the chunk order (§3.7).
+    order: ChunkOrder,
     header: Option<GaussianHeader>,
     groups: Option<Vec<Group>>,
     /// The groups' lattice matrices (§3.3), once `GQUA` is read.
     matrices: Vec<LatticeMatrix>,
     selected_layer: usize,
-    layers: usize,
     rate_chosen: u8,
     /// Rates of the coded layers in stream order.
     stream_rates: Vec<u8>,
@@ -165,12 +164,11 @@ impl ExplicitDecoder {
             rate: options.rate,
             region: options.region,
             part: options.part,
-            next: 0,
+            order: ChunkOrder::new(Profile::Explicit),
             header: None,
             groups: None,
             matrices: Vec::new(),
             selected_layer: 0,
-            layers: 0,
             rate_chosen: 0,
             stream_rates: Vec::new(),
             progressive: false,
@@ -193,31 +191,17 @@ impl ExplicitDecoder {
 
     /// §1.5, §3.7: whether a chunk tagged `tag` may come next, and what is done with it.
     pub(crate) fn due(&self, tag: ChunkTag) -> Result<Due> {
-        if !tag.is_critical() {
-            if self.header.is_none() {
-                return Err(Error::ChunkOrder {
-                    found: tag,
-                    expected: ChunkTag::GHED,
-                });
-            }
-            return Ok(Due::Ancillary);
-        }
-        if !CRITICAL_CHUNKS.contains(&tag) {
-            return Err(Error::UnknownCriticalChunk { tag });
-        }
-        let expected = expected_critical(self.next, self.layers, self.progressive);
-        if tag != expected {
-            return Err(Error::ChunkOrder {
-                found: tag,
-                expected,
-            });
-        }
         // The layers decoded: the selected one, and in a progressive stream every one
         // before it.
-        Ok(match layer_of(self.next, self.layers, self.progressive) {
-            Some(l) if l > self.selected_layer => Due::Skipped,
-            Some(l) if l < self.selected_layer && !self.progressive => Due::Skipped,
-            _ => Due::Decoded,
+        Ok(match self.order.check(tag)? {
+            Position::Ancillary => Due::Ancillary,
+            Position::Critical { layer: Some(l), .. } if l > self.selected_layer => Due::Skipped,
+            Position::Critical { layer: Some(l), .. }
+                if l < self.selected_layer && !self.progressive =>
+            {
+                Due::Skipped
+            }
+            Position::Critical { .. } => Due::Decoded,
         })
     }
 
@@ -228,7 +212,7 @@ impl ExplicitDecoder {
         if due == Due::Ancillary {
             return Ok(false);
         }
-        self.next += 1;
+        self.order.step(tag)?;
         if due == Due::Skipped {
             return Ok(false);
         }
@@ -236,7 +220,9 @@ impl ExplicitDecoder {
         match tag {
             ChunkTag::GHED => {
                 let h = GaussianHeader::parse(bytes, &self.limits)?;
-                (self.rate_chosen, self.selected_layer, self.layers) = h.select_layer(self.rate)?;
+                let layers;
+                (self.rate_chosen, self.selected_layer, layers) = h.select_layer(self.rate)?;
+                self.order.set_layers(layers, h.progressive);
                 self.stream_rates = h.stream_rates();
                 self.progressive = h.progressive;
                 // A refinement refines the symbols in place.
@@ -452,8 +438,8 @@ impl ExplicitDecoder {
     /// Records the selected layer's `GATT` as decoded elsewhere (tile by tile, as its bytes
     /// arrived, each tile's Gaussians reconstructed there): its position is taken and its
     /// symbols kept.
-    pub(crate) fn gatt_decoded(&mut self, per_tile: Vec<Option<TileSymbols>>) {
-        self.next += 1;
+    pub(crate) fn gatt_decoded(&mut self, per_tile: Vec<Option<TileSymbols>>) -> Result<()> {
+        self.order.step(ChunkTag::GATT)?;
         let mut symbols = TileSymbols::default();
         let mut starts = Vec::with_capacity(per_tile.len());
         for tile in per_tile {
@@ -473,6 +459,7 @@ impl ExplicitDecoder {
             keep_symbols: true,
         });
         self.layer_decoded();
+        Ok(())
     }
 
     /// §3.6, after `SEND`: the Gaussians of every decoded tile, in stream order.

@@ -31,11 +31,13 @@
 //! ## Map of `src/`
 //!
 //! `builder.rs` is the API ([`Decoder`], [`DecoderBuilder`], [`Header`], [`decode`]) and
-//! `scene.rs` what it returns ([`Scene`]); `anchors.rs` decodes an anchors-profile stream
-//! (chunk order §1.5, then the attributes of the selected tiles in parallel, §6.6, §10) and
-//! `gaussians.rs` with `gaussians/progressive.rs` an explicit-profile one (§3.7, §3.8);
-//! `stream.rs` decodes either as its bytes arrive, and `extract.rs` cuts a stream down to one
-//! rate (§7.4). Every layer they read through (container, ANS and tables, octree geometry,
+//! `scene.rs` what it returns ([`Scene`]). `anchors.rs` decodes an anchors-profile stream: the
+//! chunk walk and each model chunk (§1.5, §1.6), then `anchors/assemble.rs` the attributes of
+//! the selected tiles in parallel (§6.6, §10). `gaussians.rs`, with `gaussians/progressive.rs`,
+//! decodes an explicit-profile stream (§3.7, §3.8); `stream.rs` decodes either as its bytes
+//! arrive, and `extract.rs` cuts a stream down to one rate (§7.4, §7.5). `neural.rs` and
+//! `camera.rs` turn an anchors scene into the Gaussians a camera sees (Annex C.1, C.2). Every
+//! layer they read through (container and chunk order, ANS and tables, octree geometry,
 //! integer hyperprior, quantizers, tiles, errors and limits) is the `salvq-bitstream` crate,
 //! which the reference encoder shares.
 
@@ -45,8 +47,10 @@
 
 mod anchors;
 mod builder;
+pub mod camera;
 mod extract;
 mod gaussians;
+pub mod neural;
 mod scene;
 mod stream;
 

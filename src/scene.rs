@@ -2,8 +2,10 @@
 
 use crate::container::chunk::ChunkTag;
 use crate::error::{Error, Result};
+use crate::explicit::Gaussians;
 use crate::gaussians::DecodedGaussians;
 use crate::model::SceneModel;
+use crate::neural::{neural_gaussians, NeuralError};
 
 /// A decoded stream: anchors (§1 – §2) or explicit Gaussians (§3).
 ///
@@ -26,6 +28,16 @@ pub enum Scene {
 }
 
 impl Scene {
+    /// The Gaussians to draw from a camera at `camera` (world space): an explicit stream's
+    /// own (the camera does not matter), or the neural Gaussians an anchors model gives that
+    /// camera (Annex C.1, SH degree 0).
+    pub fn to_gaussians(&self, camera: [f32; 3]) -> std::result::Result<Gaussians, NeuralError> {
+        match self {
+            Scene::Gaussians(g) => Ok(g.gaussians.clone()),
+            Scene::Anchors(m) => neural_gaussians(m, camera),
+        }
+    }
+
     /// The anchors-profile model, if the stream is of that profile.
     pub fn anchors(&self) -> Option<&SceneModel> {
         match self {

@@ -22,7 +22,7 @@ use std::ops::Range;
 
 use crate::anchors::decode_scene;
 use crate::builder::DecodeOptions;
-use crate::container::chunk::{ChunkReader, ChunkTag};
+use crate::container::chunk::{ChunkReader, ChunkTag, CHUNK_CRC_LEN, CHUNK_HEADER_LEN};
 use crate::container::method::METHOD_CODED;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
@@ -33,11 +33,6 @@ use crate::explicit::Gaussians;
 use crate::gaussians::{Due, ExplicitDecoder};
 use crate::limits::LimitKind;
 use crate::scene::Scene;
-
-/// Bytes of a chunk's length and tag fields (§1.3).
-const CHUNK_HEADER: usize = 8;
-/// Bytes of a chunk's CRC (§1.3).
-const CHUNK_CRC: usize = 4;
 
 /// A decoder fed a stream in pieces ([`Self::feed`]); [`Self::finish`] gives what the
 /// whole-buffer decoder gives for the same bytes.
@@ -256,7 +251,7 @@ impl StreamDecoder {
                     continue;
                 }
             }
-            let complete = CHUNK_HEADER + len + CHUNK_CRC;
+            let complete = CHUNK_HEADER_LEN + len + CHUNK_CRC_LEN;
             if rest.len() < complete {
                 return Ok(());
             }
@@ -317,7 +312,7 @@ impl StreamDecoder {
             };
             self.gaussians.sh_degree = e.decoder.header().map_or(0, |h| h.sh_degree);
             e.gatt = Some(Gatt {
-                payload_at: at + CHUNK_HEADER,
+                payload_at: at + CHUNK_HEADER_LEN,
                 len,
                 lens: None,
                 body_at: 0,
@@ -385,7 +380,7 @@ impl StreamDecoder {
                 }
             }
         }
-        let complete = CHUNK_HEADER + g.len + CHUNK_CRC;
+        let complete = CHUNK_HEADER_LEN + g.len + CHUNK_CRC_LEN;
         if self.buf.len() < at + complete {
             return Ok(false);
         }
@@ -413,7 +408,7 @@ impl StreamDecoder {
                 }
             }
         } else {
-            e.decoder.gatt_decoded(g.per_tile);
+            e.decoder.gatt_decoded(g.per_tile)?;
         }
         self.first_layer_tiles = self.tiles.len();
         self.at = at + complete;

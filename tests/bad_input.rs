@@ -350,10 +350,7 @@ fn decoded_size_mismatch() {
 
 #[test]
 fn anchor_count_over_limits() {
-    let limits = Limits {
-        max_anchors: 12,
-        ..Limits::default()
-    };
+    let limits = Limits::default().with_max_anchors(12);
     assert_eq!(
         salvq::Decoder::builder()
             .limits(limits)
@@ -392,10 +389,7 @@ fn huge_anchor_count_is_refused_before_allocating() {
             ..
         }
     ));
-    let limits = Limits {
-        max_anchors: u64::MAX,
-        ..Limits::default()
-    };
+    let limits = Limits::default().with_max_anchors(u64::MAX);
     assert!(matches!(
         salvq::Decoder::builder()
             .limits(limits)
@@ -412,10 +406,7 @@ fn huge_anchor_count_is_refused_before_allocating() {
 
 #[test]
 fn chunk_over_limit() {
-    let limits = Limits {
-        max_chunk_bytes: 16,
-        ..Limits::default()
-    };
+    let limits = Limits::default().with_max_chunk_bytes(16);
     assert!(matches!(
         salvq::Decoder::builder()
             .limits(limits)
@@ -468,7 +459,8 @@ fn head_checks_follow_the_spec_order() {
 }
 
 /// §9.1: a stream of a few bytes whose header claims 2^24 Gaussians of SH degree 3 in one
-/// voxel asks for 3.96 GB of output, within the default 4 GiB, but a decode that keeps the
+/// voxel asks for 3.96 GB of output, within the reference default 4 GiB
+/// ([`Limits::desktop`]), but a decode that keeps the
 /// symbols would hold 4.13 GB more: the allocation limit refuses it at `GHED`, before anything
 /// is allocated. Decoding Gaussians only it holds 0.2 GB more and passes that check.
 #[test]
@@ -481,17 +473,19 @@ fn the_allocation_limit_counts_what_an_explicit_decode_holds() {
         origin: [0.0; 3],
         progressive: false,
     };
-    let limit = Limits::default().max_alloc_bytes;
+    let limit = Limits::desktop().max_alloc_bytes;
     assert!(h.decoded_bytes() <= limit);
     let stream = salvq_encoder::writers::surgery::assemble(
         &salvq_bitstream::container::signature::Signature::current().to_bytes(),
         &[(ChunkTag::GHED, h.to_payload()), (ChunkTag::SEND, vec![])],
     );
     let decode = |gaussians_only: bool| {
-        (salvq::Decoder::builder().gaussians_only(gaussians_only))
-            .build()
-            .decode(&stream)
-            .err()
+        (salvq::Decoder::builder()
+            .limits(Limits::desktop())
+            .gaussians_only(gaussians_only))
+        .build()
+        .decode(&stream)
+        .err()
     };
     match decode(false) {
         Some(Error::LimitExceeded {

@@ -311,7 +311,7 @@ fn tensor_names_match_table_2_1() {
 /// their value counts.
 #[test]
 fn explicit_profile_tables_match_the_code() {
-    use salvq_bitstream::explicit::order::expected_critical;
+    use salvq_bitstream::container::order::Profile;
     use salvq_bitstream::explicit::{GroupKind, GROUP_KINDS};
     let text = spec("03-explicit.md");
     let chunks: Vec<String> = table_names(&text, "Table 3-2:")
@@ -319,7 +319,7 @@ fn explicit_profile_tables_match_the_code() {
         .filter(|t| t.chars().next().is_some_and(|c| c.is_ascii_uppercase()))
         .collect();
     let code: Vec<String> = (0..9)
-        .map(|i| expected_critical(i, 2, true).as_str().to_string())
+        .map(|i| Profile::Explicit.expected(i, 2, true).as_str().to_string())
         .collect();
     assert_eq!(chunks, code);
     // Table 3-3: `| g | group | d | ...`, d as SH degree 3 gives it (3B = 45 for rest).

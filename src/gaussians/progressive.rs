@@ -3,7 +3,7 @@
 
 use crate::par::*;
 
-use super::{layer_of, missing, DecodedGaussians, ExplicitDecoder};
+use super::{missing, DecodedGaussians, ExplicitDecoder};
 use crate::container::chunk::ChunkTag;
 use crate::container::payload::{body, METHOD_CODED};
 use crate::entropy::GaussianTables;
@@ -78,11 +78,7 @@ impl ExplicitDecoder {
     /// Records that the layer of the chunk just decoded (`GATT` or `GRSY`) is complete:
     /// its symbols are decoded and the precision is the layer's.
     pub(super) fn layer_decoded(&mut self) {
-        let Some(l) = self
-            .next
-            .checked_sub(1)
-            .and_then(|p| layer_of(p, self.layers, self.progressive))
-        else {
+        let Some(l) = self.order.last_layer() else {
             return;
         };
         if let Some(r) = self.refinement.take() {
@@ -114,10 +110,7 @@ impl ExplicitDecoder {
         }
         let words = body(ChunkTag::GRSY, bytes, METHOD_CODED)?;
         let bodies = split_bodies(ChunkTag::GRSY, 1, words, tiles.len())?;
-        let layer = self
-            .next
-            .checked_sub(1)
-            .and_then(|p| layer_of(p, self.layers, self.progressive));
+        let layer = self.order.last_layer();
         let last = layer == Some(self.selected_layer) || self.reconstruct_each_layer;
         let after = before.refined(r);
         let values = g.iter().map(|g| g.dim).sum();

@@ -19,6 +19,7 @@
 //! | signature: magic, major.minor, file flags | §1.2 | [`container::signature`] |
 //! | chunk framing: length, tag, payload, CRC-32C | §1.3 | [`container::chunk`] |
 //! | `HEAD` preflight: dimensions, geometry, decoded size | §1.4 | [`container::preflight`] |
+//! | chunk order of both profiles, layer of each chunk | §1.5, §3.7, §3.8 | [`container::order`] |
 //! | model payload chunks `MLPS` `QUAN` `GRID` `APOS` | §1.6, §8 | [`container::mlps`], [`container::payload`] |
 //! | the explicit-Gaussians profile: `GHED` `GQUA` `GLAY` `GATT` `GREF` `GRSY` | §3 | [`explicit`] |
 //! | octree geometry: an octree per tile, adaptive contexts, voxel counts | §8 | [`geometry`] |

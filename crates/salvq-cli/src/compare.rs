@@ -193,7 +193,7 @@ pub(crate) fn run(a: CompareArgs) -> Result<(), Error> {
             // The ring around A (Annex C.2), as `salvq render A` places it.
             let bounds = scene_a.bounds();
             let cameras = (0..ring.views)
-                .map(|v| ring.camera(&bounds, v, w, h))
+                .map(|v| ring.camera(&bounds, v, w, h).map_err(Into::into))
                 .collect::<salvq_render::Result<Vec<_>>>()?;
             let names = (0..ring.views).map(|v| format!("ring {v}")).collect();
             let source = format!("ring of {} views around A", ring.views);

@@ -135,6 +135,7 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
         ..
     } = args;
     let mut options = salvq::Decoder::builder()
+        .limits(salvq::Limits::desktop())
         .rate(rate)
         .region(region)
         .fault(inject_fault);
@@ -170,7 +171,11 @@ pub(crate) fn run(args: DecodeArgs, ctx: Ctx) -> Result<(), Error> {
     }
     output.write(|w| salvq_render::interchange::write_safetensors(&model, w))?;
     // Which rate was decoded (§7.4): the one asked for, else the lowest coded.
-    let decoded_rate = match salvq::Decoder::builder().build().read_header(&stream) {
+    let decoded_rate = match salvq::Decoder::builder()
+        .limits(salvq::Limits::desktop())
+        .build()
+        .read_header(&stream)
+    {
         Ok(salvq::Header::Anchors(p)) => rate.or(p.coded_rates().first().copied()),
         _ => rate,
     };

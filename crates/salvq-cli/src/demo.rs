@@ -70,7 +70,7 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Res
     let t_dec = secs(t);
     write_model(&decoded, &dir.join(decoded_name))?;
 
-    let info = inspect(stream, &Limits::default())?;
+    let info = inspect(stream, &Limits::desktop())?;
     out!("{:<10} {:>10}", "step", "seconds");
     out!("{:<10} {:>10.3}", "generate", t_gen);
     out!("{:<10} {:>10.3}", "encode", t_enc);

@@ -41,7 +41,7 @@ pub(crate) fn run(a: ExtractArgs, ctx: Ctx) -> Result<(), Error> {
     output.require_extension(&["salvq"], "extract writes a SALVQ stream", ".salvq")?;
     files::json_beside(a.json, &output);
     let stream = files::read_input(&a.input)?;
-    let one = salvq::extract_rate(&stream, a.rate, &Limits::default())?;
+    let one = salvq::extract_rate(&stream, a.rate, &Limits::desktop())?;
     output.write_bytes(&one)?;
     let written = Written {
         output: output.shown(),

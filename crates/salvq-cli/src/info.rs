@@ -55,7 +55,7 @@ pub(crate) fn run(a: InfoArgs) -> Result<(), Error> {
         };
     }
     if salvq_bitstream::container::is_explicit(&bytes) {
-        let info = salvq_encoder::info::explicit::inspect_explicit(&bytes, &Limits::default())?;
+        let info = salvq_encoder::info::explicit::inspect_explicit(&bytes, &Limits::desktop())?;
         if a.json {
             files::print_json(&info);
         } else {
@@ -63,7 +63,7 @@ pub(crate) fn run(a: InfoArgs) -> Result<(), Error> {
         }
         return Ok(());
     }
-    let info = inspect(&bytes, &Limits::default())?;
+    let info = inspect(&bytes, &Limits::desktop())?;
     if a.json {
         files::print_json(&info);
     } else {

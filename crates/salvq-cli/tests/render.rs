@@ -10,7 +10,6 @@ use std::path::PathBuf;
 use salvq_gen::{generate, GenParams};
 use salvq_render::camera::{Axis, Bounds, Ring};
 use salvq_render::ply::read_ply;
-use salvq_render::Error;
 use salvq_render::{metrics, neural, raster, sh, Gaussians, Image};
 
 fn one_gaussian(at: [f32; 3], rgb: [f32; 3]) -> Gaussians {
@@ -191,13 +190,13 @@ fn neural_gaussians_follow_scaffold_gs() {
     bad.dims.scaling_dim = 5;
     assert!(matches!(
         neural::neural_gaussians(&bad, camera),
-        Err(Error::NeuralGaussiansUnsupported { value: 5, .. })
+        Err(neural::NeuralError::Unsupported { value: 5, .. })
     ));
     let mut short = m.clone();
     short.mlp_cov.b1.pop();
     assert!(matches!(
         neural::neural_gaussians(&short, camera),
-        Err(Error::Stream(salvq::Error::TensorShape { .. }))
+        Err(neural::NeuralError::Shape(salvq::Error::TensorShape { .. }))
     ));
 }
 
@@ -217,7 +216,10 @@ fn ring_settings_are_checked() {
         .camera(&b, 0, 10, 10),
         Ring { views: 0, ..ring }.camera(&b, 0, 10, 10),
     ] {
-        assert_eq!(e.unwrap_err().class(), "RenderSettingInvalid");
+        assert_eq!(
+            salvq_render::Error::from(e.unwrap_err()).class(),
+            "RenderSettingInvalid"
+        );
     }
     assert_eq!(Axis::parse("-y"), Some(ring.up));
     assert_eq!(Axis::parse("y"), Some(Axis { index: 1, sign: 1 }));

@@ -37,6 +37,22 @@ fn chunks(stream: &[u8]) -> Vec<(ChunkTag, Vec<u8>)> {
     surgery::chunks(stream).expect("the base stream frames")
 }
 
+/// Byte offsets inside the base stream's `GQUA` payload (§3.3): group 0 (scale, identity)
+/// starts at 1: lattice, step (2), gains (6: M = 3).
+mod gqua_at {
+    pub const GROUP0_STEP: usize = 2;
+    pub const GROUP0_GAIN0: usize = 6;
+
+    /// Group 3 (sh_dc) has the KLT basis: its lattice byte, found by walking the groups.
+    pub fn dc_lattice() -> usize {
+        let mut at = 1;
+        for d in [3usize, 1, 3] {
+            at += 1 + 4 + 4 * 3 + 4 * d;
+        }
+        at
+    }
+}
+
 /// Byte offsets inside the base stream's `GLAY` payload (§3.4): after `coding_method`,
 /// `coord_bits` (1), `voxel_size` (2), `pred_level` (6), `rotation_freq` (7), thresholds
 /// (13), refine (25), shifts (29), then the scale offsets, predict, the `sh_rest` count's
@@ -55,97 +71,25 @@ mod glay_at {
 /// Every explicit must-fail vector, in decoding order (§3.2 – §3.7).
 pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
     let base = base_stream(false);
-    let ghed = |f: &dyn Fn(&mut Vec<u8>)| edit(&base, ChunkTag::GHED, |p| f(p));
-    let gqua = |f: &dyn Fn(&mut Vec<u8>)| edit(&base, ChunkTag::GQUA, |p| f(p));
-    let glay = |f: &dyn Fn(&mut Vec<u8>)| edit(&base, ChunkTag::GLAY, |p| f(p));
-    // GQUA: group 0 (scale, identity) starts at 1: lattice, step (2), gains (6: M = 3).
-    let gqua_group0_step = 2;
-    let gqua_group0_gain0 = 6;
-    // Group 3 (sh_dc) has the KLT basis: find its lattice byte by walking the groups.
-    let gqua_dc_lattice = {
-        let mut at = 1;
-        for d in [3usize, 1, 3] {
-            at += 1 + 4 + 4 * 3 + 4 * d;
-        }
-        at
-    };
-    let swapped = {
-        let mut cs = chunks(&base);
-        let t = cs
-            .iter()
-            .position(|(t, _)| *t == ChunkTag::TILS)
-            .expect("TILS");
-        cs.swap(t, t + 1);
-        surgery::assemble(&base, &cs)
-    };
-    let unknown = {
-        let mut cs = chunks(&base);
-        cs.insert(2, (ChunkTag::AFEA, vec![1]));
-        surgery::assemble(&base, &cs)
-    };
-    let base_tiles = chunks(&base)
-        .into_iter()
-        .find(|(t, _)| *t == ChunkTag::TILS)
-        .map(|(_, p)| u32::from_le_bytes([p[1], p[2], p[3], p[4]]))
-        .expect("TILS");
-    let mut trailing = base.clone();
-    trailing.push(0);
-    let progressive = base_stream(true);
-    let gref = |f: &dyn Fn(&mut Vec<u8>)| edit(&progressive, ChunkTag::GREF, |p| f(p));
-    let cut = {
-        let at = surgery::chunk_offset(&progressive, ChunkTag::GRSY).expect("GRSY");
-        progressive[..at + 12].to_vec()
-    };
-    let refinement_first = {
-        let mut cs = chunks(&progressive);
-        let r = cs
-            .iter()
-            .position(|(t, _)| *t == ChunkTag::GREF)
-            .expect("GREF");
-        cs.swap(r, r + 1);
-        surgery::assemble(&progressive, &cs)
-    };
-    // GREF (§3.8.1): coding_method, pred_level (1), refine (2 … 5), factor (6 …, 4 per group),
-    // then the scale offsets (4 per group; G = 5).
-    let progressive_vectors = vec![
-        must_fail(
-            "x-g-gref-refine",
-            "FieldOutOfRange",
-            &["§3.8.1"],
-            "GREF refine[0] = 24: past 24 bits with the grid's",
-            gref(&|p| p[2] = 24),
-        ),
-        must_fail(
-            "x-g-gref-factor",
-            "FieldOutOfRange",
-            &["§3.8.1"],
-            "GREF factor[0][0] = 0",
-            gref(&|p| p[6] = 0),
-        ),
-        must_fail(
-            "x-g-gref-offset",
-            "ValueInvalid",
-            &["§3.8.1"],
-            "GREF scale_offset[0][0] = 64",
-            gref(&|p| p[6 + 20] = 64),
-        ),
-        must_fail(
-            "x-g-grsy-before-gref",
-            "ChunkOrder",
-            &["§3.7", "§3.8"],
-            "GRSY before GREF",
-            refinement_first,
-        ),
-        must_fail(
-            "x-g-progressive-cut",
-            "ChunkLengthPastEnd",
-            &["§1.3", "§3.8.4"],
-            "a progressive stream cut inside its refinement's GRSY (without the caller's \
-             consent to a prefix, the truncation is the error)",
-            cut,
-        ),
-    ];
-    let mut out = vec![
+    let mut out = ghed_vectors(&base);
+    out.extend(gqua_value_vectors(&base));
+    out.extend(gqua_read_order_vectors(&base));
+    out.extend(glay_grid_vectors(&base));
+    out.extend(glay_prior_vectors(&base));
+    out.extend(order_vectors(&base));
+    out.extend(gatt_vectors(&base));
+    out.extend(trailing_and_rate_vectors(&base));
+    out.extend(explicit_must_fail_bodies::tile_vectors(&base));
+    out.extend(explicit_must_fail_bodies::body_vectors(&base));
+    out.extend(progressive_vectors(&base_stream(true)));
+    out
+}
+
+/// `GHED`'s vectors (§3.2): reserved and out-of-range fields, a NaN origin, a wrong decoded
+/// size, a wrong length.
+fn ghed_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let ghed = |f: &dyn Fn(&mut Vec<u8>)| edit(base, ChunkTag::GHED, |p| f(p));
+    vec![
         must_fail(
             "x-g-head-flags",
             "ReservedBitsSet",
@@ -196,6 +140,14 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "GHED one byte too long",
             ghed(&|p| p.push(0)),
         ),
+    ]
+}
+
+/// `GQUA`'s vectors of values out of range (§3.3): a lattice this profile does not use, a
+/// zero step, a step × gain that overflows, a singular KLT basis.
+fn gqua_value_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let gqua = |f: &dyn Fn(&mut Vec<u8>)| edit(base, ChunkTag::GQUA, |p| f(p));
+    vec![
         must_fail(
             "x-g-lattice",
             "ValueInvalid",
@@ -209,7 +161,8 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             &["§3.3"],
             "GQUA scale step = 0",
             gqua(&|p| {
-                p[gqua_group0_step..gqua_group0_step + 4].copy_from_slice(&0f32.to_le_bytes())
+                p[gqua_at::GROUP0_STEP..gqua_at::GROUP0_STEP + 4]
+                    .copy_from_slice(&0f32.to_le_bytes())
             }),
         ),
         must_fail(
@@ -218,8 +171,10 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             &["§3.3"],
             "GQUA scale gain 0 finite but step × gain overflows",
             gqua(&|p| {
-                p[gqua_group0_step..gqua_group0_step + 4].copy_from_slice(&1e30f32.to_le_bytes());
-                p[gqua_group0_gain0..gqua_group0_gain0 + 4].copy_from_slice(&1e30f32.to_le_bytes());
+                p[gqua_at::GROUP0_STEP..gqua_at::GROUP0_STEP + 4]
+                    .copy_from_slice(&1e30f32.to_le_bytes());
+                p[gqua_at::GROUP0_GAIN0..gqua_at::GROUP0_GAIN0 + 4]
+                    .copy_from_slice(&1e30f32.to_le_bytes());
             }),
         ),
         must_fail(
@@ -229,10 +184,18 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "GQUA sh_dc basis_s[1] = 0",
             gqua(&|p| {
                 // basis_s follows lattice, step, 3 gains, 3 means and 9 basis_u values.
-                let s1 = gqua_dc_lattice + 1 + 4 + 12 + 12 + 18 + 2;
+                let s1 = gqua_at::dc_lattice() + 1 + 4 + 12 + 12 + 18 + 2;
                 p[s1..s1 + 2].copy_from_slice(&[0, 0]);
             }),
         ),
+    ]
+}
+
+/// `GQUA`'s vectors of the order its values are checked in (§3.3: each as it is read), and
+/// of its length.
+fn gqua_read_order_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let gqua = |f: &dyn Fn(&mut Vec<u8>)| edit(base, ChunkTag::GQUA, |p| f(p));
+    vec![
         must_fail(
             "x-g-basis-zero-then-nan",
             "NonFiniteValue",
@@ -240,7 +203,7 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "GQUA sh_dc basis_s = [0, NaN, …]: each value's finiteness is checked as it is read, \
              the zero only after the last",
             gqua(&|p| {
-                let s0 = gqua_dc_lattice + 1 + 4 + 12 + 12 + 18;
+                let s0 = gqua_at::dc_lattice() + 1 + 4 + 12 + 12 + 18;
                 p[s0..s0 + 2].copy_from_slice(&[0, 0]);
                 p[s0 + 2..s0 + 4].copy_from_slice(&0x7e00u16.to_le_bytes());
             }),
@@ -252,7 +215,7 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "GQUA scale gains = [0, NaN, …]: each gain is checked whole (finite, then > 0) \
              before the next is read",
             gqua(&|p| {
-                let g = gqua_group0_gain0;
+                let g = gqua_at::GROUP0_GAIN0;
                 p[g..g + 4].copy_from_slice(&0f32.to_le_bytes());
                 p[g + 4..g + 8].copy_from_slice(&f32::NAN.to_le_bytes());
             }),
@@ -264,6 +227,14 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "GQUA one byte too long",
             gqua(&|p| p.push(0)),
         ),
+    ]
+}
+
+/// `GLAY`'s vectors of the layer's grid (§3.4): `coord_bits`, `pred_level`, `rotation_freq`,
+/// `size_threshold` and `refine` out of range.
+fn glay_grid_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let glay = |f: &dyn Fn(&mut Vec<u8>)| edit(base, ChunkTag::GLAY, |p| f(p));
+    vec![
         must_fail(
             "x-g-coord-bits",
             "FieldOutOfRange",
@@ -305,6 +276,14 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "GLAY refine[0] above 24 − coord_bits",
             glay(&|p| p[glay_at::REFINE] = 24),
         ),
+    ]
+}
+
+/// `GLAY`'s vectors of the layer's prior (§3.4, §3.5): `shift`, `scale_offset`, `predict`,
+/// the `sh_rest` count's tree and `scale_table` out of range, and a wrong length.
+fn glay_prior_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let glay = |f: &dyn Fn(&mut Vec<u8>)| edit(base, ChunkTag::GLAY, |p| f(p));
+    vec![
         must_fail(
             "x-g-shift",
             "ValueInvalid",
@@ -372,6 +351,27 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
                 p.pop();
             }),
         ),
+    ]
+}
+
+/// The chunk-order vectors (§1.5, §3.7): an anchors-profile chunk, `GHED` removed, layer 0's
+/// `APOS` before its `TILS`.
+fn order_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let swapped = {
+        let mut cs = chunks(base);
+        let t = cs
+            .iter()
+            .position(|(t, _)| *t == ChunkTag::TILS)
+            .expect("TILS");
+        cs.swap(t, t + 1);
+        surgery::assemble(base, &cs)
+    };
+    let unknown = {
+        let mut cs = chunks(base);
+        cs.insert(2, (ChunkTag::AFEA, vec![1]));
+        surgery::assemble(base, &cs)
+    };
+    vec![
         must_fail(
             "x-g-unknown-critical",
             "UnknownCriticalChunk",
@@ -386,9 +386,9 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "GHED removed: the first chunk, GQUA, makes the stream one of the anchors profile, \
              which does not define it (rule 0 before rule 1)",
             {
-                let mut cs = chunks(&base);
+                let mut cs = chunks(base);
                 cs.retain(|(t, _)| *t != ChunkTag::GHED);
-                surgery::assemble(&base, &cs)
+                surgery::assemble(base, &cs)
             },
         ),
         must_fail(
@@ -398,24 +398,43 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
             "layer 0's APOS before its TILS",
             swapped,
         ),
+    ]
+}
+
+/// `GATT`'s vectors (§3.5): an unknown coding method, a tile body with a zero top word.
+fn gatt_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let base_tiles = chunks(base)
+        .into_iter()
+        .find(|(t, _)| *t == ChunkTag::TILS)
+        .map(|(_, p)| u32::from_le_bytes([p[1], p[2], p[3], p[4]]))
+        .expect("TILS");
+    vec![
         must_fail(
             "x-g-gatt-method",
             "UnknownCodingMethod",
             &["§3.5"],
             "GATT coding_method = 0",
-            edit(&base, ChunkTag::GATT, |p| p[0] = 0),
+            edit(base, ChunkTag::GATT, |p| p[0] = 0),
         ),
         must_fail(
             "x-g-gatt-top-word",
             "AnsStreamInvalid",
             &["§3.5", "§6.2.6"],
             "tile 0's GATT body starts with a zero top word",
-            edit(&base, ChunkTag::GATT, |p| {
+            edit(base, ChunkTag::GATT, |p| {
                 // coding_method, T tile lengths, then tile 0's body (T from TILS, §10.1).
                 let at = 1 + 4 * base_tiles as usize;
                 p[at..at + 4].copy_from_slice(&[0, 0, 0, 0]);
             }),
         ),
+    ]
+}
+
+/// A byte after `SEND` (§3.7), and a rate the stream does not code (§3.2).
+fn trailing_and_rate_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let mut trailing = base.to_vec();
+    trailing.push(0);
+    vec![
         must_fail(
             "x-g-trailing",
             "TrailingData",
@@ -430,12 +449,67 @@ pub fn explicit_must_fail_vectors() -> Vec<MustFailVector> {
                 "RateNotCoded",
                 &["§3.2"],
                 "rate 2 of 3 asked for; the stream codes rates 0 and 1",
-                base.clone(),
+                base.to_vec(),
             )
         },
-    ];
-    out.extend(explicit_must_fail_bodies::tile_vectors(&base));
-    out.extend(explicit_must_fail_bodies::body_vectors(&base));
-    out.extend(progressive_vectors);
-    out
+    ]
+}
+
+/// The progressive stream's vectors (§3.8): `GREF` fields out of range, `GRSY` before `GREF`,
+/// a stream cut inside its refinement.
+fn progressive_vectors(progressive: &[u8]) -> Vec<MustFailVector> {
+    let gref = |f: &dyn Fn(&mut Vec<u8>)| edit(progressive, ChunkTag::GREF, |p| f(p));
+    let cut = {
+        let at = surgery::chunk_offset(progressive, ChunkTag::GRSY).expect("GRSY");
+        progressive[..at + 12].to_vec()
+    };
+    let refinement_first = {
+        let mut cs = chunks(progressive);
+        let r = cs
+            .iter()
+            .position(|(t, _)| *t == ChunkTag::GREF)
+            .expect("GREF");
+        cs.swap(r, r + 1);
+        surgery::assemble(progressive, &cs)
+    };
+    // GREF (§3.8.1): coding_method, pred_level (1), refine (2 … 5), factor (6 …, 4 per group),
+    // then the scale offsets (4 per group; G = 5).
+    vec![
+        must_fail(
+            "x-g-gref-refine",
+            "FieldOutOfRange",
+            &["§3.8.1"],
+            "GREF refine[0] = 24: past 24 bits with the grid's",
+            gref(&|p| p[2] = 24),
+        ),
+        must_fail(
+            "x-g-gref-factor",
+            "FieldOutOfRange",
+            &["§3.8.1"],
+            "GREF factor[0][0] = 0",
+            gref(&|p| p[6] = 0),
+        ),
+        must_fail(
+            "x-g-gref-offset",
+            "ValueInvalid",
+            &["§3.8.1"],
+            "GREF scale_offset[0][0] = 64",
+            gref(&|p| p[6 + 20] = 64),
+        ),
+        must_fail(
+            "x-g-grsy-before-gref",
+            "ChunkOrder",
+            &["§3.7", "§3.8"],
+            "GRSY before GREF",
+            refinement_first,
+        ),
+        must_fail(
+            "x-g-progressive-cut",
+            "ChunkLengthPastEnd",
+            &["§1.3", "§3.8.4"],
+            "a progressive stream cut inside its refinement's GRSY (without the caller's \
+             consent to a prefix, the truncation is the error)",
+            cut,
+        ),
+    ]
 }

@@ -104,13 +104,27 @@ pub(crate) fn base_plan(sh: bool) -> RatePlan {
 
 /// Every explicit valid vector, in a fixed order.
 pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
-    let options = |tiles: u32, coded: Option<Vec<u8>>, klt: Option<Vec<bool>>| ExplicitOptions {
+    let mut out = layered_vectors()?;
+    out.extend(layered_edge_vectors()?);
+    out.extend(progressive_vectors()?);
+    Ok(out)
+}
+
+/// The options of a layered vector: tiles of at most `tiles` Gaussians, the rates `coded`
+/// (all when `None`), KLT per group (the encoder's choice when `None`).
+fn vector_options(tiles: u32, coded: Option<Vec<u8>>, klt: Option<Vec<bool>>) -> ExplicitOptions {
+    ExplicitOptions {
         coded,
         klt,
         tile_gaussians: tiles,
         progressive: false,
         ..Default::default()
-    };
+    }
+}
+
+/// Layered vectors of each SH degree (§3, §7.4): SH degree 0 at one rate, SH degree 3 at
+/// three rates with KLT bases, one Gaussian of SH degree 1.
+fn layered_vectors() -> Result<Vec<ExplicitVector>> {
     Ok(vec![
         vector(
             "g-sh0",
@@ -120,7 +134,7 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
             encode_synthetic(
                 &GaussianParams::new(200, 0, 3),
                 vec![base_plan(false)],
-                options(80, None, Some(vec![false; 4])),
+                vector_options(80, None, Some(vec![false; 4])),
             )?,
         ),
         vector(
@@ -131,7 +145,7 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
             encode_synthetic(
                 &GaussianParams::new(120, 3, 5),
                 rates(&base_plan(true), 3),
-                options(64, None, Some(vec![false, false, false, true, true])),
+                vector_options(64, None, Some(vec![false, false, false, true, true])),
             )?,
         ),
         vector(
@@ -141,9 +155,16 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
             encode_synthetic(
                 &GaussianParams::new(1, 1, 7),
                 vec![base_plan(true)],
-                options(16_384, None, None),
+                vector_options(16_384, None, None),
             )?,
         ),
+    ])
+}
+
+/// Layered vectors of edge cases (§3.5, §6.3.6, §7.4, §8.4): every group predicted, every
+/// Gaussian in one voxel, wide scales.
+fn layered_edge_vectors() -> Result<Vec<ExplicitVector>> {
+    Ok(vec![
         vector(
             "g-sh1-predicted",
             "80 synthetic Gaussians, SH degree 1, every group predicted from its reference \
@@ -157,7 +178,7 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                         predict_all: true,
                         ..Default::default()
                     },
-                    ..options(16_384, None, None)
+                    ..vector_options(16_384, None, None)
                 },
             )?,
         ),
@@ -172,7 +193,7 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                     ..GaussianParams::new(40, 2, 9)
                 },
                 rates(&base_plan(true), 2),
-                options(16_384, Some(vec![1]), None),
+                vector_options(16_384, Some(vec![1]), None),
             )?,
         ),
         vector(
@@ -189,9 +210,16 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                     &[0.0005, 0.05, 0.0001, 0.01],
                     &SHIFTS_SH0,
                 )],
-                options(80, None, Some(vec![false; 4])),
+                vector_options(80, None, Some(vec![false; 4])),
             )?,
         ),
+    ])
+}
+
+/// Progressive vectors (§3.8): three rates with steps doubling, and two coded rates of three
+/// with a rate skipped.
+fn progressive_vectors() -> Result<Vec<ExplicitVector>> {
+    Ok(vec![
         vector(
             "g-sh3-progressive",
             "600 synthetic Gaussians, SH degree 3, three rates with steps doubling per rate as a \
@@ -204,7 +232,7 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                 rates(&base_plan(true), 3),
                 ExplicitOptions {
                     progressive: true,
-                    ..options(64, None, Some(vec![false, false, false, true, true]))
+                    ..vector_options(64, None, Some(vec![false, false, false, true, true]))
                 },
             )?,
         ),
@@ -231,7 +259,7 @@ pub fn explicit_valid_vectors() -> Result<Vec<ExplicitVector>> {
                 },
                 ExplicitOptions {
                     progressive: true,
-                    ..options(80, Some(vec![0, 2]), Some(vec![false; 4]))
+                    ..vector_options(80, Some(vec![0, 2]), Some(vec![false; 4]))
                 },
             )?,
         ),

@@ -16,11 +16,9 @@ use salvq_gen::{generate, GenParams};
 /// The limits the fuzz targets decode under: small enough that a hostile header cannot make
 /// a run slow or large.
 pub fn fuzz_limits() -> Limits {
-    Limits {
-        max_anchors: 1 << 14,
-        max_alloc_bytes: 64 << 20,
-        max_chunk_bytes: 16 << 20,
-    }
+    Limits::tight()
+        .with_max_anchors(1 << 14)
+        .with_max_chunk_bytes(16 << 20)
 }
 
 /// The most heap a decode of a `stream_len`-byte stream whose preflight gives
@@ -264,12 +262,12 @@ pub fn payload_base() -> &'static [u8] {
 
 /// The explicit profile's payload chunks [`payload_input`] replaces (§3).
 pub const EXPLICIT_PAYLOAD_TAGS: [ChunkTag; 6] = [
-    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[0],
-    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[1],
-    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[2],
-    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[3],
-    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[4],
-    salvq_bitstream::explicit::order::CRITICAL_CHUNKS[5],
+    salvq_bitstream::container::order::EXPLICIT_CRITICAL[0],
+    salvq_bitstream::container::order::EXPLICIT_CRITICAL[1],
+    salvq_bitstream::container::order::EXPLICIT_CRITICAL[2],
+    salvq_bitstream::container::order::EXPLICIT_CRITICAL[3],
+    salvq_bitstream::container::order::EXPLICIT_CRITICAL[4],
+    salvq_bitstream::container::order::EXPLICIT_CRITICAL[5],
 ];
 
 /// The explicit-profile stream [`payload_input`] splices into: 40 synthetic Gaussians of SH

@@ -136,27 +136,31 @@ fn insert_chunk(stream: &[u8], at: usize, tag: ChunkTag, payload: &[u8]) -> Vec<
     surgery::assemble(stream, &cs)
 }
 
+/// The stream with its bytes changed by `f`, CRCs left as they are.
+fn changed(stream: &[u8], f: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
+    let mut s = stream.to_vec();
+    f(&mut s);
+    s
+}
+
 /// Signature, chunk framing, chunk order and the end of the stream (§1.2, §1.3, §1.5).
 fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
-    let with = |f: &dyn Fn(&mut Vec<u8>)| {
-        let mut s = base.to_vec();
-        f(&mut s);
-        s
-    };
-    let set_len = |s: &mut Vec<u8>, tag: ChunkTag, len: u32| {
-        let at = offset(s, tag);
-        s[at..at + 4].copy_from_slice(&len.to_le_bytes());
-    };
-    let send = offset(base, ChunkTag::SEND);
-    let mut swapped = chunks(base);
-    swapped.swap(1, 2);
+    let mut out = signature_vectors(base);
+    out.extend(framing_vectors(base));
+    out.extend(order_vectors(base));
+    out
+}
+
+/// The signature's vectors (§1.2, §1.2.1): a wrong magic, a truncated signature, versions the
+/// decoder does not implement, a reserved flag.
+fn signature_vectors(base: &[u8]) -> Vec<MustFailVector> {
     vec![
         vector(
             "x-signature-mismatch",
             "SignatureMismatch",
             &["§1.2"],
             "magic byte 1 changed from 'S' to 'P'",
-            with(&|s| s[1] = b'P'),
+            changed(base, |s| s[1] = b'P'),
         ),
         vector(
             "x-truncated-signature",
@@ -170,14 +174,16 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "UnsupportedMajorVersion",
             &["§1.2", "§1.2.1"],
             "major version 1 (the decoder implements 0)",
-            with(&|s| s[8] = 1),
+            changed(base, |s| s[8] = 1),
         ),
         vector(
             "x-unsupported-minor-version",
             "UnsupportedMinorVersion",
             &["§1.2", "§1.2.1"],
             "minor version one above the decoder's in the draft series",
-            with(&|s| s[9] = salvq_bitstream::container::signature::FORMAT_MINOR + 1),
+            changed(base, |s| {
+                s[9] = salvq_bitstream::container::signature::FORMAT_MINOR + 1
+            }),
         ),
         vector(
             "x-older-minor-version",
@@ -185,21 +191,35 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             &["§1.2", "§1.2.1"],
             "minor version one below the decoder's in the draft series (draft versions are \
              never read by a later draft's decoder)",
-            with(&|s| s[9] = salvq_bitstream::container::signature::FORMAT_MINOR - 1),
+            changed(base, |s| {
+                s[9] = salvq_bitstream::container::signature::FORMAT_MINOR - 1
+            }),
         ),
         vector(
             "x-reserved-file-flags",
             "ReservedBitsSet",
             &["§1.2"],
             "file_flags = 0x8000: a reserved bit set",
-            with(&|s| s[SIGNATURE_LEN - 1] = 0x80),
+            changed(base, |s| s[SIGNATURE_LEN - 1] = 0x80),
         ),
+    ]
+}
+
+/// The chunk framing's vectors (§1.3, §9.1): an invalid tag, lengths too large or past the
+/// end, a stream cut in a chunk's header or CRC, a CRC that does not match.
+fn framing_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let set_len = |s: &mut Vec<u8>, tag: ChunkTag, len: u32| {
+        let at = offset(s, tag);
+        s[at..at + 4].copy_from_slice(&len.to_le_bytes());
+    };
+    let send = offset(base, ChunkTag::SEND);
+    vec![
         vector(
             "x-chunk-tag-invalid",
             "ChunkTagInvalid",
             &["§1.3"],
             "the GRID chunk's tag is G#ID",
-            with(&|s| {
+            changed(base, |s| {
                 let at = offset(s, ChunkTag::GRID) + 5;
                 s[at] = b'#';
             }),
@@ -209,14 +229,14 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "LimitExceeded",
             &["§1.3", "§9.1"],
             "the MLPS chunk's length is 2^30 + 1, above the default chunk limit of 1 GiB",
-            with(&|s| set_len(s, ChunkTag::MLPS, (1 << 30) + 1)),
+            changed(base, |s| set_len(s, ChunkTag::MLPS, (1 << 30) + 1)),
         ),
         vector(
             "x-chunk-length-past-end",
             "ChunkLengthPastEnd",
             &["§1.3"],
             "the AOFF chunk's length is 1 000 000, past the end of the stream",
-            with(&|s| set_len(s, ChunkTag::AOFF, 1_000_000)),
+            changed(base, |s| set_len(s, ChunkTag::AOFF, 1_000_000)),
         ),
         vector(
             "x-truncated-chunk-header",
@@ -237,11 +257,21 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "ChunkCrcMismatch",
             &["§1.3"],
             "one bit of the AFEA payload flipped, its CRC left as it was",
-            with(&|s| {
+            changed(base, |s| {
                 let at = offset(s, ChunkTag::AFEA) + 8 + 5;
                 s[at] ^= 0x10;
             }),
         ),
+    ]
+}
+
+/// The chunk order's and the stream end's vectors (§1.5, §6.6.2, §10.2): unknown and
+/// misplaced chunks, no `SEND`, data after it, and which of two broken rules is reported first.
+fn order_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let send = offset(base, ChunkTag::SEND);
+    let mut swapped = chunks(base);
+    swapped.swap(1, 2);
+    vec![
         vector(
             "x-unknown-critical-chunk",
             "UnknownCriticalChunk",
@@ -282,7 +312,7 @@ fn container_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "TrailingData",
             &["§1.5"],
             "4 bytes after SEND",
-            with(&|s| s.extend_from_slice(b"junk")),
+            changed(base, |s| s.extend_from_slice(b"junk")),
         ),
         vector(
             "x-layer-chunk-by-chunk",

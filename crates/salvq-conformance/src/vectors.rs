@@ -70,15 +70,21 @@ fn options(rates: &[u8]) -> EncodeOptions {
 
 /// Every valid vector, in a fixed order.
 pub fn valid_vectors() -> Result<Vec<ValidVector>> {
-    let mut out = Vec::new();
     let usq = generate(&small(40, 11, false));
-    out.push(vector(
-        "usq-one-rate",
-        "40 anchors, identity lattices (USQ), one rate of two",
-        &[],
-        encode_full(&usq, &options(&[1]))?,
-    ));
+    let mut out = rate_vectors(&usq)?;
+    out.extend(lattice_vectors(&usq)?);
+    out.extend(symbol_vectors(&usq)?);
+    out.extend(tile_vectors()?);
+    out.extend(scene_shape_vectors()?);
+    out.extend(max_vectors()?);
+    out.extend(precision_vectors(&usq)?);
+    out.push(ancillary_vector(&usq)?);
+    Ok(out)
+}
 
+/// The vectors of one and several rates (§2.6, §7.5): USQ at one rate of two, a learned
+/// feature basis at four rates, and rate 2 extracted from those four.
+fn rate_vectors(usq: &SceneModel) -> Result<Vec<ValidVector>> {
     let salvq = generate(&GenParams {
         rates: 4,
         ..small(60, 12, true)
@@ -86,32 +92,37 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
     let four = encode_full(&salvq, &options(&[0, 1, 2, 3]))?;
     // §7.5: rate 2 taken out of the four-rate stream, without re-coding.
     let extracted = salvq::extract_rate(&four.stream, 2, &Limits::default())?;
-    out.push(ValidVector {
-        name: "extract-rate-2",
-        description: "rate 2 extracted from salvq-four-rates (salvq extract)",
-        sections: &["§2.6", "§7.5"],
-        stream: extracted,
-        rates: vec![2],
-        oracle: vec![four.layers[2].expected.clone()],
-    });
-    out.push(vector(
-        "salvq-four-rates",
-        "60 anchors, learned feature basis B = U diag(s) V^T, four symbol layers",
-        &["§2.6"],
-        four,
-    ));
+    Ok(vec![
+        vector(
+            "usq-one-rate",
+            "40 anchors, identity lattices (USQ), one rate of two",
+            &[],
+            encode_full(usq, &options(&[1]))?,
+        ),
+        ValidVector {
+            name: "extract-rate-2",
+            description: "rate 2 extracted from salvq-four-rates (salvq extract)",
+            sections: &["§2.6", "§7.5"],
+            stream: extracted,
+            rates: vec![2],
+            oracle: vec![four.layers[2].expected.clone()],
+        },
+        vector(
+            "salvq-four-rates",
+            "60 anchors, learned feature basis B = U diag(s) V^T, four symbol layers",
+            &["§2.6"],
+            four,
+        ),
+    ])
+}
 
+/// The vectors of each lattice and basis (§2.6, §7.2, §7.6): D_n, E8 product, FS-SALVQ and
+/// Sp-SALVQ.
+fn lattice_vectors(usq: &SceneModel) -> Result<Vec<ValidVector>> {
     let dn = EncodeOptions {
         feat_lattice: Some(LatticeKind::Dn),
         ..options(&[0])
     };
-    out.push(vector(
-        "dn-feature",
-        "feature group on the D_8 lattice",
-        &["§7.2"],
-        encode_full(&usq, &dn)?,
-    ));
-
     let e8 = generate(&GenParams {
         feat_dim: 16,
         ..small(40, 13, false)
@@ -120,44 +131,47 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         feat_lattice: Some(LatticeKind::E8Product),
         ..options(&[0, 1])
     };
-    out.push(vector(
-        "e8-feature",
-        "feature group on E8 x E8 (F = 16), two rates",
-        &["§7.2"],
-        encode_full(&e8, &e8_options)?,
-    ));
-
     let fs = generate(&GenParams {
         scaling_basis: true,
         view_dims: 4,
         ..small(50, 14, true)
     });
-    out.push(vector(
-        "fs-salvq",
-        "learned bases for the feature and the scaling group (FS-SALVQ); V = 4 view inputs",
-        &["§2.6", "§7.6"],
-        encode_full(&fs, &options(&[0, 1]))?,
-    ));
+    Ok(vec![
+        vector(
+            "dn-feature",
+            "feature group on the D_8 lattice",
+            &["§7.2"],
+            encode_full(usq, &dn)?,
+        ),
+        vector(
+            "e8-feature",
+            "feature group on E8 x E8 (F = 16), two rates",
+            &["§7.2"],
+            encode_full(&e8, &e8_options)?,
+        ),
+        vector(
+            "fs-salvq",
+            "learned bases for the feature and the scaling group (FS-SALVQ); V = 4 view inputs",
+            &["§2.6", "§7.6"],
+            encode_full(&fs, &options(&[0, 1]))?,
+        ),
+        vector(
+            "sp-salvq-regions",
+            "three feature regions and two scaling regions, each with its own basis (Sp-SALVQ)",
+            &["§2.6", "§7.6"],
+            encode_full(&with_scaling_regions(&fs), &{
+                let mut o = options(&[1]);
+                o.fit_basis = true;
+                o.feat_regions = 3;
+                o
+            })?,
+        ),
+    ])
+}
 
-    out.push(vector(
-        "sp-salvq-regions",
-        "three feature regions and two scaling regions, each with its own basis (Sp-SALVQ)",
-        &["§2.6", "§7.6"],
-        encode_full(&with_scaling_regions(&fs), &{
-            let mut o = options(&[1]);
-            o.fit_basis = true;
-            o.feat_regions = 3;
-            o
-        })?,
-    ));
-
-    out.push(vector(
-        "escapes",
-        "features far outside the tables: escapes with prefixes of 1 to 24 bits",
-        &["§6.4"],
-        encode_full(&with_escapes(&usq), &options(&[0]))?,
-    ));
-
+/// The vectors of unusual symbols (§6.3.1, §6.4, §6.6.1): escapes, coarse steps, every mask
+/// pattern.
+fn symbol_vectors(usq: &SceneModel) -> Result<Vec<ValidVector>> {
     let mut coarse = usq.clone();
     for q in [
         &mut coarse.quant_feat,
@@ -166,109 +180,153 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
     ] {
         q.step *= 24.0;
     }
-    out.push(vector(
-        "coarse-steps",
-        "steps 24 times the model's: predicted deviations of a fraction of a step, the \
-         smallest scale indices, mostly zero symbols",
-        &["§6.3.1"],
-        encode_full(&coarse, &options(&[0, 1]))?,
-    ));
+    Ok(vec![
+        vector(
+            "escapes",
+            "features far outside the tables: escapes with prefixes of 1 to 24 bits",
+            &["§6.4"],
+            encode_full(&with_escapes(usq), &options(&[0]))?,
+        ),
+        vector(
+            "coarse-steps",
+            "steps 24 times the model's: predicted deviations of a fraction of a step, the \
+             smallest scale indices, mostly zero symbols",
+            &["§6.3.1"],
+            encode_full(&coarse, &options(&[0, 1]))?,
+        ),
+        vector(
+            "mask-patterns",
+            "every one of the 16 offset-mask patterns of K = 4, all-zero and all-one included",
+            &["§6.6.1"],
+            encode_full(
+                &with_all_masks(&generate(&small(48, 15, false))),
+                &options(&[0]),
+            )?,
+        ),
+    ])
+}
 
-    out.push(vector(
-        "mask-patterns",
-        "every one of the 16 offset-mask patterns of K = 4, all-zero and all-one included",
-        &["§6.6.1"],
-        encode_full(
-            &with_all_masks(&generate(&small(48, 15, false))),
-            &options(&[0]),
-        )?,
-    ));
-
-    out.push(vector(
-        "tiles-many",
-        "600 anchors cut into tiles of at most 40 anchors",
-        &[],
-        encode_full(
-            &generate(&small(600, 16, true)),
-            &EncodeOptions {
-                tile_anchors: 40,
-                ..options(&[0])
-            },
-        )?,
-    ));
-
+/// The vectors of tiling (§10, §11.7): many tiles, tiles with regions, a tile per anchor.
+fn tile_vectors() -> Result<Vec<ValidVector>> {
     // Region decodes (§10.3.1) of this vector are listed by `region_vectors`.
     let regions = generate(&GenParams {
         scaling_basis: true,
         ..small(360, 17, true)
     });
-    out.push(vector(
-        "tiles-regions",
-        "360 anchors in tiles of at most 40, three feature and two scaling regions (Sp-SALVQ): \
-         region decodes at tile faces, across region boundaries, and of no tile",
-        &["§7.6", "§10.3.1", "§11.7"],
-        encode_full(&with_scaling_regions(&regions), &{
-            let mut o = options(&[0]);
-            o.fit_basis = true;
-            o.feat_regions = 3;
-            o.tile_anchors = 40;
-            o
-        })?,
-    ));
+    Ok(vec![
+        vector(
+            "tiles-many",
+            "600 anchors cut into tiles of at most 40 anchors",
+            &[],
+            encode_full(
+                &generate(&small(600, 16, true)),
+                &EncodeOptions {
+                    tile_anchors: 40,
+                    ..options(&[0])
+                },
+            )?,
+        ),
+        vector(
+            "tiles-regions",
+            "360 anchors in tiles of at most 40, three feature and two scaling regions (Sp-SALVQ): \
+             region decodes at tile faces, across region boundaries, and of no tile",
+            &["§7.6", "§10.3.1", "§11.7"],
+            encode_full(&with_scaling_regions(&regions), &{
+                let mut o = options(&[0]);
+                o.fit_basis = true;
+                o.feat_regions = 3;
+                o.tile_anchors = 40;
+                o
+            })?,
+        ),
+        vector(
+            "tiles-one-anchor",
+            "a tile per anchor (tile_anchors = 1), cells down to a single voxel",
+            &[],
+            encode_full(
+                &generate(&small(12, 17, false)),
+                &EncodeOptions {
+                    tile_anchors: 1,
+                    ..options(&[0])
+                },
+            )?,
+        ),
+    ])
+}
 
-    out.push(vector(
-        "tiles-one-anchor",
-        "a tile per anchor (tile_anchors = 1), cells down to a single voxel",
-        &[],
-        encode_full(
-            &generate(&small(12, 17, false)),
-            &EncodeOptions {
-                tile_anchors: 1,
-                ..options(&[0])
-            },
-        )?,
-    ));
+/// The vectors of scene shapes (§2.6, §8.4): shared voxels, one anchor, HAC's dimensions,
+/// no 2D grid levels.
+fn scene_shape_vectors() -> Result<Vec<ValidVector>> {
+    Ok(vec![
+        vector(
+            "shared-voxels",
+            "anchors sharing voxels, 1 to 6 per voxel (voxel counts, all count contexts)",
+            &[],
+            encode_full(
+                &with_shared_voxels(&generate(&small(20, 18, false))),
+                &options(&[0]),
+            )?,
+        ),
+        vector(
+            "one-anchor",
+            "a single anchor",
+            &[],
+            encode_full(&generate(&small(1, 19, false)), &options(&[0]))?,
+        ),
+        vector(
+            "hac-dimensions",
+            "HAC's dimensions: F = 50, K = 10, 12 + 3x4 grid levels with dense and hashed levels",
+            &["§2.6"],
+            encode_full(&generate(&GenParams::new(120, 20)), &options(&[0]))?,
+        ),
+        vector(
+            "no-2d-levels",
+            "3D grid levels only (L2 = 0), dense and hashed",
+            &[],
+            encode_full(
+                &generate(&GenParams {
+                    res_2d: vec![],
+                    res_3d: vec![2, 3, 12],
+                    log2_size_3d: 7,
+                    ..small(30, 21, false)
+                }),
+                &options(&[0]),
+            )?,
+        ),
+    ])
+}
 
-    out.push(vector(
-        "shared-voxels",
-        "anchors sharing voxels, 1 to 6 per voxel (voxel counts, all count contexts)",
-        &[],
-        encode_full(
-            &with_shared_voxels(&generate(&small(20, 18, false))),
-            &options(&[0]),
-        )?,
-    ));
+/// The vectors of the largest dimensions Table 1-4 allows (§2.6, §7.2): for the attributes,
+/// the grid and the MLPs.
+fn max_vectors() -> Result<Vec<ValidVector>> {
+    Ok(vec![
+        vector(
+            "max-attributes",
+            "largest F = 1024 (E8 product), K = 256, S = 64 (basis), M = 64 with rates 0 and 63, \
+             V = 8, coord_bits = 21",
+            &["§2.6", "§7.2"],
+            encode_full(&max_attributes_model(), &options(&[0, 63]))?,
+        ),
+        vector(
+            "max-grid",
+            "largest grid: C = 16, L3 = 32, L2 = 32 (context input 2 048), dense and hashed \
+             levels; feature on D_2, scaling (S = 8) on E8",
+            &["§7.2"],
+            encode_full(&max_grid_model(), &options(&[0]))?,
+        ),
+        vector(
+            "max-hidden",
+            "largest MLPs: context hidden H = 4 096, Scaffold-GS hidden Hs = 4 096",
+            &[],
+            encode_full(&max_hidden_model(), &options(&[0]))?,
+        ),
+    ])
+}
 
-    out.push(vector(
-        "one-anchor",
-        "a single anchor",
-        &[],
-        encode_full(&generate(&small(1, 19, false)), &options(&[0]))?,
-    ));
-
-    out.push(vector(
-        "hac-dimensions",
-        "HAC's dimensions: F = 50, K = 10, 12 + 3x4 grid levels with dense and hashed levels",
-        &["§2.6"],
-        encode_full(&generate(&GenParams::new(120, 20)), &options(&[0]))?,
-    ));
-
-    out.push(vector(
-        "no-2d-levels",
-        "3D grid levels only (L2 = 0), dense and hashed",
-        &[],
-        encode_full(
-            &generate(&GenParams {
-                res_2d: vec![],
-                res_3d: vec![2, 3, 12],
-                log2_size_3d: 7,
-                ..small(30, 21, false)
-            }),
-            &options(&[0]),
-        )?,
-    ));
-
-    let max_attributes = synthetic_model(
+/// The largest attributes: F = 1024 (E8 product), K = 256, S = 64 (basis), M = 64, V = 8,
+/// coordinates of 21 bits.
+fn max_attributes_model() -> SceneModel {
+    synthetic_model(
         Dims {
             anchors: 0,
             feat_dim: 1024,
@@ -290,16 +348,12 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         },
         vec![[0, 0, 0], [(1 << 21) - 1, 5, (1 << 21) - 1]],
         22,
-    );
-    out.push(vector(
-        "max-attributes",
-        "largest F = 1024 (E8 product), K = 256, S = 64 (basis), M = 64 with rates 0 and 63, \
-         V = 8, coord_bits = 21",
-        &["§2.6", "§7.2"],
-        encode_full(&max_attributes, &options(&[0, 63]))?,
-    ));
+    )
+}
 
-    let max_grid = synthetic_model(
+/// The largest grid: C = 16, L3 = 32, L2 = 32; feature on D_2, scaling (S = 8) on E8.
+fn max_grid_model() -> SceneModel {
+    synthetic_model(
         Dims {
             anchors: 0,
             feat_dim: 2,
@@ -321,16 +375,12 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         },
         vec![[1, 2, 3], [7, 0, 4], [0, 6, 6]],
         23,
-    );
-    out.push(vector(
-        "max-grid",
-        "largest grid: C = 16, L3 = 32, L2 = 32 (context input 2 048), dense and hashed \
-         levels; feature on D_2, scaling (S = 8) on E8",
-        &["§7.2"],
-        encode_full(&max_grid, &options(&[0]))?,
-    ));
+    )
+}
 
-    let max_hidden = synthetic_model(
+/// The largest MLPs: context hidden H = 4 096, Scaffold-GS hidden Hs = 4 096.
+fn max_hidden_model() -> SceneModel {
+    synthetic_model(
         Dims {
             anchors: 0,
             feat_dim: 1,
@@ -352,53 +402,56 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         },
         vec![[0, 1, 0], [1, 1, 1]],
         24,
-    );
-    out.push(vector(
-        "max-hidden",
-        "largest MLPs: context hidden H = 4 096, Scaffold-GS hidden Hs = 4 096",
-        &[],
-        encode_full(&max_hidden, &options(&[0]))?,
-    ));
+    )
+}
 
-    out.push(vector(
-        "scaffold-f16",
-        "Scaffold-GS MLPs stored in binary16 (scaffold_precision 1)",
-        &["§1.6.2"],
-        encode_full(
-            &usq,
-            &EncodeOptions {
-                scaffold_precision: Some(
-                    salvq_bitstream::container::payload::ScaffoldPrecision::F16,
-                ),
-                ..options(&[0])
-            },
-        )?,
-    ));
+/// The vectors of stored precisions (§1.6.2, §5.3, §5.4): Scaffold-GS MLPs in binary16, the
+/// context MLP in i16, unit exponents up to 68.
+fn precision_vectors(usq: &SceneModel) -> Result<Vec<ValidVector>> {
+    Ok(vec![
+        vector(
+            "scaffold-f16",
+            "Scaffold-GS MLPs stored in binary16 (scaffold_precision 1)",
+            &["§1.6.2"],
+            encode_full(
+                usq,
+                &EncodeOptions {
+                    scaffold_precision: Some(
+                        salvq_bitstream::container::payload::ScaffoldPrecision::F16,
+                    ),
+                    ..options(&[0])
+                },
+            )?,
+        ),
+        vector(
+            "context-i16",
+            "the context MLP's weights stored as i16 (context_precision 0; the reference encoder \
+             stores them as i8 when that is smaller, Annex A.5.4)",
+            &["§1.6.2", "§5.3"],
+            encode_full(
+                usq,
+                &EncodeOptions {
+                    context_precision: Some(
+                        salvq_bitstream::container::payload::ContextPrecision::I16,
+                    ),
+                    ..options(&[0])
+                },
+            )?,
+        ),
+        vector(
+            "extreme-exponents",
+            "tiny context-MLP weights: unit exponents E up to 8 + 30 + 30 on the step-adjustment \
+             outputs, where a 64-bit rounding shift would overflow",
+            &["§5.3", "§5.4"],
+            encode_full(&with_tiny_context_weights(usq), &options(&[0]))?,
+        ),
+    ])
+}
 
-    out.push(vector(
-        "context-i16",
-        "the context MLP's weights stored as i16 (context_precision 0; the reference encoder \
-         stores them as i8 when that is smaller, Annex A.5.4)",
-        &["§1.6.2", "§5.3"],
-        encode_full(
-            &usq,
-            &EncodeOptions {
-                context_precision: Some(salvq_bitstream::container::payload::ContextPrecision::I16),
-                ..options(&[0])
-            },
-        )?,
-    ));
-
-    out.push(vector(
-        "extreme-exponents",
-        "tiny context-MLP weights: unit exponents E up to 8 + 30 + 30 on the step-adjustment \
-         outputs, where a 64-bit rounding shift would overflow",
-        &["§5.3", "§5.4"],
-        encode_full(&with_tiny_context_weights(&usq), &options(&[0]))?,
-    ));
-
+/// The vector of ancillary chunks to skip (§1.7): `encd`, `ests` and unknown ones.
+fn ancillary_vector(usq: &SceneModel) -> Result<ValidVector> {
     let base = encode_full(
-        &usq,
+        usq,
         &EncodeOptions {
             encoder_note: Some("salvq conformance".into()),
             statistics: true,
@@ -406,7 +459,7 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         },
     )?;
     let stream = with_unknown_ancillary(&base.stream);
-    out.push(ValidVector {
+    Ok(ValidVector {
         name: "ancillary-chunks",
         description: "encd and ests chunks, and unknown ancillary chunks after HEAD and before \
                       SEND, all skipped",
@@ -414,8 +467,7 @@ pub fn valid_vectors() -> Result<Vec<ValidVector>> {
         stream,
         rates: base.layers.iter().map(|l| l.rate).collect(),
         oracle: base.layers.into_iter().map(|l| l.expected).collect(),
-    });
-    Ok(out)
+    })
 }
 
 /// The model with its scaling group split into two regions (§7.6), the second with the first

@@ -127,6 +127,18 @@ impl From<salvq_render::Error> for Error {
     }
 }
 
+impl From<salvq::camera::SettingInvalid> for Error {
+    fn from(e: salvq::camera::SettingInvalid) -> Self {
+        salvq_render::Error::from(e).into()
+    }
+}
+
+impl From<salvq::neural::NeuralError> for Error {
+    fn from(e: salvq::neural::NeuralError) -> Self {
+        salvq_render::Error::from(e).into()
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

@@ -25,15 +25,17 @@ pub mod writers;
 use serde::{Deserialize, Serialize};
 
 use salvq_bitstream::container::chunk::{write_chunk, ChunkTag};
+use salvq_bitstream::container::payload::{ContextPrecision, ScaffoldPrecision};
 use salvq_bitstream::container::preflight::Preflight;
 use salvq_bitstream::container::signature::Signature;
 use salvq_bitstream::entropy::GaussianTables;
 use salvq_bitstream::error::Field;
 use salvq_bitstream::hyperprior::prior::Prior;
-use salvq_bitstream::hyperprior::GridLayout;
+use salvq_bitstream::hyperprior::{GridLayout, IntMlp};
 use salvq_bitstream::model::validate::{check_lattices, validate_model};
 use salvq_bitstream::model::{decoded_bytes, names, LatticeKind, SceneModel};
 use salvq_bitstream::quantizer::GroupLattices;
+use salvq_bitstream::tiles::TileTable;
 
 pub use attributes::GroupStats;
 pub use error::{Error, Result};
@@ -206,22 +208,7 @@ fn choose_lattices(model: &SceneModel, options: &EncodeOptions) -> Result<SceneM
 /// Encodes a model, returning the stream and, per layer, the report and expected model.
 pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encoded> {
     validate_model(model)?;
-    let mut rates = if options.rates.is_empty() {
-        vec![0]
-    } else {
-        options.rates.clone()
-    };
-    rates.sort_unstable();
-    rates.dedup();
-    if let Some(&r) = rates.iter().find(|&&r| r >= model.dims.rates) {
-        return Err(salvq::Error::FieldOutOfRange {
-            field: Field::CodedRate,
-            value: r.into(),
-            min: 0,
-            max: u64::from(model.dims.rates) - 1,
-        }
-        .into());
-    }
+    let rates = coded_rates(options, model.dims.rates)?;
     // Canonical order first: regions (§7.6) and the fits are defined on it.
     let canonical;
     let model = if model.is_canonical() {
@@ -242,144 +229,19 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
     let context = context_precision::choose(m, options, options.context_precision)?;
     let stepped = context.apply(m);
     let m: &SceneModel = &stepped;
-    let d = &m.dims;
-    let coord_bits = m.coord_bits();
     // Annex A.5.2: the Scaffold-GS MLPs' storage.
     let scaffold = precision::choose(m, options.scaffold_precision);
-    let head = Preflight {
-        dims: d.clone(),
-        coord_bits,
-        origin: m.origin,
-        voxel_size: m.voxel_size,
-        decoded_bytes: decoded_bytes(d),
-        rate_mask: rates.iter().fold(0u64, |a, &r| a | 1 << r),
-    };
-    // §5: the integer prior, converted from the model's float context MLP.
-    let layout = GridLayout::new(d, coord_bits);
-    let x = convert::grid_inputs(m, &layout);
-    let int_mlp =
-        convert::convert_context_mlp_for(&m.mlp_grid, layout.features(), &x, context.precision)?;
-    drop(x);
-    let quant = [&m.quant_feat, &m.quant_scaling, &m.quant_offsets];
-    let touched = layout.touched(&m.anchors.voxel, d.entries_3d(), d.entries_2d());
-    let tables = GaussianTables::standard();
-    // §7.2: each group's lattice, and the encoder's search for it.
-    let searches = [
-        (
-            d.feat_lattice,
-            usize::from(d.feat_dim),
-            &m.quant_feat,
-            names::QUANT_FEAT[0],
-        ),
-        (
-            d.scaling_lattice,
-            usize::from(d.scaling_dim),
-            &m.quant_scaling,
-            names::QUANT_SCALING[0],
-        ),
-    ]
-    .map(|(kind, dim, q, tensor)| {
-        GroupSearches::new(&GroupLattices::new(kind, dim, q), options.search, tensor)
-    });
-    let [fs, ss] = searches;
-    let searches = [fs?, ss?];
-    // §10: tiles of consecutive canonical anchors.
-    let tiles = match options.tile_anchors {
-        0 => crate::writers::cut_auto(&m.anchors.voxel),
-        per => crate::writers::cut(&m.anchors.voxel, per),
-    };
-    let amsk = attributes::code_masks(m, tables, &tiles);
-    let grid_entries_stored = touched
-        .iter()
-        .map(|t| t.iter().filter(|&&u| u).count() as u64)
-        .sum();
-
+    let shared = SharedParts::new(m, options, context.precision)?;
     let mut out = Vec::with_capacity(1 << 20);
-    out.extend_from_slice(&Signature::current().to_bytes());
-    write_chunk(&mut out, ChunkTag::HEAD, &head.to_payload());
-    if let Some(note) = &options.encoder_note {
-        write_chunk(&mut out, ChunkTag::ENCD, note.as_bytes());
-    }
-    write_chunk(
-        &mut out,
-        ChunkTag::MLPS,
-        &crate::writers::write_mlps(&int_mlp, context.precision, m, scaffold.precision),
-    );
-    write_chunk(&mut out, ChunkTag::QUAN, &crate::writers::write_quan(m));
-    write_chunk(&mut out, ChunkTag::TILS, &tiles.to_payload());
-    write_chunk(
-        &mut out,
-        ChunkTag::APOS,
-        &crate::writers::write_apos(&m.anchors, &tiles, tables)?,
-    );
-    write_chunk(
-        &mut out,
-        ChunkTag::GRID,
-        &crate::writers::write_grid(&m.grid, &touched, usize::from(d.grid_channels)),
-    );
-    write_chunk(&mut out, ChunkTag::AMSK, &amsk);
-    // The decoded model's shared parts: the integer MLP's values, +1 at untouched grid
-    // entries (§5.2).
-    let c = usize::from(d.grid_channels);
-    let keep = |t: &[i8], used: &[bool]| -> Vec<i8> {
-        t.iter()
-            .enumerate()
-            .map(|(i, &v)| if used[i / c] { v } else { 1 })
-            .collect()
-    };
-    let shared = SceneModel {
-        grid: salvq_bitstream::model::HashGrid {
-            grid_3d: keep(&m.grid.grid_3d, &touched[0]),
-            grid_xy: keep(&m.grid.grid_xy, &touched[1]),
-            grid_xz: keep(&m.grid.grid_xz, &touched[2]),
-            grid_yz: keep(&m.grid.grid_yz, &touched[3]),
-        },
-        mlp_grid: int_mlp.to_float(),
-        mlp_opacity: precision::rounded(&m.mlp_opacity, scaffold.precision),
-        mlp_cov: precision::rounded(&m.mlp_cov, scaffold.precision),
-        mlp_color: precision::rounded(&m.mlp_color, scaffold.precision),
-        ..m.clone()
-    };
+    let rate_mask = rates.iter().fold(0u64, |a, &r| a | 1 << r);
+    write_shared_chunks(&mut out, m, options, &shared, rate_mask, scaffold.precision)?;
+    let decoded = shared.decoded_model(m, scaffold.precision);
     // §7.4: one symbol layer per rate, rates ascending, each with its own `ests`.
     let mut layers = Vec::with_capacity(rates.len());
     for &rate in &rates {
-        let r = usize::from(rate);
-        let prior = Prior::new(d, coord_bits, int_mlp.clone(), quant, r);
-        let float = float_prior::FloatPrior::new(m, coord_bits, r);
-        let coded = attributes::code_attributes(m, &prior, &float, &searches, tables, &tiles)?;
-        let report = EncodeReport {
-            anchors: d.anchors.into(),
-            rate,
-            groups: coded.stats.to_vec(),
-            mask_bits: m.anchors.mask.len() as u64,
-            mask_bytes: amsk.len() as u64,
-            grid_entries_stored,
-            grid_entries_total: d.entries_3d() + 3 * d.entries_2d(),
-        };
-        let [afea, ascl, aoff] = &coded.chunks;
-        write_chunk(&mut out, ChunkTag::AFEA, afea);
-        write_chunk(&mut out, ChunkTag::ASCL, ascl);
-        write_chunk(&mut out, ChunkTag::AOFF, aoff);
-        if options.statistics {
-            let json = serde_json::to_vec(&report).unwrap_or_default();
-            write_chunk(&mut out, ChunkTag::ESTS, &json);
-        }
-        let [feat, scaling, offsets] = coded.recon;
-        let expected = SceneModel {
-            anchors: salvq_bitstream::model::Anchors {
-                voxel: m.anchors.voxel.clone(),
-                mask: m.anchors.mask.clone(),
-                feat,
-                scaling,
-                offsets,
-            },
-            ..shared.clone()
-        };
-        layers.push(EncodedLayer {
-            rate,
-            report,
-            expected,
-        });
+        layers.push(encode_symbol_layer(
+            &mut out, m, options, &shared, &decoded, rate,
+        )?);
     }
     write_chunk(&mut out, ChunkTag::SEND, &[]);
     Ok(Encoded {
@@ -387,5 +249,237 @@ pub fn encode_full(model: &SceneModel, options: &EncodeOptions) -> Result<Encode
         layers,
         scaffold,
         context,
+    })
+}
+
+/// The rates the options ask for (rate 0 when none), ascending without repeats; fails on a
+/// rate the model's `rates` gains do not have.
+fn coded_rates(options: &EncodeOptions, model_rates: u8) -> Result<Vec<u8>> {
+    let mut rates = if options.rates.is_empty() {
+        vec![0]
+    } else {
+        options.rates.clone()
+    };
+    rates.sort_unstable();
+    rates.dedup();
+    if let Some(&r) = rates.iter().find(|&&r| r >= model_rates) {
+        return Err(salvq::Error::FieldOutOfRange {
+            field: Field::CodedRate,
+            value: r.into(),
+            min: 0,
+            max: u64::from(model_rates) - 1,
+        }
+        .into());
+    }
+    Ok(rates)
+}
+
+/// What every symbol layer of a stream shares: the integer context MLP (§5), the grid
+/// entries the anchors touch (§5.2), each group's lattice search (§7.2), the anchor tiles
+/// (§10) and the coded offset masks.
+struct SharedParts {
+    /// Bits per anchor voxel coordinate.
+    coord_bits: u8,
+    /// How the context MLP's weights are stored.
+    context_precision: ContextPrecision,
+    /// The context MLP in fixed point, converted from the model's float one.
+    int_mlp: IntMlp,
+    /// Per grid (3D, xy, xz, yz), whether an anchor touches each entry.
+    touched: [Vec<bool>; 4],
+    /// The grid entries stored: those some anchor touches.
+    grid_entries_stored: u64,
+    /// The feature and scaling groups' lattice searches.
+    searches: [GroupSearches; 2],
+    /// Tiles of consecutive canonical anchors.
+    tiles: TileTable,
+    /// The `AMSK` payload.
+    amsk: Vec<u8>,
+}
+
+impl SharedParts {
+    /// The shared parts of `m` (anchors in canonical order) under `options`, its context MLP
+    /// stored at `context_precision`.
+    fn new(
+        m: &SceneModel,
+        options: &EncodeOptions,
+        context_precision: ContextPrecision,
+    ) -> Result<SharedParts> {
+        let d = &m.dims;
+        let coord_bits = m.coord_bits();
+        // §5: the integer prior, converted from the model's float context MLP.
+        let layout = GridLayout::new(d, coord_bits);
+        let x = convert::grid_inputs(m, &layout);
+        let int_mlp = convert::convert_context_mlp_for(
+            &m.mlp_grid,
+            layout.features(),
+            &x,
+            context_precision,
+        )?;
+        drop(x);
+        let touched = layout.touched(&m.anchors.voxel, d.entries_3d(), d.entries_2d());
+        // §7.2: each group's lattice, and the encoder's search for it.
+        let searches = [
+            (
+                d.feat_lattice,
+                usize::from(d.feat_dim),
+                &m.quant_feat,
+                names::QUANT_FEAT[0],
+            ),
+            (
+                d.scaling_lattice,
+                usize::from(d.scaling_dim),
+                &m.quant_scaling,
+                names::QUANT_SCALING[0],
+            ),
+        ]
+        .map(|(kind, dim, q, tensor)| {
+            GroupSearches::new(&GroupLattices::new(kind, dim, q), options.search, tensor)
+        });
+        let [fs, ss] = searches;
+        let searches = [fs?, ss?];
+        // §10: tiles of consecutive canonical anchors.
+        let tiles = match options.tile_anchors {
+            0 => crate::writers::cut_auto(&m.anchors.voxel),
+            per => crate::writers::cut(&m.anchors.voxel, per),
+        };
+        let amsk = attributes::code_masks(m, GaussianTables::standard(), &tiles);
+        let grid_entries_stored = touched
+            .iter()
+            .map(|t| t.iter().filter(|&&u| u).count() as u64)
+            .sum();
+        Ok(SharedParts {
+            coord_bits,
+            context_precision,
+            int_mlp,
+            touched,
+            grid_entries_stored,
+            searches,
+            tiles,
+            amsk,
+        })
+    }
+
+    /// The decoded model's shared parts: the integer MLP's values, +1 at untouched grid
+    /// entries (§5.2), and the Scaffold-GS MLPs as stored at `scaffold`.
+    fn decoded_model(&self, m: &SceneModel, scaffold: ScaffoldPrecision) -> SceneModel {
+        let c = usize::from(m.dims.grid_channels);
+        let touched = &self.touched;
+        let keep = |t: &[i8], used: &[bool]| -> Vec<i8> {
+            t.iter()
+                .enumerate()
+                .map(|(i, &v)| if used[i / c] { v } else { 1 })
+                .collect()
+        };
+        SceneModel {
+            grid: salvq_bitstream::model::HashGrid {
+                grid_3d: keep(&m.grid.grid_3d, &touched[0]),
+                grid_xy: keep(&m.grid.grid_xy, &touched[1]),
+                grid_xz: keep(&m.grid.grid_xz, &touched[2]),
+                grid_yz: keep(&m.grid.grid_yz, &touched[3]),
+            },
+            mlp_grid: self.int_mlp.to_float(),
+            mlp_opacity: precision::rounded(&m.mlp_opacity, scaffold),
+            mlp_cov: precision::rounded(&m.mlp_cov, scaffold),
+            mlp_color: precision::rounded(&m.mlp_color, scaffold),
+            ..m.clone()
+        }
+    }
+}
+
+/// Writes the signature and the chunks before the first symbol layer (Table 1-3): `HEAD`
+/// (with `rate_mask`), `ENCD` when the options carry a note, `MLPS`, `QUAN`, `TILS`,
+/// `APOS`, `GRID`, `AMSK`.
+fn write_shared_chunks(
+    out: &mut Vec<u8>,
+    m: &SceneModel,
+    options: &EncodeOptions,
+    shared: &SharedParts,
+    rate_mask: u64,
+    scaffold: ScaffoldPrecision,
+) -> Result<()> {
+    let d = &m.dims;
+    let tables = GaussianTables::standard();
+    let head = Preflight {
+        dims: d.clone(),
+        coord_bits: shared.coord_bits,
+        origin: m.origin,
+        voxel_size: m.voxel_size,
+        decoded_bytes: decoded_bytes(d),
+        rate_mask,
+    };
+    out.extend_from_slice(&Signature::current().to_bytes());
+    write_chunk(out, ChunkTag::HEAD, &head.to_payload());
+    if let Some(note) = &options.encoder_note {
+        write_chunk(out, ChunkTag::ENCD, note.as_bytes());
+    }
+    let mlps = crate::writers::write_mlps(&shared.int_mlp, shared.context_precision, m, scaffold);
+    write_chunk(out, ChunkTag::MLPS, &mlps);
+    write_chunk(out, ChunkTag::QUAN, &crate::writers::write_quan(m));
+    write_chunk(out, ChunkTag::TILS, &shared.tiles.to_payload());
+    write_chunk(
+        out,
+        ChunkTag::APOS,
+        &crate::writers::write_apos(&m.anchors, &shared.tiles, tables)?,
+    );
+    write_chunk(
+        out,
+        ChunkTag::GRID,
+        &crate::writers::write_grid(&m.grid, &shared.touched, usize::from(d.grid_channels)),
+    );
+    write_chunk(out, ChunkTag::AMSK, &shared.amsk);
+    Ok(())
+}
+
+/// Codes the symbol layer of `rate` (§7.4) onto `out`: `AFEA`, `ASCL`, `AOFF` and, when
+/// the options ask, its `ests`. Returns its report and the model it decodes to, `decoded`
+/// with the layer's anchor attributes.
+fn encode_symbol_layer(
+    out: &mut Vec<u8>,
+    m: &SceneModel,
+    options: &EncodeOptions,
+    shared: &SharedParts,
+    decoded: &SceneModel,
+    rate: u8,
+) -> Result<EncodedLayer> {
+    let d = &m.dims;
+    let r = usize::from(rate);
+    let quant = [&m.quant_feat, &m.quant_scaling, &m.quant_offsets];
+    let prior = Prior::new(d, shared.coord_bits, shared.int_mlp.clone(), quant, r);
+    let float = float_prior::FloatPrior::new(m, shared.coord_bits, r);
+    let tables = GaussianTables::standard();
+    let coded =
+        attributes::code_attributes(m, &prior, &float, &shared.searches, tables, &shared.tiles)?;
+    let report = EncodeReport {
+        anchors: d.anchors.into(),
+        rate,
+        groups: coded.stats.to_vec(),
+        mask_bits: m.anchors.mask.len() as u64,
+        mask_bytes: shared.amsk.len() as u64,
+        grid_entries_stored: shared.grid_entries_stored,
+        grid_entries_total: d.entries_3d() + 3 * d.entries_2d(),
+    };
+    let [afea, ascl, aoff] = &coded.chunks;
+    write_chunk(out, ChunkTag::AFEA, afea);
+    write_chunk(out, ChunkTag::ASCL, ascl);
+    write_chunk(out, ChunkTag::AOFF, aoff);
+    if options.statistics {
+        let json = serde_json::to_vec(&report).unwrap_or_default();
+        write_chunk(out, ChunkTag::ESTS, &json);
+    }
+    let [feat, scaling, offsets] = coded.recon;
+    let expected = SceneModel {
+        anchors: salvq_bitstream::model::Anchors {
+            voxel: m.anchors.voxel.clone(),
+            mask: m.anchors.mask.clone(),
+            feat,
+            scaling,
+            offsets,
+        },
+        ..decoded.clone()
+    };
+    Ok(EncodedLayer {
+        rate,
+        report,
+        expected,
     })
 }

@@ -89,7 +89,7 @@ impl RingTarget {
             ..Ring::default()
         };
         let cameras = (0..views)
-            .map(|v| ring.camera(bounds, v, width, height))
+            .map(|v| ring.camera(bounds, v, width, height).map_err(Into::into))
             .collect::<Result<Vec<_>>>()?;
         RingTarget::from_cameras(cameras, scene)
     }

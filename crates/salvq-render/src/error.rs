@@ -210,6 +210,27 @@ impl From<salvq::Error> for Error {
     }
 }
 
+impl From<salvq::camera::SettingInvalid> for Error {
+    fn from(e: salvq::camera::SettingInvalid) -> Self {
+        Error::RenderSettingInvalid {
+            setting: e.setting,
+            value: e.value,
+            rule: e.rule,
+        }
+    }
+}
+
+impl From<salvq::neural::NeuralError> for Error {
+    fn from(e: salvq::neural::NeuralError) -> Self {
+        match e {
+            salvq::neural::NeuralError::Unsupported { field, value, rule } => {
+                Error::NeuralGaussiansUnsupported { field, value, rule }
+            }
+            salvq::neural::NeuralError::Shape(e) => Error::Stream(e),
+        }
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

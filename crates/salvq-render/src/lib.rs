@@ -25,20 +25,23 @@
 
 #![warn(missing_docs)]
 
-pub mod camera;
 pub mod camera_file;
 pub mod compare;
 pub mod error;
 pub mod interchange;
 pub mod io;
 pub mod metrics;
-pub mod neural;
 pub mod ply;
 pub mod raster;
 pub mod scene;
 pub mod sh;
 
 pub use error::{Error, Result};
+/// Pinhole cameras and the camera ring (Annex C.2): the decoder crate's, which viewers use
+/// to place the camera an anchors scene is drawn from.
+pub use salvq::camera;
+/// Scaffold-GS neural Gaussians (Annex C.1): the decoder crate's, which viewers use too.
+pub use salvq::neural;
 pub use salvq_bitstream::explicit::{rest_per_channel, Gaussians};
 
 /// An RGB image of binary32 values, row-major from the top-left pixel, 3 values a pixel.

@@ -38,7 +38,9 @@ impl Scene {
             });
         }
         if stream {
-            let options = salvq::Decoder::builder().rate(rate);
+            let options = salvq::Decoder::builder()
+                .limits(salvq::Limits::desktop())
+                .rate(rate);
             return Ok(match options.build().decode(bytes)? {
                 salvq::Scene::Anchors(m) => Scene::Model(m),
                 // An explicit-profile stream decodes to the Gaussians themselves (§3).

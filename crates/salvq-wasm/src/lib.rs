@@ -18,17 +18,18 @@
 
 use wasm_bindgen::prelude::*;
 
+use salvq::camera::{Bounds, Ring};
+use salvq::neural;
 use salvq::StreamDecoder;
 use salvq::{DecoderBuilder, Limits, Scene, SceneModel, TilePart};
 use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag};
+use salvq_bitstream::container::order::{ChunkOrder, Position, Profile};
 use salvq_bitstream::container::payload::read_apos;
 use salvq_bitstream::container::preflight::Preflight;
 use salvq_bitstream::container::signature::{Signature, SIGNATURE_LEN};
 use salvq_bitstream::entropy::GaussianTables;
 use salvq_bitstream::explicit::Gaussians;
 use salvq_bitstream::tiles::TileTable;
-use salvq_render::camera::{Bounds, Ring};
-use salvq_render::neural;
 
 /// A batch of Gaussians as typed arrays (copied out on each getter call).
 #[wasm_bindgen]
@@ -167,23 +168,19 @@ fn scene_anchors(bytes: &[u8]) -> salvq::Result<(Vec<[f32; 3]>, TileTable)> {
     let limits = Limits::default();
     let (_, rest) = Signature::parse(bytes)?;
     let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, &limits);
+    let mut order = ChunkOrder::new(Profile::Anchors);
     let (mut head, mut tiles) = (None, None);
     while let Some(chunk) = reader.next_chunk()? {
-        match chunk.tag {
-            ChunkTag::HEAD => head = Some(Preflight::parse(chunk.payload, &limits)?),
-            ChunkTag::TILS => {
-                if let Some(h) = &head {
-                    tiles = Some(TileTable::parse(
-                        chunk.payload,
-                        h.dims.anchors,
-                        h.coord_bits,
-                    )?);
-                }
+        if order.step(chunk.tag)? == Position::Ancillary {
+            continue;
+        }
+        match (chunk.tag, &head, tiles.take()) {
+            (ChunkTag::HEAD, _, _) => head = Some(Preflight::parse(chunk.payload, &limits)?),
+            (ChunkTag::TILS, Some(h), _) => {
+                let t = TileTable::parse(chunk.payload, h.dims.anchors, h.coord_bits)?;
+                tiles = Some(t);
             }
-            ChunkTag::APOS => {
-                let (Some(h), Some(t)) = (head, tiles) else {
-                    break;
-                };
+            (ChunkTag::APOS, Some(h), Some(t)) => {
                 let voxels = read_apos(chunk.payload, &t, GaussianTables::standard())?;
                 let positions = voxels
                     .iter()
@@ -191,14 +188,11 @@ fn scene_anchors(bytes: &[u8]) -> salvq::Result<(Vec<[f32; 3]>, TileTable)> {
                     .collect();
                 return Ok((positions, t));
             }
-            _ => {}
+            (_, _, t) => tiles = t,
         }
     }
     // Unreachable after a part decode of the same bytes succeeded: it read all three.
-    Err(salvq::Error::ChunkOrder {
-        found: ChunkTag::SEND,
-        expected: ChunkTag::APOS,
-    })
+    Err(ChunkOrder::missing(ChunkTag::APOS))
 }
 
 /// The tiles `kept` marks, in order, and the Gaussian count `count(t)` of each.

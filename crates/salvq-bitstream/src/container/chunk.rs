@@ -4,8 +4,12 @@ pub use super::tag::ChunkTag;
 use crate::error::{Error, Result, Structure};
 use crate::limits::{LimitKind, Limits};
 
+/// Bytes of a chunk's length and tag fields, before its payload.
+pub const CHUNK_HEADER_LEN: usize = 8;
+/// Bytes of a chunk's CRC, after its payload.
+pub const CHUNK_CRC_LEN: usize = 4;
 /// Bytes of framing around each payload: length (4), tag (4), CRC (4).
-pub const CHUNK_OVERHEAD: u64 = 12;
+pub const CHUNK_OVERHEAD: u64 = (CHUNK_HEADER_LEN + CHUNK_CRC_LEN) as u64;
 
 /// The CRC of a chunk: CRC-32C (Castagnoli) of tag then payload (spec §1.3).
 pub fn chunk_crc(tag: ChunkTag, payload: &[u8]) -> u32 {
@@ -79,7 +83,7 @@ impl<'a> ChunkReader<'a> {
     pub fn next_before_send(&mut self) -> Result<Chunk<'a>> {
         self.next_chunk()?.ok_or(Error::Truncated {
             structure: Structure::ChunkHeader,
-            needed: 8,
+            needed: CHUNK_HEADER_LEN as u64,
             available: 0,
         })
     }
@@ -92,7 +96,7 @@ impl<'a> ChunkReader<'a> {
         let [l0, l1, l2, l3, t0, t1, t2, t3, body @ ..] = self.rest else {
             return Err(Error::Truncated {
                 structure: Structure::ChunkHeader,
-                needed: 8,
+                needed: CHUNK_HEADER_LEN as u64,
                 available: self.rest.len() as u64,
             });
         };

@@ -1,9 +1,11 @@
-//! The chunked container (spec §1): signature, chunk framing, preflight, chunk order.
+//! The chunked container (spec §1): signature, chunk framing, preflight, the chunk order of
+//! both profiles.
 
 pub mod bytes;
 pub mod chunk;
 pub mod method;
 pub mod mlps;
+pub mod order;
 pub mod payload;
 pub mod preflight;
 pub mod signature;

@@ -13,7 +13,6 @@
 //! | `GATT` attribute symbols per tile | §3.5 | [`attributes`] |
 //! | reconstruction, the decoded Gaussians | §3.6 | [`reconstruct`], [`gaussians`] |
 //! | `GATT` decoded tile by tile, in parallel | §3.5, §3.6 | [`gatt`] |
-//! | critical chunk order, the layer of each chunk | §3.7, §3.8 | [`order`] |
 //! | progressive streams: `GREF`, `GRSY` | §3.8 | [`refinement`] |
 
 pub mod attributes;
@@ -22,7 +21,6 @@ pub mod gaussians;
 pub mod groups;
 pub mod header;
 pub mod layer;
-pub mod order;
 pub mod reconstruct;
 pub mod refinement;
 

@@ -15,7 +15,20 @@ use salvq_encoder::EncodeOptions;
 /// Bytes of one `TILS` entry (§10.1): count, cell level, cell, box.
 const TILE_ENTRY: usize = 41;
 
+/// Every must-fail vector inside a payload, in decoding order: `MLPS`, `QUAN`, `TILS`, `APOS`,
+/// then `GRID`, `AMSK` and the layer chunks.
 pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let mut out = mlps_vectors(base);
+    out.extend(quan_vectors(base));
+    out.extend(tile_vectors(base));
+    out.extend(octree_vectors(base));
+    out.extend(layer_vectors(base));
+    out
+}
+
+/// An unknown coding method (§1.6), and `MLPS`'s vectors (§1.6.2): a weight not finite, the
+/// precisions out of range or not matching the body.
+fn mlps_vectors(base: &[u8]) -> Vec<MustFailVector> {
     let d = super::head_of(base).dims;
     // MLPS: method byte, `context_precision`, the integer context MLP (§1.6.2),
     // `scaffold_precision`, then the Scaffold-GS MLPs (binary32 in the base stream).
@@ -25,11 +38,6 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
     };
     let precision_at = (1 + context_bytes(&d, context)) as usize;
     let scaffold = precision_at + 1;
-    let salvq = encode(&small_scene(13, true), &EncodeOptions::default());
-    let rates = usize::from(d.rates);
-    let f = usize::from(d.feat_dim);
-    // QUAN of the SALVQ stream: method, feat step, M gains, basis_u (F x F), basis_s (F).
-    let basis_s = 1 + 4 + 4 * rates + 4 * f * f;
     vec![
         vector(
             "x-unknown-coding-method",
@@ -87,6 +95,19 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
                 p[scaffold..scaffold + 2].copy_from_slice(&0x7C00u16.to_le_bytes());
             }),
         ),
+    ]
+}
+
+/// `QUAN`'s vectors (§1.6.3, §2.6): a wrong length, a zero step, the order gains and steps
+/// are checked in, a singular basis.
+fn quan_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let d = super::head_of(base).dims;
+    let salvq = encode(&small_scene(13, true), &EncodeOptions::default());
+    let rates = usize::from(d.rates);
+    let f = usize::from(d.feat_dim);
+    // QUAN of the SALVQ stream: method, feat step, M gains, basis_u (F x F), basis_s (F).
+    let basis_s = 1 + 4 + 4 * rates + 4 * f * f;
+    vec![
         vector(
             "x-quan-size-mismatch",
             "ChunkSizeMismatch",
@@ -134,6 +155,13 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
                 p[basis_s + 8..basis_s + 12].copy_from_slice(&0f32.to_le_bytes())
             }),
         ),
+    ]
+}
+
+/// The tiles' vectors (§10.1, §10.2): a box not the smallest, tiles out of Morton order, tile
+/// lengths cut short.
+fn tile_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    vec![
         vector(
             "x-tile-box-mismatch",
             "TileBoxMismatch",
@@ -159,6 +187,13 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "tiled stream: the APOS payload ends inside its last tile_bytes field",
             truncated_tile_lengths(),
         ),
+    ]
+}
+
+/// `APOS`'s vectors (§8.2, §8.4, §6.2.6): octrees coding too many or too few voxels, a zero
+/// top word.
+fn octree_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    vec![
         vector(
             "x-octree-too-many-nodes",
             "OctreeInvalid",
@@ -210,6 +245,14 @@ pub(super) fn payload_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "APOS: the tile body's state_high word is 0",
             edit(base, ChunkTag::APOS, |p| p[5..9].fill(0)),
         ),
+    ]
+}
+
+/// `GRID`'s padding (§1.6.1), `AMSK` (§6.6.1) and the layer chunks' bodies (§6.2, §6.4,
+/// §10.2, §10.3): ANS streams out of words or with a zero top word, tile lengths that do not
+/// match, an escape too long.
+fn layer_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    vec![
         vector(
             "x-padding-bits-set",
             "PaddingBitsSet",

@@ -7,7 +7,7 @@ use nalgebra::DMatrix;
 
 use super::prepare::PreparedGaussians;
 use super::prior::{
-    bit_cost, entropy_bits, fit_prior, freq, group_histograms, PRED_LEVEL_CANDIDATES,
+    bit_cost, entropy_bits, fit_prior, freq, group_histograms, Histograms, PRED_LEVEL_CANDIDATES,
 };
 pub use super::prior::{group_bits, BitCost, Variant};
 use super::writer::{rest_count_freq, Writer};
@@ -18,7 +18,7 @@ use salvq_bitstream::entropy::GaussianTables;
 use salvq_bitstream::explicit::attributes::{walk, TileSymbols, MAX_COORDINATE};
 use salvq_bitstream::explicit::groups::{Group, GroupKind};
 use salvq_bitstream::explicit::layer::{
-    rest_count_nodes, rest_values, Layer, MAX_COORD_BITS, SIZE_CLASSES,
+    rest_count_nodes, rest_values, Layer, CONTEXT_CLASSES, MAX_COORD_BITS, SIZE_CLASSES,
 };
 use salvq_bitstream::explicit::reconstruct::reconstruct_tile_into;
 use salvq_bitstream::explicit::refinement::Precision;
@@ -282,29 +282,175 @@ pub fn encode_layer(
         0 => crate::writers::cut_auto(&grid.voxels),
         per => crate::writers::cut(&grid.voxels, per),
     };
-    let values: usize = groups.iter().map(|g| g.dim).sum();
-    let n = grid.order.len();
+    let q = quantize(p, groups, classes, plan, &grid, origin, rate);
+    let built;
+    let cost = if std::ptr::eq(tables, GaussianTables::standard()) {
+        BitCost::standard()
+    } else {
+        built = BitCost::new(tables);
+        &built
+    };
+    let coder = LayerCoder {
+        groups,
+        q: &q,
+        grid: &grid,
+        tiles: &tiles,
+        tables,
+    };
+    let FittedPrior {
+        pred_level,
+        predict,
+        scale_table,
+        scale_offset,
+        mut group_bits,
+    } = fit_layer_prior(&coder, plan, variant, cost);
+    let (rotation_freq, rotation_bits) = rotation_probabilities(&q.rotation);
+    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rotation) {
+        group_bits[gi] += rotation_bits;
+    }
+    let refine_bits: f64 = q
+        .size_class
+        .iter()
+        .map(|&c| 3.0 * f64::from(plan.refine[usize::from(c)]))
+        .sum();
+    let mut layer = Layer {
+        coord_bits: grid.coord_bits,
+        voxel_size: grid.voxel_size,
+        pred_level,
+        rotation_freq,
+        size_threshold: q.size_threshold,
+        refine: plan.refine,
+        shift: plan.shift.clone(),
+        scale_offset,
+        predict: predict.clone(),
+        rest_count_freq: vec![1 << 15; rest_count_nodes(rest_values(groups.len(), q.values))],
+        scale_table,
+    };
+    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rest) {
+        let counts = coder.rest_counts(&layer)?;
+        let (freq, bits) = rest_count_freq(&counts, groups[gi].dim);
+        layer.rest_count_freq = freq;
+        group_bits[gi] += bits;
+    }
+    let precision = Precision::of_layer(&layer, groups, rate);
+    let coded = coder.code_tiles(&layer, &precision, origin, p.sh_degree)?;
+    let (chunks, [glay_bytes, tils_bytes, apos_bytes, gatt_bytes]) =
+        layer_chunks(&layer, &tiles, &coded);
+    Ok(CodedLayer {
+        chunks,
+        expected: coded.expected,
+        report: LayerReport {
+            rate,
+            coord_bits: grid.coord_bits,
+            voxel_size: grid.voxel_size,
+            pred_level,
+            refine: plan.refine,
+            glay_bytes,
+            tils_bytes,
+            apos_bytes,
+            gatt_bytes,
+            group_bits,
+            refine_bits,
+            predict,
+            tiles: tiles.len(),
+        },
+        state: LayerState {
+            grid,
+            tiles,
+            coords: q.coords,
+            size_class: q.size_class,
+            refinement: q.refinement,
+            rotation: q.rotation,
+            precision,
+        },
+    })
+}
 
-    // The scale group first: its coordinates give each Gaussian's size class (§3.5).
-    let scale = &groups[0];
+/// A layer's Gaussians quantized to the rate's plan (§3.5), in canonical order.
+struct Quantized {
+    /// Lattice coordinates, `values` per Gaussian: every group's, side by side.
+    coords: Vec<i32>,
+    /// Coded values per Gaussian.
+    values: usize,
+    /// Size class of each Gaussian.
+    size_class: Vec<u8>,
+    /// GLAY's `size_threshold`: the class bounds on the scale group's coordinates.
+    size_threshold: [i32; SIZE_CLASSES - 1],
+    /// Per group, the step shift of each Gaussian (the scale group's are 0).
+    shifts: Vec<Vec<i8>>,
+    /// Position bits below the voxel of each Gaussian, per axis.
+    refinement: Vec<[u32; 3]>,
+    /// Index of each Gaussian's largest rotation component.
+    rotation: Vec<u8>,
+}
+
+/// Quantizes `p` on `grid` with the rate's `plan`: size classes, position refinement,
+/// every group's coordinates and the rotation indices.
+fn quantize(
+    p: &PreparedGaussians,
+    groups: &[Group],
+    classes: &SizeClasses,
+    plan: &RatePlan,
+    grid: &Grid,
+    origin: [f32; 3],
+    rate: u8,
+) -> Quantized {
+    let values: usize = groups.iter().map(|g| g.dim).sum();
+    let (scale_coords, size_threshold, size_class) =
+        scale_classes(p, &groups[0], rate, classes, &grid.order);
+    let refinement = position_refinement(p, grid, origin, &plan.refine, &size_class);
+    let (coords, shifts) =
+        layer_coordinates(p, groups, plan, rate, grid, &size_class, &scale_coords);
+    let rotation = grid.order.iter().map(|&i| p.rotation_index[i]).collect();
+    Quantized {
+        coords,
+        values,
+        size_class,
+        size_threshold,
+        shifts,
+        refinement,
+        rotation,
+    }
+}
+
+/// The scale group's coordinates (its step unshifted) and, from them, GLAY's size
+/// thresholds and each Gaussian's size class (§3.5): the decoder classes Gaussians by
+/// their coded scales, so the encoder must too.
+fn scale_classes(
+    p: &PreparedGaussians,
+    scale: &Group,
+    rate: u8,
+    classes: &SizeClasses,
+    order: &[usize],
+) -> (Vec<i32>, [i32; SIZE_CLASSES - 1], Vec<u8>) {
     let scale_delta = scale.rate_step(rate);
-    let scale_coords = group_coordinates(&p.values[0], scale, scale_delta, &|_| 0, &grid.order);
+    let scale_coords = group_coordinates(&p.values[0], scale, scale_delta, &|_| 0, order);
     let threshold_u = classes.thresholds.map(|t| {
         let u = ((t - f64::from(scale.mean[0])) / f64::from(scale_delta)).round();
         u.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
     });
-    let size_class: Vec<u8> = scale_coords
+    let size_class = scale_coords
         .chunks_exact(scale.dim)
         .map(|c| {
             let largest = c.iter().copied().max().unwrap_or(0);
             threshold_u.iter().filter(|&&t| t <= largest).count() as u8
         })
         .collect();
+    (scale_coords, threshold_u, size_class)
+}
 
-    // Position refinement: the fine cell within the coarse voxel.
-    let refinement: Vec<[u32; 3]> = (0..n)
+/// Each Gaussian's position refinement (canonical order): the fine cell within its coarse
+/// voxel, `refine[class]` bits per axis.
+fn position_refinement(
+    p: &PreparedGaussians,
+    grid: &Grid,
+    origin: [f32; 3],
+    refine: &[u8; SIZE_CLASSES],
+    size_class: &[u8],
+) -> Vec<[u32; 3]> {
+    (0..grid.order.len())
         .map(|k| {
-            let e = plan.refine[usize::from(size_class[k])];
+            let e = refine[usize::from(size_class[k])];
             let h = f64::from(grid.voxel_size) / f64::from(1u32 << e);
             let q = p.positions[grid.order[k]];
             std::array::from_fn(|a| {
@@ -313,24 +459,31 @@ pub fn encode_layer(
                 (fine.clamp(lo, lo + (1u64 << e) - 1) - lo) as u32
             })
         })
-        .collect();
+        .collect()
+}
 
-    // Every group's coordinates, side by side.
+/// Every group's coordinates side by side (all values of each Gaussian together), and
+/// each group's step shift per Gaussian; the scale group's are `scale_coords`.
+fn layer_coordinates(
+    p: &PreparedGaussians,
+    groups: &[Group],
+    plan: &RatePlan,
+    rate: u8,
+    grid: &Grid,
+    size_class: &[u8],
+    scale_coords: &[i32],
+) -> (Vec<i32>, Vec<Vec<i8>>) {
+    let values: usize = groups.iter().map(|g| g.dim).sum();
+    let n = grid.order.len();
     let mut coords = vec![0i32; n * values];
     let mut shifts_of: Vec<Vec<i8>> = Vec::with_capacity(groups.len());
     let mut at = 0;
     for (gi, g) in groups.iter().enumerate() {
         let shifts: Vec<i8> = (0..n)
-            .map(|k| {
-                if gi == 0 {
-                    0
-                } else {
-                    plan.shift[gi - 1][usize::from(size_class[k])]
-                }
-            })
+            .map(|k| plan.class_shifts(gi)[usize::from(size_class[k])])
             .collect();
         let c = if gi == 0 {
-            scale_coords.clone()
+            scale_coords.to_vec()
         } else {
             group_coordinates(
                 &p.values[gi],
@@ -346,56 +499,165 @@ pub fn encode_layer(
         shifts_of.push(shifts);
         at += g.dim;
     }
-    let rotation: Vec<u8> = grid.order.iter().map(|&i| p.rotation_index[i]).collect();
-    let built;
-    let cost = if std::ptr::eq(tables, GaussianTables::standard()) {
-        BitCost::standard()
-    } else {
-        built = BitCost::new(tables);
-        &built
-    };
+    (coords, shifts_of)
+}
 
-    // The prior: for each candidate pred_level, each group with and without prediction,
-    // tables fitted by exact cost under the shifts' offsets; the cheapest wins, and its
-    // tables and per-class offsets are then fitted together.
-    let class_shifts = |gi: usize| {
+impl RatePlan {
+    /// The step shift of group `gi` per size class (the scale group, first, has none).
+    fn class_shifts(&self, gi: usize) -> [i8; SIZE_CLASSES] {
         if gi == 0 {
             [0i8; SIZE_CLASSES]
         } else {
-            plan.shift[gi - 1]
+            self.shift[gi - 1]
         }
-    };
-    // The histograms of group `gi`'s coded symbols and, for `sh_rest`, its counts' order-0
-    // bits (§3.5: only the values up to the last nonzero symbol are coded).
-    let histograms = |gi: usize, at: usize, level: u8, pr: bool| {
+    }
+}
+
+/// A quantized layer on its grid and tiles: what its prior is fitted to and its tiles are
+/// coded from.
+struct LayerCoder<'a> {
+    groups: &'a [Group],
+    q: &'a Quantized,
+    grid: &'a Grid,
+    tiles: &'a TileTable,
+    tables: &'a GaussianTables,
+}
+
+/// GLAY's prior as fitted (Annex A.8.3).
+struct FittedPrior {
+    /// The reference level (§3.4).
+    pred_level: u8,
+    /// Whether each group is predicted from its reference.
+    predict: Vec<bool>,
+    /// The scale-index table of every value.
+    scale_table: Vec<[u8; CONTEXT_CLASSES]>,
+    /// Per group after the first, the scale-index offset of each size class.
+    scale_offset: Vec<[i8; SIZE_CLASSES]>,
+    /// Ideal bits per group under the fitted tables.
+    group_bits: Vec<f64>,
+}
+
+impl LayerCoder<'_> {
+    /// The histograms of group `gi`'s coded symbols (values from `at`) under `level` and
+    /// `predict` and, for `sh_rest`, its counts' order-0 bits (§3.5: only the values up to
+    /// the last nonzero symbol are coded).
+    fn histograms(&self, gi: usize, at: usize, level: u8, predict: bool) -> (Histograms, f64) {
+        let (q, g) = (self.q, &self.groups[gi]);
         let mut counts = Vec::new();
         let h = group_histograms(
-            &coords,
-            values,
+            &q.coords,
+            q.values,
             at,
-            groups[gi].dim,
-            &size_class,
-            &shifts_of[gi],
-            &grid.voxels,
-            &tiles,
+            g.dim,
+            &q.size_class,
+            &q.shifts[gi],
+            &self.grid.voxels,
+            self.tiles,
             level,
-            pr,
-            (groups[gi].kind == GroupKind::Rest).then_some(&mut counts),
+            predict,
+            (g.kind == GroupKind::Rest).then_some(&mut counts),
         );
         (h, entropy_bits(&counts))
-    };
+    }
+
+    /// The writer of the Gaussians `range` (a tile).
+    fn writer(&self, range: std::ops::Range<usize>) -> Writer<'_, '_> {
+        let (q, values) = (self.q, self.q.values);
+        Writer::new(
+            ChunkTag::GATT,
+            self.tables,
+            &q.coords[range.start * values..range.end * values],
+            &q.rotation[range.clone()],
+            &q.refinement[range],
+            values,
+        )
+    }
+
+    /// Every Gaussian's `sh_rest` count under `layer`'s predictions, in walk order: §3.5's
+    /// counts follow from the coordinates and the predictions alone, so a first walk
+    /// collects them and GLAY's tree probabilities are fitted to them.
+    fn rest_counts(&self, layer: &Layer) -> Result<Vec<usize>> {
+        let mut counts = Vec::with_capacity(self.q.size_class.len());
+        for t in 0..self.tiles.len() {
+            let range = self.tiles.range(t);
+            let mut w = self.writer(range.clone());
+            walk(layer, self.groups, &self.grid.voxels[range], &mut w)?;
+            counts.extend(w.rest_counts);
+        }
+        Ok(counts)
+    }
+
+    /// Every tile's geometry (§8, cell-relative) and attributes (§3.5) under `layer`, and
+    /// the Gaussians a decoder reconstructs from them.
+    fn code_tiles(
+        &self,
+        layer: &Layer,
+        precision: &Precision,
+        origin: [f32; 3],
+        sh_degree: u8,
+    ) -> Result<CodedTiles> {
+        let (groups, grid, tiles) = (self.groups, self.grid, self.tiles);
+        let mut apos = Vec::with_capacity(tiles.len());
+        let mut gatt = Vec::with_capacity(tiles.len());
+        let matrices: Vec<_> = groups.iter().map(Group::matrix).collect();
+        let mut expected = Gaussians {
+            sh_degree,
+            ..Gaussians::default()
+        };
+        for t in 0..tiles.len() {
+            let range = tiles.range(t);
+            let (level, cell) = tiles.cells[t];
+            let local: Vec<[u32; 3]> = grid.voxels[range.clone()]
+                .iter()
+                .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
+                .collect();
+            apos.push(crate::writers::encode_geometry(&local, level, self.tables)?);
+            let mut w = self.writer(range.clone());
+            let symbols: TileSymbols = walk(layer, groups, &grid.voxels[range.clone()], &mut w)?;
+            debug_assert_eq!(symbols.size_class, self.q.size_class[range.clone()]);
+            gatt.push(w.out.finish());
+            let tile = expected.extend_zeroed(range.len());
+            reconstruct_tile_into(
+                origin,
+                layer.voxel_size,
+                precision,
+                groups,
+                &matrices,
+                &grid.voxels[range],
+                symbols.as_ref(),
+                tile,
+            );
+        }
+        Ok(CodedTiles {
+            apos,
+            gatt,
+            expected,
+        })
+    }
+}
+
+/// The reference level and per-group prediction whose fitted tables cost least (Annex
+/// A.8.3): for each candidate pred_level, each group with and without prediction, tables
+/// fitted by exact cost under the shifts' offsets.
+fn choose_prediction(
+    coder: &LayerCoder,
+    plan: &RatePlan,
+    variant: Variant,
+    cost: &BitCost,
+) -> (u8, Vec<bool>) {
     let mut best: Option<(f64, u8, Vec<bool>)> = None;
     for offset in PRED_LEVEL_CANDIDATES {
-        let Some(level) = grid.coord_bits.checked_sub(offset) else {
+        let Some(level) = coder.grid.coord_bits.checked_sub(offset) else {
             continue;
         };
         let mut total = 0.0;
         let mut predict = Vec::new();
         let mut at = 0;
-        for (gi, g) in groups.iter().enumerate() {
+        for (gi, g) in coder.groups.iter().enumerate() {
             let bits = |pr: bool| {
-                let (h, count_bits) = histograms(gi, at, level, pr);
-                let fit = fit_prior(&h, cost, variant.factorized_prior, class_shifts(gi), false);
+                let (h, count_bits) = coder.histograms(gi, at, level, pr);
+                let shifts = plan.class_shifts(gi);
+                let fit = fit_prior(&h, cost, variant.factorized_prior, shifts, false);
                 fit.2 + count_bits
             };
             let off = bits(false);
@@ -414,13 +676,25 @@ pub fn encode_layer(
         }
     }
     let (_, pred_level, predict) = best.expect("at least one pred_level candidate fits");
+    (pred_level, predict)
+}
+
+/// The layer's prior: the cheapest reference level and predictions
+/// ([`choose_prediction`]), then each group's tables and per-class offsets fitted together.
+fn fit_layer_prior(
+    coder: &LayerCoder,
+    plan: &RatePlan,
+    variant: Variant,
+    cost: &BitCost,
+) -> FittedPrior {
+    let (pred_level, predict) = choose_prediction(coder, plan, variant, cost);
     let (mut scale_table, mut scale_offset) = (Vec::new(), Vec::new());
     let mut group_bits = Vec::new();
     let mut at = 0;
-    for (gi, g) in groups.iter().enumerate() {
-        let (h, _) = histograms(gi, at, pred_level, predict[gi]);
-        let (rows, offsets, bits) =
-            fit_prior(&h, cost, variant.factorized_prior, class_shifts(gi), gi > 0);
+    for (gi, g) in coder.groups.iter().enumerate() {
+        let (h, _) = coder.histograms(gi, at, pred_level, predict[gi]);
+        let factorized = variant.factorized_prior;
+        let (rows, offsets, bits) = fit_prior(&h, cost, factorized, plan.class_shifts(gi), gi > 0);
         scale_table.extend(rows);
         if gi > 0 {
             scale_offset.push(offsets);
@@ -428,138 +702,60 @@ pub fn encode_layer(
         group_bits.push(bits);
         at += g.dim;
     }
+    FittedPrior {
+        pred_level,
+        predict,
+        scale_table,
+        scale_offset,
+        group_bits,
+    }
+}
 
-    // Rotation index probabilities.
+/// GLAY's rotation index probabilities (§3.4: the high bit, then the low bit after each
+/// high bit) fitted to `rotation`, and the bits the indices cost under them.
+fn rotation_probabilities(rotation: &[u8]) -> ([u16; 3], f64) {
+    let n = rotation.len() as u64;
     let (mut high, mut low, mut after) = (0u64, [0u64; 2], [0u64; 2]);
-    for &r in &rotation {
+    for &r in rotation {
         let h = usize::from(r >> 1);
         high += h as u64;
         after[h] += 1;
         low[h] += u64::from(r & 1);
     }
-    let rotation_freq = [
-        freq(high, n as u64),
+    let freq = [
+        freq(high, n),
         freq(low[0], after[0]),
         freq(low[1], after[1]),
     ];
-    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rotation) {
-        group_bits[gi] += bit_cost(high, n as u64, rotation_freq[0])
-            + bit_cost(low[0], after[0], rotation_freq[1])
-            + bit_cost(low[1], after[1], rotation_freq[2]);
-    }
-    let refine_bits: f64 = size_class
-        .iter()
-        .map(|&c| 3.0 * f64::from(plan.refine[usize::from(c)]))
-        .sum();
-    let mut layer = Layer {
-        coord_bits: grid.coord_bits,
-        voxel_size: grid.voxel_size,
-        pred_level,
-        rotation_freq,
-        size_threshold: threshold_u,
-        refine: plan.refine,
-        shift: plan.shift.clone(),
-        scale_offset,
-        predict: predict.clone(),
-        rest_count_freq: vec![1 << 15; rest_count_nodes(rest_values(groups.len(), values))],
-        scale_table,
-    };
+    let bits = bit_cost(high, n, freq[0])
+        + bit_cost(low[0], after[0], freq[1])
+        + bit_cost(low[1], after[1], freq[2]);
+    (freq, bits)
+}
 
-    // Geometry per tile (§8, cell-relative), then the attributes.
-    let mut apos = Vec::with_capacity(tiles.len());
-    let mut gatt = Vec::with_capacity(tiles.len());
-    let matrices: Vec<_> = groups.iter().map(Group::matrix).collect();
-    let mut expected = Gaussians {
-        sh_degree: p.sh_degree,
-        ..Gaussians::default()
-    };
-    // The events of the Gaussians `range` (a tile).
-    let writer = |range: std::ops::Range<usize>| {
-        Writer::new(
-            ChunkTag::GATT,
-            tables,
-            &coords[range.start * values..range.end * values],
-            &rotation[range.clone()],
-            &refinement[range],
-            values,
-        )
-    };
-    // §3.5's sh_rest counts follow from the coordinates and the predictions alone: a first
-    // walk collects them, and GLAY's tree probabilities are fitted to them.
-    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rest) {
-        let mut counts = Vec::with_capacity(n);
-        for t in 0..tiles.len() {
-            let range = tiles.range(t);
-            let mut w = writer(range.clone());
-            walk(&layer, groups, &grid.voxels[range], &mut w)?;
-            counts.extend(w.rest_counts);
-        }
-        let (freq, bits) = rest_count_freq(&counts, groups[gi].dim);
-        layer.rest_count_freq = freq;
-        group_bits[gi] += bits;
-    }
-    let precision = Precision::of_layer(&layer, groups, rate);
-    for t in 0..tiles.len() {
-        let range = tiles.range(t);
-        let (level, cell) = tiles.cells[t];
-        let local: Vec<[u32; 3]> = grid.voxels[range.clone()]
-            .iter()
-            .map(|v| [0, 1, 2].map(|a| v[a] - (cell[a] << level)))
-            .collect();
-        apos.push(crate::writers::encode_geometry(&local, level, tables)?);
-        let mut w = writer(range.clone());
-        let symbols: TileSymbols = walk(&layer, groups, &grid.voxels[range.clone()], &mut w)?;
-        debug_assert_eq!(symbols.size_class, size_class[range.clone()]);
-        gatt.push(w.out.finish());
-        let tile = expected.extend_zeroed(range.len());
-        reconstruct_tile_into(
-            origin,
-            layer.voxel_size,
-            &precision,
-            groups,
-            &matrices,
-            &grid.voxels[range],
-            symbols.as_ref(),
-            tile,
-        );
-    }
+/// A layer's tiles, coded.
+struct CodedTiles {
+    /// Each tile's `APOS` body.
+    apos: Vec<Vec<u8>>,
+    /// Each tile's `GATT` body.
+    gatt: Vec<Vec<u8>>,
+    /// The Gaussians a conformant decoder outputs for them.
+    expected: Gaussians,
+}
+
+/// The layer's chunks (GLAY, TILS, APOS, GATT), framed, and each one's payload bytes.
+fn layer_chunks(layer: &Layer, tiles: &TileTable, coded: &CodedTiles) -> (Vec<u8>, [usize; 4]) {
     let glay = layer.to_payload();
     let tils = tiles.to_payload();
     let mut apos_payload = vec![METHOD_CODED];
-    apos_payload.extend(join_bodies(&apos));
+    apos_payload.extend(join_bodies(&coded.apos));
     let mut gatt_payload = vec![METHOD_CODED];
-    gatt_payload.extend(join_bodies(&gatt));
+    gatt_payload.extend(join_bodies(&coded.gatt));
     let mut chunks = Vec::new();
     write_chunk(&mut chunks, ChunkTag::GLAY, &glay);
     write_chunk(&mut chunks, ChunkTag::TILS, &tils);
     write_chunk(&mut chunks, ChunkTag::APOS, &apos_payload);
     write_chunk(&mut chunks, ChunkTag::GATT, &gatt_payload);
-    Ok(CodedLayer {
-        chunks,
-        expected,
-        report: LayerReport {
-            rate,
-            coord_bits: grid.coord_bits,
-            voxel_size: grid.voxel_size,
-            pred_level,
-            refine: plan.refine,
-            glay_bytes: glay.len(),
-            tils_bytes: tils.len(),
-            apos_bytes: apos_payload.len(),
-            gatt_bytes: gatt_payload.len(),
-            group_bits,
-            refine_bits,
-            predict,
-            tiles: tiles.len(),
-        },
-        state: LayerState {
-            grid,
-            tiles,
-            coords,
-            size_class,
-            refinement,
-            rotation,
-            precision,
-        },
-    })
+    let bytes = [glay, tils, apos_payload, gatt_payload].map(|p| p.len());
+    (chunks, bytes)
 }

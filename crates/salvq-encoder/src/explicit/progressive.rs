@@ -3,6 +3,8 @@
 //! against the present ones; the prior (reference level, prediction per group, tables and
 //! per-class offsets) is fitted to the exact coded cost, as for a full layer.
 
+use std::ops::Range;
+
 use rustc_hash::FxHashMap;
 
 use super::layer::{group_coordinates_at, CodedLayer, LayerReport, LayerState, RatePlan};
@@ -19,7 +21,7 @@ use salvq_bitstream::explicit::layer::{
     rest_count_nodes, rest_values, CONTEXT_CLASSES, MAX_POSITION_BITS, SIZE_CLASSES,
 };
 use salvq_bitstream::explicit::reconstruct::reconstruct_tile_into;
-use salvq_bitstream::explicit::refinement::{refine_walk, Refinement, MAX_FACTOR};
+use salvq_bitstream::explicit::refinement::{refine_walk, Precision, Refinement, MAX_FACTOR};
 use salvq_bitstream::explicit::Gaussians;
 use salvq_bitstream::tiles::join_bodies;
 
@@ -93,7 +95,7 @@ struct Target<'a> {
 
 impl Target<'_> {
     /// The tile's symbols before the refinement, to be refined in place.
-    fn tile_before(&self, range: std::ops::Range<usize>) -> TileSymbols {
+    fn tile_before(&self, range: Range<usize>) -> TileSymbols {
         let s = self.state;
         TileSymbols {
             coords: s.coords[range.start * self.values..range.end * self.values].to_vec(),
@@ -101,6 +103,70 @@ impl Target<'_> {
             size_class: s.size_class[range.clone()].to_vec(),
             refinement: s.refinement[range].to_vec(),
         }
+    }
+
+    /// The writer of the Gaussians `range` (a tile).
+    fn writer<'t>(&self, tables: &'t GaussianTables, range: Range<usize>) -> Writer<'_, 't> {
+        Writer::new(
+            ChunkTag::GRSY,
+            tables,
+            &self.coords[range.start * self.values..range.end * self.values],
+            &self.state.rotation[range.clone()],
+            &self.extra[range],
+            self.values,
+        )
+    }
+
+    /// Every Gaussian's `sh_rest` count under `r`, in walk order: what GREF's tree
+    /// probabilities are fitted to.
+    fn rest_counts(&self, r: &Refinement, tables: &GaussianTables) -> Result<Vec<usize>> {
+        let tiles = &self.state.tiles;
+        let mut counts = Vec::with_capacity(self.state.size_class.len());
+        for t in 0..tiles.len() {
+            let range = tiles.range(t);
+            let mut w = self.writer(tables, range.clone());
+            let mut tile = self.tile_before(range.clone());
+            let voxels = &self.state.grid.voxels[range];
+            refine_walk(r, self.groups, voxels, &mut w, &mut tile.as_mut())?;
+            counts.extend(w.rest_counts);
+        }
+        Ok(counts)
+    }
+
+    /// Every tile's `GRSY` body under `r`, and the Gaussians a decoder reconstructs at
+    /// `after`, the precision `r` refines to.
+    fn code_tiles(
+        &self,
+        r: &Refinement,
+        after: &Precision,
+        origin: [f32; 3],
+        tables: &GaussianTables,
+        sh_degree: u8,
+    ) -> Result<(Vec<Vec<u8>>, Gaussians)> {
+        let (groups, grid, tiles) = (self.groups, &self.state.grid, &self.state.tiles);
+        let values = self.values;
+        let matrices: Vec<_> = groups.iter().map(Group::matrix).collect();
+        let mut expected = Gaussians {
+            sh_degree,
+            ..Gaussians::default()
+        };
+        let mut bodies = Vec::with_capacity(tiles.len());
+        for t in 0..tiles.len() {
+            let range = tiles.range(t);
+            let voxels = &grid.voxels[range.clone()];
+            let mut w = self.writer(tables, range.clone());
+            let mut tile = self.tile_before(range.clone());
+            refine_walk(r, groups, voxels, &mut w, &mut tile.as_mut())?;
+            debug_assert_eq!(
+                tile.coords,
+                self.coords[range.start * values..range.end * values]
+            );
+            bodies.push(w.out.finish());
+            let out = expected.extend_zeroed(range.len());
+            let (size, s) = (grid.voxel_size, tile.as_ref());
+            reconstruct_tile_into(origin, size, after, groups, &matrices, voxels, s, out);
+        }
+        Ok((bodies, expected))
     }
 
     /// The residual histograms of every value (`[value][context class]`) and the `sh_rest`
@@ -145,71 +211,11 @@ pub fn encode_refinement(
     tables: &GaussianTables,
 ) -> Result<CodedLayer> {
     let values: usize = groups.iter().map(|g| g.dim).sum();
-    let n = state.size_class.len();
     let grid = &state.grid;
-    let before = &state.precision;
-
-    // Position bits: the plan's fine edge per class, below the grid's voxel.
-    let refine: [u8; SIZE_CLASSES] = std::array::from_fn(|c| {
-        let h = plan.voxel * (-f64::from(plan.refine[c])).exp2();
-        let total = (f64::from(grid.voxel_size) / h).log2().round();
-        let most = MAX_POSITION_BITS.saturating_sub(grid.coord_bits + before.refine[c]);
-        (total - f64::from(before.refine[c])).clamp(0.0, f64::from(most)) as u8
-    });
-    let factor: Vec<[u8; SIZE_CLASSES]> = (0..groups.len())
-        .map(|gi| {
-            std::array::from_fn(|c| {
-                step_factor(f64::from(before.delta[gi][c]), plan_step(plan, gi, c))
-            })
-        })
-        .collect();
-    let mut refinement = Refinement {
-        pred_level: grid.coord_bits,
-        refine,
-        factor,
-        scale_offset: vec![[0; SIZE_CLASSES]; groups.len()],
-        predict: vec![false; groups.len()],
-        rest_count_freq: vec![1 << 15; rest_count_nodes(rest_values(groups.len(), values))],
-        scale_table: vec![[0; CONTEXT_CLASSES]; values],
-    };
-    let after = before.refined(&refinement);
-
-    // The new position bits, nested in the old cell.
-    let mut extra = Vec::with_capacity(n);
-    let mut cumulative = Vec::with_capacity(n);
-    for k in 0..n {
-        let c = usize::from(state.size_class[k]);
-        let (e_old, e) = (before.refine[c], refinement.refine[c]);
-        let h = f64::from(grid.voxel_size) / f64::from(1u32 << (e_old + e));
-        let q = p.positions[grid.order[k]];
-        let w_old = state.refinement[k];
-        let w: [u32; 3] = std::array::from_fn(|a| {
-            let v = u64::from(grid.voxels[k][a]) << (e_old + e);
-            let fine = ((q[a] - f64::from(origin[a])) / h).floor().max(0.0) as u64;
-            let lo = v + (u64::from(w_old[a]) << e);
-            (fine.clamp(lo, lo + (1u64 << e) - 1) - v) as u32
-        });
-        extra.push(std::array::from_fn(|a| w[a] - (w_old[a] << e)));
-        cumulative.push(w);
-    }
-
-    // The new coordinates at the refined steps.
-    let mut coords = state.coords.clone();
-    let mut at = 0;
-    for (gi, g) in groups.iter().enumerate() {
-        if refinement.factor[gi].iter().any(|&f| f > 1) {
-            let step = |k: usize| after.delta[gi][usize::from(state.size_class[k])];
-            let c = group_coordinates_at(&p.values[gi], g, &step, &grid.order);
-            for k in 0..n {
-                let class = usize::from(state.size_class[k]);
-                if refinement.factor[gi][class] > 1 {
-                    let row = &mut coords[k * values + at..k * values + at + g.dim];
-                    row.copy_from_slice(&c[k * g.dim..(k + 1) * g.dim]);
-                }
-            }
-        }
-        at += g.dim;
-    }
+    let mut refinement = start_refinement(groups, state, plan, values);
+    let after = state.precision.refined(&refinement);
+    let (extra, cumulative) = refined_positions(p, state, &refinement.refine, origin);
+    let coords = refined_coordinates(p, groups, state, &refinement.factor, &after, values);
     let target = Target {
         state,
         groups,
@@ -220,57 +226,13 @@ pub fn encode_refinement(
     let mut group_bits = fit_refinement_prior(&target, &mut refinement)?;
 
     // The counts' tree, then the symbols per tile and the Gaussians they decode to.
-    let tiles = &state.tiles;
-    let writer = |range: std::ops::Range<usize>| {
-        Writer::new(
-            ChunkTag::GRSY,
-            tables,
-            &coords[range.start * values..range.end * values],
-            &state.rotation[range.clone()],
-            &extra[range],
-            values,
-        )
-    };
     if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rest) {
-        let mut counts = Vec::with_capacity(n);
-        for t in 0..tiles.len() {
-            let range = tiles.range(t);
-            let mut w = writer(range.clone());
-            let mut tile = target.tile_before(range.clone());
-            refine_walk(
-                &refinement,
-                groups,
-                &grid.voxels[range],
-                &mut w,
-                &mut tile.as_mut(),
-            )?;
-            counts.extend(w.rest_counts);
-        }
+        let counts = target.rest_counts(&refinement, tables)?;
         let (freq, bits) = rest_count_freq(&counts, groups[gi].dim);
         refinement.rest_count_freq = freq;
         group_bits[gi] += bits;
     }
-    let matrices: Vec<_> = groups.iter().map(Group::matrix).collect();
-    let mut expected = Gaussians {
-        sh_degree: p.sh_degree,
-        ..Gaussians::default()
-    };
-    let mut bodies = Vec::with_capacity(tiles.len());
-    for t in 0..tiles.len() {
-        let range = tiles.range(t);
-        let voxels = &grid.voxels[range.clone()];
-        let mut w = writer(range.clone());
-        let mut tile = target.tile_before(range.clone());
-        refine_walk(&refinement, groups, voxels, &mut w, &mut tile.as_mut())?;
-        debug_assert_eq!(
-            tile.coords,
-            coords[range.start * values..range.end * values]
-        );
-        bodies.push(w.out.finish());
-        let out = expected.extend_zeroed(range.len());
-        let (size, s) = (grid.voxel_size, tile.as_ref());
-        reconstruct_tile_into(origin, size, &after, groups, &matrices, voxels, s, out);
-    }
+    let (bodies, expected) = target.code_tiles(&refinement, &after, origin, tables, p.sh_degree)?;
     let gref = refinement.to_payload();
     let mut grsy = vec![METHOD_CODED];
     grsy.extend(join_bodies(&bodies));
@@ -298,11 +260,11 @@ pub fn encode_refinement(
             group_bits,
             refine_bits,
             predict: refinement.predict.clone(),
-            tiles: tiles.len(),
+            tiles: state.tiles.len(),
         },
         state: LayerState {
             grid: grid.clone(),
-            tiles: tiles.clone(),
+            tiles: state.tiles.clone(),
             coords,
             size_class: state.size_class.clone(),
             refinement: cumulative,
@@ -310,6 +272,99 @@ pub fn encode_refinement(
             precision: after,
         },
     })
+}
+
+/// The refinement of `state` to `plan` before its prior is fitted: the position bits (the
+/// plan's fine edge per class, below the grid's voxel) and each group's step factors.
+fn start_refinement(
+    groups: &[Group],
+    state: &LayerState,
+    plan: &RatePlan,
+    values: usize,
+) -> Refinement {
+    let (grid, before) = (&state.grid, &state.precision);
+    let refine: [u8; SIZE_CLASSES] = std::array::from_fn(|c| {
+        let h = plan.voxel * (-f64::from(plan.refine[c])).exp2();
+        let total = (f64::from(grid.voxel_size) / h).log2().round();
+        let most = MAX_POSITION_BITS.saturating_sub(grid.coord_bits + before.refine[c]);
+        (total - f64::from(before.refine[c])).clamp(0.0, f64::from(most)) as u8
+    });
+    let factor: Vec<[u8; SIZE_CLASSES]> = (0..groups.len())
+        .map(|gi| {
+            std::array::from_fn(|c| {
+                step_factor(f64::from(before.delta[gi][c]), plan_step(plan, gi, c))
+            })
+        })
+        .collect();
+    Refinement {
+        pred_level: grid.coord_bits,
+        refine,
+        factor,
+        scale_offset: vec![[0; SIZE_CLASSES]; groups.len()],
+        predict: vec![false; groups.len()],
+        rest_count_freq: vec![1 << 15; rest_count_nodes(rest_values(groups.len(), values))],
+        scale_table: vec![[0; CONTEXT_CLASSES]; values],
+    }
+}
+
+/// The new position bits of each Gaussian, `refine[class]` per axis nested in its old
+/// cell, and its position bits below the voxel after them.
+fn refined_positions(
+    p: &PreparedGaussians,
+    state: &LayerState,
+    refine: &[u8; SIZE_CLASSES],
+    origin: [f32; 3],
+) -> (Vec<[u32; 3]>, Vec<[u32; 3]>) {
+    let (grid, before) = (&state.grid, &state.precision);
+    let n = state.size_class.len();
+    let mut extra = Vec::with_capacity(n);
+    let mut cumulative = Vec::with_capacity(n);
+    for k in 0..n {
+        let c = usize::from(state.size_class[k]);
+        let (e_old, e) = (before.refine[c], refine[c]);
+        let h = f64::from(grid.voxel_size) / f64::from(1u32 << (e_old + e));
+        let q = p.positions[grid.order[k]];
+        let w_old = state.refinement[k];
+        let w: [u32; 3] = std::array::from_fn(|a| {
+            let v = u64::from(grid.voxels[k][a]) << (e_old + e);
+            let fine = ((q[a] - f64::from(origin[a])) / h).floor().max(0.0) as u64;
+            let lo = v + (u64::from(w_old[a]) << e);
+            (fine.clamp(lo, lo + (1u64 << e) - 1) - v) as u32
+        });
+        extra.push(std::array::from_fn(|a| w[a] - (w_old[a] << e)));
+        cumulative.push(w);
+    }
+    (extra, cumulative)
+}
+
+/// The coordinates after the refinement (`values` per Gaussian): recomputed at the refined
+/// steps where a class's factor is above 1, kept elsewhere.
+fn refined_coordinates(
+    p: &PreparedGaussians,
+    groups: &[Group],
+    state: &LayerState,
+    factor: &[[u8; SIZE_CLASSES]],
+    after: &Precision,
+    values: usize,
+) -> Vec<i32> {
+    let n = state.size_class.len();
+    let mut coords = state.coords.clone();
+    let mut at = 0;
+    for (gi, g) in groups.iter().enumerate() {
+        if factor[gi].iter().any(|&f| f > 1) {
+            let step = |k: usize| after.delta[gi][usize::from(state.size_class[k])];
+            let c = group_coordinates_at(&p.values[gi], g, &step, &state.grid.order);
+            for k in 0..n {
+                let class = usize::from(state.size_class[k]);
+                if factor[gi][class] > 1 {
+                    let row = &mut coords[k * values + at..k * values + at + g.dim];
+                    row.copy_from_slice(&c[k * g.dim..(k + 1) * g.dim]);
+                }
+            }
+        }
+        at += g.dim;
+    }
+    coords
 }
 
 /// The refinement's prior fitted to `target` by exact cost (Annex A.8.3): for each

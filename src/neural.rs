@@ -19,12 +19,47 @@
 //! [10⁻⁷, 1 − 10⁻⁷], log-scales `ln l + ln sigmoid(raw)`. Gaussians are listed anchor by
 //! anchor in the model's order, offsets in index order.
 
-use rayon::prelude::*;
+use std::fmt;
 
-use super::Gaussians;
-use crate::error::{Error, Result};
-use salvq_bitstream::error::Field;
-use salvq_bitstream::model::{names, Mlp, SceneModel};
+use crate::error::{Error, Field};
+use crate::explicit::Gaussians;
+use crate::model::{names, Mlp, SceneModel};
+use crate::par::*;
+
+/// Why a model gives no neural Gaussians (Annex C.1).
+#[derive(Debug, Clone, PartialEq)]
+pub enum NeuralError {
+    /// The model's shape is not Scaffold-GS's: the scaling must have 6 dimensions, the view
+    /// inputs 3 or 4.
+    Unsupported {
+        /// The dimension.
+        field: Field,
+        /// Its value.
+        value: u64,
+        /// The rule broken.
+        rule: &'static str,
+    },
+    /// A tensor's length disagrees with the model's dimensions (`TensorShape`).
+    Shape(Error),
+}
+
+impl fmt::Display for NeuralError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NeuralError::Unsupported { field, value, rule } => write!(
+                f,
+                "{} = {value}: no Scaffold-GS neural Gaussians: {rule} [§C.1]",
+                field.spec_name()
+            ),
+            NeuralError::Shape(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for NeuralError {}
+
+/// A result of this module.
+pub type Result<T> = std::result::Result<T, NeuralError>;
 
 /// SH band-0 constant `1 / (2 √π)` in binary64.
 pub const SH_C0: f64 = 0.282_094_791_773_878_14;
@@ -193,13 +228,12 @@ pub fn anchor_positions(m: &SceneModel) -> Vec<[f32; 3]> {
         .collect()
 }
 
-fn shape_error(tensor: &'static str, expected: &[usize], found: usize) -> Error {
-    salvq::Error::TensorShape {
+fn shape_error(tensor: &'static str, expected: &[usize], found: usize) -> NeuralError {
+    NeuralError::Shape(Error::TensorShape {
         tensor,
         expected: expected.iter().map(|&d| d as u64).collect(),
         found: vec![found as u64],
-    }
-    .into()
+    })
 }
 
 /// Checks that the model has Scaffold-GS's shape (S = 6, V = 3 or 4) and that every vector
@@ -207,7 +241,7 @@ fn shape_error(tensor: &'static str, expected: &[usize], found: usize) -> Error 
 pub fn check_model(m: &SceneModel) -> Result<()> {
     let d = &m.dims;
     if d.scaling_dim != 6 {
-        return Err(Error::NeuralGaussiansUnsupported {
+        return Err(NeuralError::Unsupported {
             field: Field::ScalingDim,
             value: d.scaling_dim.into(),
             rule:
@@ -215,7 +249,7 @@ pub fn check_model(m: &SceneModel) -> Result<()> {
         });
     }
     if !(3..=4).contains(&d.view_dims) {
-        return Err(Error::NeuralGaussiansUnsupported {
+        return Err(NeuralError::Unsupported {
             field: Field::ViewDims,
             value: d.view_dims.into(),
             rule: "the view inputs are the direction (3) or the direction and distance (4)",

@@ -9,7 +9,31 @@
 //! looking at the bounds' centre with one vertical field of view, so that anyone can render
 //! the same views of a scene (Annex C.2 defines it step by step; [`Ring::camera`] follows it).
 
-use crate::error::{Error, Result};
+use std::fmt;
+
+/// A camera or render setting outside its range (Annex C.2): the tools report it as
+/// `RenderSettingInvalid`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SettingInvalid {
+    /// The setting.
+    pub setting: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// The rule broken.
+    pub rule: &'static str,
+}
+
+impl fmt::Display for SettingInvalid {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (setting, value, rule) = (self.setting, self.value, self.rule);
+        write!(f, "render setting {setting} = {value}: {rule} [§C.2]")
+    }
+}
+
+impl std::error::Error for SettingInvalid {}
+
+/// A result of this module.
+pub type Result<T> = std::result::Result<T, SettingInvalid>;
 
 /// Largest image width or height the renderer accepts.
 pub const MAX_IMAGE_SIDE: u32 = 16_384;
@@ -181,8 +205,8 @@ impl Default for Ring {
     }
 }
 
-fn invalid(setting: &'static str, value: f64, rule: &'static str) -> Error {
-    Error::RenderSettingInvalid {
+fn invalid(setting: &'static str, value: f64, rule: &'static str) -> SettingInvalid {
+    SettingInvalid {
         setting,
         value,
         rule,
