@@ -121,7 +121,7 @@ fn tables(options: &DecodeOptions) -> Cow<'static, GaussianTables> {
 
 impl<'a> Partial<'a> {
     /// Decodes the model chunk `tag` (§1.6, §6.6.1, §8, §10.1) or keeps the selected layer's
-    /// attribute chunk for [`assemble`]; `rest` is what follows it in the stream.
+    /// attribute chunk for [`assemble()`]; `rest` is what follows it in the stream.
     fn read(
         &mut self,
         tag: ChunkTag,

@@ -47,8 +47,8 @@ const N_CASES: usize = 11;
 fn read_csv(path: &str) -> Vec<HashMap<String, String>> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| {
         panic!(
-            "cannot read {path}: {e} (tests/data/reference holds copies of \
-             shared/reference/bdrate_*.csv)"
+            "cannot read {path}: {e} (tests/data/reference/ holds bdrate_cases.csv and \
+             bdrate_inputs.csv)"
         )
     });
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());

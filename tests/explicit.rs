@@ -114,7 +114,7 @@ fn coarser_rates_are_smaller_and_further_from_the_input() {
         .iter()
         .zip(&rate_plans)
         .map(|(l, plan)| {
-            let order = salvq_encoder::explicit::layer::grid(&p, origin, plan.voxel).order;
+            let order = salvq_encoder::explicit::grid::grid(&p, origin, plan.voxel).order;
             order
                 .iter()
                 .enumerate()

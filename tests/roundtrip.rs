@@ -253,6 +253,8 @@ fn golden_hashes() {
     }
 }
 
+/// Threads come with the `parallel` feature; without it the decoder has one.
+#[cfg(feature = "parallel")]
 #[test]
 fn decoded_output_does_not_depend_on_the_thread_count() {
     let m = usq(GenParams::new(5_000, 6));

@@ -34,8 +34,23 @@ fn table_names(text: &str, caption: &str) -> Vec<String> {
         .collect()
 }
 
-/// One value of every variant of the error enum.
+/// One value of every variant of the error enum, group by group.
 fn every_error() -> Vec<Error> {
+    [
+        chunk_errors(),
+        field_errors(),
+        coding_errors(),
+        tensor_value_errors(),
+        model_errors(),
+        tile_errors(),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// The signature and chunk framing (§1).
+fn chunk_errors() -> Vec<Error> {
     let t = ChunkTag::HEAD;
     vec![
         Error::SignatureMismatch { found: [0; 8] },
@@ -80,6 +95,13 @@ fn every_error() -> Vec<Error> {
             found: 2,
         },
         Error::UnknownCodingMethod { tag: t, method: 9 },
+    ]
+}
+
+/// Header fields, sizes, limits and coordinates (§1).
+fn field_errors() -> Vec<Error> {
+    let t = ChunkTag::HEAD;
+    vec![
         Error::FieldOutOfRange {
             field: Field::FeatDim,
             value: 0,
@@ -102,6 +124,13 @@ fn every_error() -> Vec<Error> {
             value: 9,
             coord_bits: 1,
         },
+    ]
+}
+
+/// Entropy coding (§6), lattices (§7.1) and rates (§7.4).
+fn coding_errors() -> Vec<Error> {
+    let t = ChunkTag::HEAD;
+    vec![
         Error::AnsStreamInvalid {
             tag: t,
             fault: salvq_bitstream::error::AnsFault::OutOfWords,
@@ -127,6 +156,12 @@ fn every_error() -> Vec<Error> {
             rate: 1,
             rate_mask: 1,
         },
+    ]
+}
+
+/// Tensor values (§2, decoder and encoder alike).
+fn tensor_value_errors() -> Vec<Error> {
+    vec![
         Error::NonFiniteValue {
             tensor: "x",
             index: vec![0],
@@ -142,6 +177,12 @@ fn every_error() -> Vec<Error> {
             value: 2,
             allowed: "0 or 1",
         },
+    ]
+}
+
+/// Model interchange and validation (Annex A, §2).
+fn model_errors() -> Vec<Error> {
+    vec![
         Error::TensorMissing { tensor: "x" },
         Error::TensorUnexpected { name: "x".into() },
         Error::TensorDtype {
@@ -174,6 +215,12 @@ fn every_error() -> Vec<Error> {
             deviation: 0.1,
             tolerance: 1e-3,
         },
+    ]
+}
+
+/// Tiles (§10.1) and the anchor octree (§8).
+fn tile_errors() -> Vec<Error> {
+    vec![
         Error::TileOrder { tile: 1 },
         Error::TileBoxMismatch {
             tile: 0,

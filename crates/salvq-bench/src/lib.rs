@@ -305,19 +305,6 @@ pub fn run(p: &RdOptions) -> Result<String> {
     let mut csv = String::from(
         "part,series,x,bits_per_anchor,feature_bits_per_anchor,mse,snr_db,escapes,secs,render_psnr_db,render_ssim\n",
     );
-    let push_csv = |csv: &mut String, part: &str, series: &str, x: f64, pt: &Point| {
-        csv.push_str(&format!(
-            "{part},{series},{x},{:.4},{:.4},{:.6},{:.4},{},{:.4},{:.4},{:.5}\n",
-            pt.bits_per_anchor,
-            pt.feature_bits_per_anchor,
-            pt.mse,
-            pt.snr_db,
-            pt.escapes,
-            pt.secs,
-            pt.render_psnr_db,
-            pt.render_ssim
-        ));
-    };
 
     // 1. R-D of every quantizer on the default scene.
     let m = scene(p, salvq_gen::context::FEAT_DECAY);
@@ -330,29 +317,83 @@ pub fn run(p: &RdOptions) -> Result<String> {
         p.seed,
         salvq_gen::context::FEAT_DECAY
     ));
-    // Render accuracy (Annex C.5): every point's decoded scene against the uncompressed one.
+    let curves = rd_curves(&m, var, &mut csv)?;
+    text.push_str(&rd_summary(&curves));
+    charts::rd(&p.out.join("rd.svg"), &curves)?;
+
+    // 2. The SALVQ gain against the features' correlation.
+    let by_decay = gain_by_correlation(p, &mut text, &mut csv)?;
+
+    // 3. Search methods: encode time vs accuracy on the generator's learned basis.
+    search_methods(p, &m, var, &mut text, &mut csv)?;
+
+    // 4. Stability: condition numbers and extreme gains.
+    stability(p, &mut text, &mut csv)?;
+    charts::correlation(&p.out.join("rd_correlation.svg"), &by_decay)?;
+    write(&p.out.join("rd.csv"), &csv)?;
+    write(&p.out.join("summary.txt"), &text)?;
+    Ok(text)
+}
+
+/// Appends one point to the CSV: its part of the run, series and x.
+fn push_csv(csv: &mut String, part: &str, series: &str, x: f64, pt: &Point) {
+    csv.push_str(&format!(
+        "{part},{series},{x},{:.4},{:.4},{:.6},{:.4},{},{:.4},{:.4},{:.5}\n",
+        pt.bits_per_anchor,
+        pt.feature_bits_per_anchor,
+        pt.mse,
+        pt.snr_db,
+        pt.escapes,
+        pt.secs,
+        pt.render_psnr_db,
+        pt.render_ssim
+    ));
+}
+
+/// The encoder's lattice searches the search and stability sweeps compare.
+const SEARCH_METHODS: [(&str, Search); 5] = [
+    ("rounding", Search::Rounding),
+    ("nearest plane", Search::NearestPlane),
+    ("closest ≤1k", Search::Closest { max_nodes: 1_000 }),
+    ("closest ≤10k", Search::Closest { max_nodes: 10_000 }),
+    ("rdo", Search::Rdo { lambda_milli: 1000 }),
+];
+
+/// Every quantizer's R-D curve on `m`, each point's decoded scene rendered against the
+/// uncompressed one (Annex C.5).
+fn rd_curves(
+    m: &SceneModel,
+    var: f64,
+    csv: &mut String,
+) -> Result<Vec<(&'static str, Vec<Point>)>> {
     let reference = render_psnr::RenderReference::new(
-        &m,
+        m,
         render_psnr::VIEWS,
         render_psnr::WIDTH,
         render_psnr::HEIGHT,
     )?;
     let mut curves = Vec::new();
     for q in &QUANTIZERS {
-        let c = rendered_curve(&m, q, var, Some(&reference))?;
+        let c = rendered_curve(m, q, var, Some(&reference))?;
         for (k, pt) in STEP_FACTORS.iter().zip(&c) {
-            push_csv(&mut csv, "rd", q.label, f64::from(*k), pt);
+            push_csv(csv, "rd", q.label, f64::from(*k), pt);
         }
         curves.push((q.label, c));
     }
-    text.push_str(&format!(
+    Ok(curves)
+}
+
+/// The summary's R-D points of every curve, their BD-rates against USQ, and the RDO search's
+/// and Sp-SALVQ's against their base quantizers.
+fn rd_summary(curves: &[(&'static str, Vec<Point>)]) -> String {
+    let mut text = format!(
         "R-D points (bits/anchor / feature SNR dB / render PSNR dB, the decoded scene's renders \
          against the uncompressed scene's, {} ring views at {}x{}, Annex C.5):\n",
         render_psnr::VIEWS,
         render_psnr::WIDTH,
         render_psnr::HEIGHT
-    ));
-    for (label, c) in &curves {
+    );
+    for (label, c) in curves {
         let pts: Vec<String> = c
             .iter()
             .map(|x| {
@@ -381,9 +422,16 @@ pub fn run(p: &RdOptions) -> Result<String> {
             bd_text(&bd(&curves[base].1, &curves[rdo].1, true))
         ));
     }
-    charts::rd(&p.out.join("rd.svg"), &curves)?;
+    text
+}
 
-    // 2. The SALVQ gain against the features' correlation.
+/// SALVQ (fitted) against USQ at each residual correlation of [`DECAYS`]: the summary's
+/// BD-rates, and the pchip BD-rate per decay for the correlation chart.
+fn gain_by_correlation(
+    p: &RdOptions,
+    text: &mut String,
+    csv: &mut String,
+) -> Result<Vec<(f64, f64)>> {
     text.push_str(
         "\nSALVQ (fitted) vs USQ by residual correlation (feat_decay; 1 = uncorrelated), pchip:\n",
     );
@@ -394,9 +442,9 @@ pub fn run(p: &RdOptions) -> Result<String> {
         let usq = curve(&m, &QUANTIZERS[0], var)?;
         let salvq = curve(&m, &QUANTIZERS[4], var)?;
         for (k, (a, b)) in STEP_FACTORS.iter().zip(usq.iter().zip(&salvq)) {
-            push_csv(&mut csv, &format!("decay {decay}"), "USQ", f64::from(*k), a);
+            push_csv(csv, &format!("decay {decay}"), "USQ", f64::from(*k), a);
             push_csv(
-                &mut csv,
+                csv,
                 &format!("decay {decay}"),
                 "SALVQ (fitted)",
                 f64::from(*k),
@@ -413,25 +461,28 @@ pub fn run(p: &RdOptions) -> Result<String> {
             by_decay.push((decay, x));
         }
     }
+    Ok(by_decay)
+}
 
-    // 3. Search methods: encode time vs accuracy on the generator's learned basis.
-    let methods = [
-        ("rounding", Search::Rounding),
-        ("nearest plane", Search::NearestPlane),
-        ("closest ≤1k", Search::Closest { max_nodes: 1_000 }),
-        ("closest ≤10k", Search::Closest { max_nodes: 10_000 }),
-        ("rdo", Search::Rdo { lambda_milli: 1000 }),
-    ];
+/// Encode time against accuracy of each of [`SEARCH_METHODS`] on the generator's learned
+/// basis: the summary's rows and `search_speed.svg`.
+fn search_methods(
+    p: &RdOptions,
+    m: &SceneModel,
+    var: f64,
+    text: &mut String,
+    csv: &mut String,
+) -> Result<()> {
     let gen_basis = &QUANTIZERS[3];
     let mut search_rows = Vec::new();
-    for (label, s) in methods {
+    for (label, s) in SEARCH_METHODS {
         // Warm once, then the best of two (the machine is shared; compare ratios).
         let o = options(gen_basis, s);
-        code(&m, &o, var)?;
-        let a = code(&m, &o, var)?;
-        let b = code(&m, &o, var)?;
+        code(m, &o, var)?;
+        let a = code(m, &o, var)?;
+        let b = code(m, &o, var)?;
         let pt = if a.secs <= b.secs { a } else { b };
-        push_csv(&mut csv, "search", label, 0.0, &pt);
+        push_csv(csv, "search", label, 0.0, &pt);
         search_rows.push((label, pt));
     }
     let (t_round, mse_exact) = (search_rows[0].1.secs, search_rows[3].1.mse);
@@ -449,9 +500,13 @@ pub fn run(p: &RdOptions) -> Result<String> {
             pt.bits_per_anchor
         ));
     }
-    charts::search_speed(&p.out.join("search_speed.svg"), &search_rows, p.anchors)?;
+    charts::search_speed(&p.out.join("search_speed.svg"), &search_rows, p.anchors)
+}
 
-    // 4. Stability: condition numbers and extreme gains.
+/// Stability on a scene of at most 3000 anchors: each search method's MSE against the
+/// closest search's as the basis's condition number grows (`stability.svg`), then
+/// [`extreme_gains`].
+fn stability(p: &RdOptions, text: &mut String, csv: &mut String) -> Result<()> {
     let small = RdOptions {
         anchors: p.anchors.min(3000),
         ..p.clone()
@@ -467,10 +522,10 @@ pub fn run(p: &RdOptions) -> Result<String> {
         let mc = with_condition(&ms, cond, p.seed);
         let mut pts = Vec::new();
         let mut note = String::new();
-        for (label, s) in methods {
+        for (label, s) in SEARCH_METHODS {
             match code(&mc, &options(&QUANTIZERS[3], s), vs) {
                 Ok(pt) => {
-                    push_csv(&mut csv, &format!("cond {cond:e}"), label, cond, &pt);
+                    push_csv(csv, &format!("cond {cond:e}"), label, cond, &pt);
                     pts.push(Some(pt));
                 }
                 Err(e) => {
@@ -484,7 +539,7 @@ pub fn run(p: &RdOptions) -> Result<String> {
         let exact = pts[3].as_ref().map(|x| x.mse);
         let cells: Vec<String> = pts
             .iter()
-            .zip(methods)
+            .zip(SEARCH_METHODS)
             .map(|(pt, (label, _))| match (pt, exact) {
                 (Some(x), Some(e)) => format!("{label} {:.3} (esc {})", x.mse / e, x.escapes),
                 _ => format!("{label} —"),
@@ -496,7 +551,16 @@ pub fn run(p: &RdOptions) -> Result<String> {
         ));
         stab.push((cond, pts, note));
     }
-    charts::stability(&p.out.join("stability.svg"), &stab, &methods.map(|m| m.0))?;
+    let labels = SEARCH_METHODS.map(|m| m.0);
+    charts::stability(&p.out.join("stability.svg"), &stab, &labels)?;
+    extreme_gains(&ms, small.anchors, text);
+    Ok(())
+}
+
+/// USQ and SALVQ on `ms` (`anchors` of them) with rate 0's gain replaced by each of
+/// [`EXTREME_GAINS`]: the rate, the feature MSE, the escapes, and whether the decode is the
+/// encoder's prediction, or why the encoder refused.
+fn extreme_gains(ms: &SceneModel, anchors: u32, text: &mut String) {
     text.push_str("\nExtreme gains (rate 0's gain replaced; decode checked against the encoder's prediction):\n");
     for &g in &EXTREME_GAINS {
         for q in [&QUANTIZERS[0], &QUANTIZERS[4]] {
@@ -510,7 +574,7 @@ pub fn run(p: &RdOptions) -> Result<String> {
                     let gstats = &e.report().groups[0];
                     format!(
                         "{:.1} bits/anchor, feature MSE {:.3e}, escapes {} of {} symbols, decode {}",
-                        e.stream.len() as f64 * 8.0 / f64::from(small.anchors),
+                        e.stream.len() as f64 * 8.0 / f64::from(anchors),
                         gstats.squared_error / gstats.symbols.max(1) as f64,
                         gstats.escapes,
                         gstats.symbols,
@@ -522,8 +586,4 @@ pub fn run(p: &RdOptions) -> Result<String> {
             text.push_str(&format!("  gain {g:e}, {:>15}: {line}\n", q.label));
         }
     }
-    charts::correlation(&p.out.join("rd_correlation.svg"), &by_decay)?;
-    write(&p.out.join("rd.csv"), &csv)?;
-    write(&p.out.join("summary.txt"), &text)?;
-    Ok(text)
 }

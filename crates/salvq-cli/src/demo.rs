@@ -20,14 +20,7 @@ const KEPT: [&str; 3] = ["scene.safetensors", "scene.salvq", "decoded.safetensor
 pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Result<(), Error> {
     let tmp;
     let dir = match out {
-        Some(d) => {
-            std::fs::create_dir_all(d).map_err(|e| Error::io(IoOp::Write, d, e))?;
-            // Files an earlier run kept are replaced only with --force, before any work.
-            for name in KEPT {
-                ctx.check(d.join(name), &[])?;
-            }
-            d.to_path_buf()
-        }
+        Some(d) => kept_dir(d, &ctx)?,
         None => {
             tmp = tempfile::tempdir()
                 .map_err(|e| Error::io(IoOp::CreateTemp, &std::env::temp_dir(), e))?;
@@ -80,6 +73,36 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Res
         f64::from(anchors) / t_dec,
         report.groups.iter().map(|g| g.symbols).sum::<u64>() as f64 / t_dec
     );
+    print_chunks(&info, anchors, input_bytes);
+    crate::print_text(&salvq_encoder::info::groups_text(report));
+    let (exact, bounded) = check(&model, &decoded, &encoded);
+    if out.is_some() {
+        out!("files kept in {}", dir.display());
+    }
+    if !(exact && bounded) {
+        return Err(salvq::Error::ValueInvalid {
+            tensor: "demo check",
+            index: vec![],
+            value: 0,
+            allowed: "exact geometry and masks, errors within half a step",
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// `--out DIR`, created; files an earlier run kept there are replaced only with --force,
+/// checked before any work.
+fn kept_dir(d: &Path, ctx: &Ctx) -> Result<std::path::PathBuf, Error> {
+    std::fs::create_dir_all(d).map_err(|e| Error::io(IoOp::Write, d, e))?;
+    for name in KEPT {
+        ctx.check(d.join(name), &[])?;
+    }
+    Ok(d.to_path_buf())
+}
+
+/// The stream's chunks: bytes, share and bits per anchor, then the totals.
+fn print_chunks(info: &salvq_encoder::info::StreamInfo, anchors: u32, input_bytes: u64) {
     out!(
         "{:<6} {:<7} {:>12} {:>8} {:>12}",
         "chunk",
@@ -120,7 +143,16 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Res
         input_bytes,
         total / input_bytes.max(1) as f64
     );
-    crate::print_text(&salvq_encoder::info::groups_text(report));
+}
+
+/// Compares the decoded scene with the generated one, prints the errors per group, and
+/// returns (geometry, masks, MLPs and quantizers exact; every value within half a step).
+fn check(
+    model: &salvq::SceneModel,
+    decoded: &salvq::SceneModel,
+    encoded: &salvq_encoder::Encoded,
+) -> (bool, bool) {
+    let report = encoded.report();
     // Verify: geometry and masks exact, the MLPs as stored, attributes within half a step.
     // The quantizer is lossless but for the base step the encoder may refine to hold the
     // distortion with i8 context-MLP weights (spec Annex A.5.4).
@@ -152,17 +184,5 @@ pub(crate) fn demo(anchors: u32, seed: u64, out: Option<&Path>, ctx: Ctx) -> Res
         if exact { "exact" } else { "DIFFER" },
         if bounded { "yes" } else { "NO" }
     );
-    if out.is_some() {
-        out!("files kept in {}", dir.display());
-    }
-    if !(exact && bounded) {
-        return Err(salvq::Error::ValueInvalid {
-            tensor: "demo check",
-            index: vec![],
-            value: 0,
-            allowed: "exact geometry and masks, errors within half a step",
-        }
-        .into());
-    }
-    Ok(())
+    (exact, bounded)
 }

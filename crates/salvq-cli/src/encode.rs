@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use salvq::SceneModel;
 use salvq_encoder::auto::{self, AutoChoice};
 use salvq_encoder::parsimony::LevelTrial;
 use salvq_encoder::precision::{PrecisionChoice, PrecisionRule};
@@ -162,61 +163,11 @@ pub fn run_model(
     }
     let mut model = model_from_safetensors(&bytes)?;
     drop(bytes);
-    let feat_lattice = match a.quantizer.as_str() {
-        "usq" => Some(salvq_bitstream::model::LatticeKind::Identity),
-        "dn" => Some(salvq_bitstream::model::LatticeKind::Dn),
-        "e8" => Some(salvq_bitstream::model::LatticeKind::E8Product),
-        "salvq" => Some(salvq_bitstream::model::LatticeKind::General),
-        _ => None,
-    };
-    if feat_lattice == Some(salvq_bitstream::model::LatticeKind::General)
-        && model.quant_feat.basis.is_none()
-    {
-        return Err(Error::OptionUnsupported {
-            option: "--quantizer salvq",
-            reason: "the model has no learned lattice basis (quant.feat.basis_u, _s, _v)",
-            hint: "--quantizer klt fits one to its features (Annex A.5); --quantizer usq codes them with the identity",
-        });
-    }
-    let mut options = salvq_encoder::EncodeOptions {
-        encoder_note: a.note,
-        rates: a.rates.unwrap_or_else(|| vec![0]),
-        statistics: !a.no_stats,
-        feat_lattice,
-        search: salvq_encoder::Search::from_name(&a.search).unwrap_or_default(),
-        fit_basis: a.quantizer == "klt",
-        feat_regions: a.regions,
-        fit_scales: a.fit_scales,
-        tile_anchors: a.tile_anchors.unwrap_or(0),
-        scaffold_precision: match a.scaffold_precision.as_str() {
-            "f32" => Some(salvq_bitstream::container::payload::ScaffoldPrecision::F32),
-            "f16" => Some(salvq_bitstream::container::payload::ScaffoldPrecision::F16),
-            _ => None,
-        },
-        context_precision: match a.context_precision.as_str() {
-            "i16" => Some(salvq_bitstream::container::payload::ContextPrecision::I16),
-            "i8" => Some(salvq_bitstream::container::payload::ContextPrecision::I8),
-            _ => None,
-        },
-    };
+    let mut options = model_options(&a, &model)?;
     let mut pruned_levels = Vec::new();
     if a.prune_grid {
-        progress.stage("--prune-grid: encoding the model without each grid level");
-        let (pruned, trials) = salvq_encoder::parsimony::prune_grid_levels(&model, &options, 0.01)?;
-        for tr in &trials {
-            progress.say(&pruned_line(tr, model.n()));
-            pruned_levels.push(PrunedLevel {
-                level: tr.level.to_string(),
-                resolution: tr.resolution,
-                bytes_with: tr.bytes_with,
-                bytes_without: tr.bytes_without,
-                mse_with: tr.mse_with,
-                mse_without: tr.mse_without,
-            });
-        }
-        if trials.is_empty() {
-            progress.say("kept every grid level: no removal made the stream smaller");
-        }
+        let pruned;
+        (pruned, pruned_levels) = prune_grid(&model, &options, progress)?;
         model = pruned;
     }
     let mut auto_choice = None;
@@ -234,26 +185,7 @@ pub fn run_model(
     progress.stage(&format!("encoding {} anchors", model.n()));
     let encoded = salvq_encoder::encode_full(&model, &options)?;
     progress.say(&scaffold_line(&encoded.scaffold));
-    let cc = &encoded.context;
-    progress.say(&if cc.sample_anchors > 0 {
-        format!(
-            "context MLP weights stored as {:?}: i8 saves {} model bytes and costs {} symbol bytes, \
-             MSE x{:.4} / x{:.4} / x{:.4} with base steps x{:.4} / x{:.4} / x{:.4} (feature / \
-             scaling / offsets; measured on {} anchors)",
-            cc.precision,
-            cc.model_bytes_saved,
-            cc.symbol_bytes_cost,
-            cc.mse_ratio[0],
-            cc.mse_ratio[1],
-            cc.mse_ratio[2],
-            cc.step_factors[0],
-            cc.step_factors[1],
-            cc.step_factors[2],
-            cc.sample_anchors
-        )
-    } else {
-        format!("context MLP weights stored as {:?}", cc.precision)
-    });
+    progress.say(&context_line(&encoded.context));
     progress.stage(&format!("writing {}", output.shown()));
     let stream = &encoded.stream;
     output.write_bytes(stream)?;
@@ -289,6 +221,100 @@ pub fn run_model(
         }
     }
     Ok(())
+}
+
+/// The encoder options the arguments ask for on `model`.
+fn model_options(
+    a: &EncodeArgs,
+    model: &SceneModel,
+) -> Result<salvq_encoder::EncodeOptions, Error> {
+    let feat_lattice = match a.quantizer.as_str() {
+        "usq" => Some(salvq_bitstream::model::LatticeKind::Identity),
+        "dn" => Some(salvq_bitstream::model::LatticeKind::Dn),
+        "e8" => Some(salvq_bitstream::model::LatticeKind::E8Product),
+        "salvq" => Some(salvq_bitstream::model::LatticeKind::General),
+        _ => None,
+    };
+    if feat_lattice == Some(salvq_bitstream::model::LatticeKind::General)
+        && model.quant_feat.basis.is_none()
+    {
+        return Err(Error::OptionUnsupported {
+            option: "--quantizer salvq",
+            reason: "the model has no learned lattice basis (quant.feat.basis_u, _s, _v)",
+            hint: "--quantizer klt fits one to its features (Annex A.5); --quantizer usq codes them with the identity",
+        });
+    }
+    Ok(salvq_encoder::EncodeOptions {
+        encoder_note: a.note.clone(),
+        rates: a.rates.clone().unwrap_or_else(|| vec![0]),
+        statistics: !a.no_stats,
+        feat_lattice,
+        search: salvq_encoder::Search::from_name(&a.search).unwrap_or_default(),
+        fit_basis: a.quantizer == "klt",
+        feat_regions: a.regions,
+        fit_scales: a.fit_scales,
+        tile_anchors: a.tile_anchors.unwrap_or(0),
+        scaffold_precision: match a.scaffold_precision.as_str() {
+            "f32" => Some(salvq_bitstream::container::payload::ScaffoldPrecision::F32),
+            "f16" => Some(salvq_bitstream::container::payload::ScaffoldPrecision::F16),
+            _ => None,
+        },
+        context_precision: match a.context_precision.as_str() {
+            "i16" => Some(salvq_bitstream::container::payload::ContextPrecision::I16),
+            "i8" => Some(salvq_bitstream::container::payload::ContextPrecision::I8),
+            _ => None,
+        },
+    })
+}
+
+/// `--prune-grid`: the model without the grid levels whose removal made the stream smaller
+/// and what each trial measured.
+fn prune_grid(
+    model: &SceneModel,
+    options: &salvq_encoder::EncodeOptions,
+    progress: &Progress,
+) -> Result<(SceneModel, Vec<PrunedLevel>), Error> {
+    progress.stage("--prune-grid: encoding the model without each grid level");
+    let (pruned, trials) = salvq_encoder::parsimony::prune_grid_levels(model, options, 0.01)?;
+    let mut levels = Vec::new();
+    for tr in &trials {
+        progress.say(&pruned_line(tr, model.n()));
+        levels.push(PrunedLevel {
+            level: tr.level.to_string(),
+            resolution: tr.resolution,
+            bytes_with: tr.bytes_with,
+            bytes_without: tr.bytes_without,
+            mse_with: tr.mse_with,
+            mse_without: tr.mse_without,
+        });
+    }
+    if trials.is_empty() {
+        progress.say("kept every grid level: no removal made the stream smaller");
+    }
+    Ok((pruned, levels))
+}
+
+/// How the context MLP's weights are stored and what the choice measured (Annex A.5.4).
+fn context_line(cc: &salvq_encoder::context_precision::ContextChoice) -> String {
+    if cc.sample_anchors > 0 {
+        format!(
+            "context MLP weights stored as {:?}: i8 saves {} model bytes and costs {} symbol bytes, \
+             MSE x{:.4} / x{:.4} / x{:.4} with base steps x{:.4} / x{:.4} / x{:.4} (feature / \
+             scaling / offsets; measured on {} anchors)",
+            cc.precision,
+            cc.model_bytes_saved,
+            cc.symbol_bytes_cost,
+            cc.mse_ratio[0],
+            cc.mse_ratio[1],
+            cc.mse_ratio[2],
+            cc.step_factors[0],
+            cc.step_factors[1],
+            cc.step_factors[2],
+            cc.sample_anchors
+        )
+    } else {
+        format!("context MLP weights stored as {:?}", cc.precision)
+    }
 }
 
 /// What Annex A.5.2 chose for the Scaffold-GS MLPs, what it measured and which rule decided.

@@ -318,36 +318,7 @@ fn report(s: &Summary, names: &[&str]) -> String {
     if !fitted.is_empty() {
         t.push_str(&format!("KLT basis fitted for: {}\n", fitted.join(", ")));
     }
-    let (bytes_head, bits_head) = match s.progressive {
-        true => ("bytes to rate", "bits/Gaussian of the layer"),
-        false => ("bytes (alone)", "bits/Gaussian"),
-    };
-    t.push_str(&format!(
-        "rate  target dB  PSNR dB     SSIM  {bytes_head}  B/Gaussian  {bits_head}: position {}\n",
-        names.join(" ")
-    ));
-    for l in &s.layers {
-        let groups: Vec<String> = l
-            .group_bits
-            .iter()
-            .map(|(_, b)| format!("{b:.2}"))
-            .collect();
-        let flag = match (l.target_met, l.target_db) {
-            (Some(false), Some(target)) => format!("  MISSED by {:.2} dB", target - l.psnr_db),
-            _ => String::new(),
-        };
-        t.push_str(&format!(
-            "{:>4}  {:>9}  {:>7.2}  {:>7.5}  {:>13}  {:>10.3}  {:.2} {}{flag}\n",
-            l.rate,
-            l.target_db.map(|t| format!("{t:.1}")).unwrap_or_default(),
-            l.psnr_db,
-            l.ssim,
-            l.bytes,
-            l.bytes_per_gaussian,
-            l.position_bits,
-            groups.join(" ")
-        ));
-    }
+    t.push_str(&rate_table(s, names));
     let missed = s
         .layers
         .iter()
@@ -370,6 +341,42 @@ fn report(s: &Summary, names: &[&str]) -> String {
          against the input from {QUALITY_VIEWS} ring views at {QUALITY_WIDTH}x{QUALITY_HEIGHT}, \
          what `salvq compare INPUT STREAM --rate-b I` prints)\n"
     ));
+    t
+}
+
+/// One line per rate: its target and measured quality, bytes and bits per Gaussian by group;
+/// a rate that missed its target says by how much.
+fn rate_table(s: &Summary, names: &[&str]) -> String {
+    let (bytes_head, bits_head) = match s.progressive {
+        true => ("bytes to rate", "bits/Gaussian of the layer"),
+        false => ("bytes (alone)", "bits/Gaussian"),
+    };
+    let mut t = format!(
+        "rate  target dB  PSNR dB     SSIM  {bytes_head}  B/Gaussian  {bits_head}: position {}\n",
+        names.join(" ")
+    );
+    for l in &s.layers {
+        let groups: Vec<String> = l
+            .group_bits
+            .iter()
+            .map(|(_, b)| format!("{b:.2}"))
+            .collect();
+        let flag = match (l.target_met, l.target_db) {
+            (Some(false), Some(target)) => format!("  MISSED by {:.2} dB", target - l.psnr_db),
+            _ => String::new(),
+        };
+        t.push_str(&format!(
+            "{:>4}  {:>9}  {:>7.2}  {:>7.5}  {:>13}  {:>10.3}  {:.2} {}{flag}\n",
+            l.rate,
+            l.target_db.map(|t| format!("{t:.1}")).unwrap_or_default(),
+            l.psnr_db,
+            l.ssim,
+            l.bytes,
+            l.bytes_per_gaussian,
+            l.position_bits,
+            groups.join(" ")
+        ));
+    }
     t
 }
 

@@ -57,7 +57,7 @@ pub struct EncodeOptions {
     /// How the encoder picks lattice points (§7.3 leaves it free).
     pub search: Search,
     /// Anchors per tile (§10); 0: the reference's automatic tiles
-    /// ([`salvq_bitstream::tiles::TileTable::cut_auto`]).
+    /// ([`crate::writers::tile_cut::cut_auto`]).
     pub tile_anchors: u32,
     /// Replace the feature group's lattice by a basis fitted to the anchors (the KLT,
     /// [`fit::fit_klt_basis`]); `feat_lattice` must then be `None` or the general kind.

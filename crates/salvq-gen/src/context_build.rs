@@ -130,34 +130,8 @@ pub fn context_plan(
 ) -> ContextPlan {
     let lay = Layout::new(d);
     let (d_in, h) = (d.context_input() as usize, usize::from(d.context_hidden));
-    let (f, sd, k3) = (lay.f, lay.s, lay.k3);
     let out_dim = d.context_output() as usize;
-    // Part 0, layer 0: W0 row by row, then b0. Column gain by level: 3D level l: 1 / (1 + l/4);
-    // 2D level l (any plane): 0.5 / (1 + l/2). Coarse levels dominate: smooth fields.
-    let mut s = Stream::new(seed, tag::CONTEXT_MLP, 0);
-    let (l3, c) = (d.res_3d.len(), usize::from(d.grid_channels));
-    let l2 = d.res_2d.len().max(1);
-    let col_gain = |i: usize| {
-        let lv = i / c;
-        if lv < l3 {
-            1.0 / (1.0 + 0.25 * lv as f64)
-        } else {
-            0.5 / (1.0 + 0.5 * ((lv - l3) % l2) as f64)
-        }
-    };
-    let std0 = CONTEXT_W0_GAIN / (d_in as f64).sqrt();
-    let w0: Vec<f32> = (0..h * d_in)
-        .map(|k| round_f32(s.normal() * std0 * col_gain(k % d_in)))
-        .collect();
-    let b0: Vec<f32> = (0..h)
-        .map(|_| round_f32(s.normal() * CONTEXT_B0_STD))
-        .collect();
-    let mut mlp = Mlp {
-        w0,
-        b0,
-        w1: vec![0.0; out_dim * h],
-        b1: vec![0.0; out_dim],
-    };
+    let mut mlp = layer0(d, seed);
     // Hidden activations at the probes: anchors floor(i N / P), i < P = min(N, PROBES).
     let layer0 = ContextPlan::new(mlp.clone(), lay, d_in, h, &vec![0.0; h], 0.0);
     let p = n.clamp(1, PROBES);
@@ -176,93 +150,11 @@ pub fn context_plan(
         b: vec![0.0; out_dim + 1],
         h,
     };
-
-    // Part 1, feature mean: Q (F x F normals, Householder), G (F x H normals), beta (F normals).
-    // rows = Q diag(feat_decay^i) G, scaled to FEAT_MEAN_SPREAD, centred on beta * FEAT_MEAN_BIAS_STD.
-    let mut s = Stream::new(seed, tag::CONTEXT_MLP, 1);
-    let q = orthogonal(&mut s, f);
-    let mut sv = vec![1.0; f];
-    for i in 1..f {
-        sv[i] = sv[i - 1] * feat_decay;
-    }
-    let g = gaussian(&mut s, f * h, 1.0);
-    let mut rows = vec![0.0; f * h];
-    for a in 0..f {
-        for b in 0..f {
-            let qs = q[a * f + b] * sv[b];
-            for j in 0..h {
-                rows[a * h + j] += qs * g[b * h + j];
-            }
-        }
-    }
-    let beta = gaussian(&mut s, f, FEAT_MEAN_BIAS_STD);
-    let (m, sp) = spread(&probe_values(&rows, &hs, h));
-    let gain = ratio(FEAT_MEAN_SPREAD, sp);
-    l1.set(lay.mean_feat(), &rows, gain, |a| beta[a] - gain * m[a]);
-    // The residual mixing L = Q diag(sv) with rows normalised: (L L^T)_dd = 1.
-    let mut mix = vec![0.0; f * f];
-    for a in 0..f {
-        let norm = fsum((0..f).map(|b| q[a * f + b] * sv[b] * q[a * f + b] * sv[b])).sqrt();
-        for b in 0..f {
-            mix[a * f + b] = q[a * f + b] * sv[b] / norm;
-        }
-    }
-
-    // Part 2, feature scale: taps (6 own, 6 shared) scaled to median FEAT_SIGMA_SPATIAL_MEDIAN,
-    // then F biases U[FEAT_SIGMA_BASE).
-    let mut s = Stream::new(seed, tag::CONTEXT_MLP, 2);
-    let rows = taps(&mut s, f, h, 6, 1.0, 6);
-    let gain = ratio(
-        FEAT_SIGMA_SPATIAL_MEDIAN,
-        quantile(probe_values(&rows, &hs, h).concat(), 0.5),
-    );
-    l1.set(lay.scale_feat(), &rows, gain, |_| {
-        s.range(FEAT_SIGMA_BASE.0, FEAT_SIGMA_BASE.1)
-    });
-
-    // Part 3, scaling: mu = gain (floor + taps) with taps (2 own of weight 1/2, 4 shared), floor
-    // from SCALING_MEAN_LOG_RANGE, gain placing the median of ln(scaling / voxel) at
-    // SCALING_LOG_MEDIAN; scale rows = std_ratio * mean rows (the noise's exact std).
-    let mut s = Stream::new(seed, tag::CONTEXT_MLP, 3);
-    let rows = taps(&mut s, sd, h, 2, 0.5, 4);
-    let vals = probe_values(&rows, &hs, h).concat();
-    let floor = scaling_floor(&vals, SCALING_MEAN_LOG_RANGE);
-    let ln_med = quantile(vals.iter().map(|v| ln(v + floor)).collect(), 0.5);
-    let noise = ScalingNoise::new(SCALING_NOISE_LOG_STD, SCALING_NOISE_SKEW);
-    // median ln s ~ median ln mu + median(noise), median(noise) = 0.455 c - L (0.455 = median e^2).
-    let gain = exp(ln(voxel) + SCALING_LOG_MEDIAN + noise.log_norm - 0.455 * noise.c - ln_med);
-    l1.set(lay.mean_scaling(), &rows, gain, |_| gain * floor);
-    let gain_s = noise.std_ratio * gain;
-    l1.set(lay.scale_scaling(), &rows, gain_s, |_| gain_s * floor);
-
-    // Part 4, offsets: mean rows 3K x H normals scaled to OFFSET_MEAN_SPREAD, centred on 3K
-    // normals * OFFSET_MEAN_BIAS_STD; scale rows: taps (4 own, 0 shared) scaled to median
-    // OFFSET_SIGMA_SPATIAL_MEDIAN, biases U[OFFSET_SIGMA_BASE).
-    let mut s = Stream::new(seed, tag::CONTEXT_MLP, 4);
-    let rows = gaussian(&mut s, k3 * h, 1.0);
-    let (m, sp) = spread(&probe_values(&rows, &hs, h));
-    let gain = ratio(OFFSET_MEAN_SPREAD, sp);
-    l1.set(lay.mean_offsets(), &rows, gain, |a| {
-        s.normal() * OFFSET_MEAN_BIAS_STD - gain * m[a]
-    });
-    let rows = taps(&mut s, k3, h, 4, 1.0, 0);
-    let gain = ratio(
-        OFFSET_SIGMA_SPATIAL_MEDIAN,
-        quantile(probe_values(&rows, &hs, h).concat(), 0.5),
-    );
-    l1.set(lay.scale_offsets(), &rows, gain, |_| {
-        s.range(OFFSET_SIGMA_BASE.0, OFFSET_SIGMA_BASE.1)
-    });
-
-    // Part 5, q_adj (3 rows) and the mask field (1 internal row): normals, each row scaled to std
-    // QADJ_SPREAD (mask field: 1) and centred at 0 over the probes.
-    let mut s = Stream::new(seed, tag::CONTEXT_MLP, 5);
-    let rows = gaussian(&mut s, 4 * h, 1.0);
-    for (a, row) in rows.chunks(h).enumerate() {
-        let (m, sp) = spread(&probe_values(row, &hs, h));
-        let gain = ratio(if a < 3 { QADJ_SPREAD } else { 1.0 }, sp);
-        l1.set(lay.q_adj() + a, row, gain, |_| -gain * m[0]);
-    }
+    let mix = l1.feature_mean(&lay, seed, &hs, feat_decay);
+    l1.feature_scale(&lay, seed, &hs);
+    let noise = l1.scaling(&lay, seed, &hs, voxel);
+    l1.offsets(&lay, seed, &hs);
+    l1.q_adj_and_mask(&lay, seed, &hs);
 
     // Store layer 1 in f32; the attributes are drawn from exactly the stored values.
     mlp.w1 = l1.w[..out_dim * h].iter().map(|&v| round_f32(v)).collect();
@@ -274,4 +166,152 @@ pub fn context_plan(
     let field: Vec<f64> = hs.iter().map(|hv| plan.mask_field(hv)).collect();
     plan.dead_below = quantile(field, DEAD_FRACTION);
     plan
+}
+
+/// Part 0, layer 0: W0 row by row, then b0; layer 1 zero. Column gain by level: 3D level l:
+/// 1 / (1 + l/4); 2D level l (any plane): 0.5 / (1 + l/2). Coarse levels dominate: smooth
+/// fields.
+fn layer0(d: &Dims, seed: u64) -> Mlp {
+    let (d_in, h) = (d.context_input() as usize, usize::from(d.context_hidden));
+    let out_dim = d.context_output() as usize;
+    let mut s = Stream::new(seed, tag::CONTEXT_MLP, 0);
+    let (l3, c) = (d.res_3d.len(), usize::from(d.grid_channels));
+    let l2 = d.res_2d.len().max(1);
+    let col_gain = |i: usize| {
+        let lv = i / c;
+        if lv < l3 {
+            1.0 / (1.0 + 0.25 * lv as f64)
+        } else {
+            0.5 / (1.0 + 0.5 * ((lv - l3) % l2) as f64)
+        }
+    };
+    let std0 = CONTEXT_W0_GAIN / (d_in as f64).sqrt();
+    let w0: Vec<f32> = (0..h * d_in)
+        .map(|k| round_f32(s.normal() * std0 * col_gain(k % d_in)))
+        .collect();
+    let b0: Vec<f32> = (0..h)
+        .map(|_| round_f32(s.normal() * CONTEXT_B0_STD))
+        .collect();
+    Mlp {
+        w0,
+        b0,
+        w1: vec![0.0; out_dim * h],
+        b1: vec![0.0; out_dim],
+    }
+}
+
+/// Layer 1's parts, each from its own stream and scaled to its statistics over the probes'
+/// hidden activations `hs`.
+impl Layer1 {
+    /// Part 1, feature mean: Q (F x F normals, Householder), G (F x H normals), beta (F
+    /// normals). rows = Q diag(feat_decay^i) G, scaled to FEAT_MEAN_SPREAD, centred on beta *
+    /// FEAT_MEAN_BIAS_STD. Returns the residual mixing L = Q diag(sv) with rows normalised:
+    /// (L L^T)_dd = 1.
+    fn feature_mean(
+        &mut self,
+        lay: &Layout,
+        seed: u64,
+        hs: &[Vec<f64>],
+        feat_decay: f64,
+    ) -> Vec<f64> {
+        let (f, h) = (lay.f, self.h);
+        let mut s = Stream::new(seed, tag::CONTEXT_MLP, 1);
+        let q = orthogonal(&mut s, f);
+        let mut sv = vec![1.0; f];
+        for i in 1..f {
+            sv[i] = sv[i - 1] * feat_decay;
+        }
+        let g = gaussian(&mut s, f * h, 1.0);
+        let mut rows = vec![0.0; f * h];
+        for a in 0..f {
+            for b in 0..f {
+                let qs = q[a * f + b] * sv[b];
+                for j in 0..h {
+                    rows[a * h + j] += qs * g[b * h + j];
+                }
+            }
+        }
+        let beta = gaussian(&mut s, f, FEAT_MEAN_BIAS_STD);
+        let (m, sp) = spread(&probe_values(&rows, hs, h));
+        let gain = ratio(FEAT_MEAN_SPREAD, sp);
+        self.set(lay.mean_feat(), &rows, gain, |a| beta[a] - gain * m[a]);
+        let mut mix = vec![0.0; f * f];
+        for a in 0..f {
+            let norm = fsum((0..f).map(|b| q[a * f + b] * sv[b] * q[a * f + b] * sv[b])).sqrt();
+            for b in 0..f {
+                mix[a * f + b] = q[a * f + b] * sv[b] / norm;
+            }
+        }
+        mix
+    }
+
+    /// Part 2, feature scale: taps (6 own, 6 shared) scaled to median
+    /// FEAT_SIGMA_SPATIAL_MEDIAN, then F biases U[FEAT_SIGMA_BASE).
+    fn feature_scale(&mut self, lay: &Layout, seed: u64, hs: &[Vec<f64>]) {
+        let h = self.h;
+        let mut s = Stream::new(seed, tag::CONTEXT_MLP, 2);
+        let rows = taps(&mut s, lay.f, h, 6, 1.0, 6);
+        let gain = ratio(
+            FEAT_SIGMA_SPATIAL_MEDIAN,
+            quantile(probe_values(&rows, hs, h).concat(), 0.5),
+        );
+        self.set(lay.scale_feat(), &rows, gain, |_| {
+            s.range(FEAT_SIGMA_BASE.0, FEAT_SIGMA_BASE.1)
+        });
+    }
+
+    /// Part 3, scaling: mu = gain (floor + taps) with taps (2 own of weight 1/2, 4 shared),
+    /// floor from SCALING_MEAN_LOG_RANGE, gain placing the median of ln(scaling / voxel) at
+    /// SCALING_LOG_MEDIAN; scale rows = std_ratio * mean rows (the noise's exact std).
+    /// Returns the scaling noise.
+    fn scaling(&mut self, lay: &Layout, seed: u64, hs: &[Vec<f64>], voxel: f64) -> ScalingNoise {
+        let h = self.h;
+        let mut s = Stream::new(seed, tag::CONTEXT_MLP, 3);
+        let rows = taps(&mut s, lay.s, h, 2, 0.5, 4);
+        let vals = probe_values(&rows, hs, h).concat();
+        let floor = scaling_floor(&vals, SCALING_MEAN_LOG_RANGE);
+        let ln_med = quantile(vals.iter().map(|v| ln(v + floor)).collect(), 0.5);
+        let noise = ScalingNoise::new(SCALING_NOISE_LOG_STD, SCALING_NOISE_SKEW);
+        // median ln s ~ median ln mu + median(noise), median(noise) = 0.455 c - L (0.455 = median e^2).
+        let gain = exp(ln(voxel) + SCALING_LOG_MEDIAN + noise.log_norm - 0.455 * noise.c - ln_med);
+        self.set(lay.mean_scaling(), &rows, gain, |_| gain * floor);
+        let gain_s = noise.std_ratio * gain;
+        self.set(lay.scale_scaling(), &rows, gain_s, |_| gain_s * floor);
+        noise
+    }
+
+    /// Part 4, offsets: mean rows 3K x H normals scaled to OFFSET_MEAN_SPREAD, centred on 3K
+    /// normals * OFFSET_MEAN_BIAS_STD; scale rows: taps (4 own, 0 shared) scaled to median
+    /// OFFSET_SIGMA_SPATIAL_MEDIAN, biases U[OFFSET_SIGMA_BASE).
+    fn offsets(&mut self, lay: &Layout, seed: u64, hs: &[Vec<f64>]) {
+        let (k3, h) = (lay.k3, self.h);
+        let mut s = Stream::new(seed, tag::CONTEXT_MLP, 4);
+        let rows = gaussian(&mut s, k3 * h, 1.0);
+        let (m, sp) = spread(&probe_values(&rows, hs, h));
+        let gain = ratio(OFFSET_MEAN_SPREAD, sp);
+        self.set(lay.mean_offsets(), &rows, gain, |a| {
+            s.normal() * OFFSET_MEAN_BIAS_STD - gain * m[a]
+        });
+        let rows = taps(&mut s, k3, h, 4, 1.0, 0);
+        let gain = ratio(
+            OFFSET_SIGMA_SPATIAL_MEDIAN,
+            quantile(probe_values(&rows, hs, h).concat(), 0.5),
+        );
+        self.set(lay.scale_offsets(), &rows, gain, |_| {
+            s.range(OFFSET_SIGMA_BASE.0, OFFSET_SIGMA_BASE.1)
+        });
+    }
+
+    /// Part 5, q_adj (3 rows) and the mask field (1 internal row): normals, each row scaled
+    /// to std QADJ_SPREAD (mask field: 1) and centred at 0 over the probes.
+    fn q_adj_and_mask(&mut self, lay: &Layout, seed: u64, hs: &[Vec<f64>]) {
+        let h = self.h;
+        let mut s = Stream::new(seed, tag::CONTEXT_MLP, 5);
+        let rows = gaussian(&mut s, 4 * h, 1.0);
+        for (a, row) in rows.chunks(h).enumerate() {
+            let (m, sp) = spread(&probe_values(row, hs, h));
+            let gain = ratio(if a < 3 { QADJ_SPREAD } else { 1.0 }, sp);
+            self.set(lay.q_adj() + a, row, gain, |_| -gain * m[0]);
+        }
+    }
 }

@@ -65,7 +65,7 @@ const LINK_BITS_PER_S: f64 = 50e6;
 /// pool thread woken after the machine had been idle often waited milliseconds on its
 /// waker's CPU ([`pinned_pool`]); back to back, the machine busy, it rarely did, so a
 /// 2-thread decode right after the 1-thread one measured less than a viewer's single decode
-/// meets (docs/speed).
+/// meets.
 const IDLE_BEFORE_TWO: std::time::Duration = std::time::Duration::from_millis(50);
 /// The target: the native decode on 2 threads at least this many Gaussians per second.
 const GOAL_GAUSSIANS_PER_S: f64 = 2e6;
@@ -147,8 +147,8 @@ fn args() -> Args {
 /// onto few vCPUs (`sched_vcpu_pack` on its command line), so a pool thread woken by a busy
 /// thread was queued on the waker's CPU and waited there for a scheduler tick: a sleeping
 /// thread took a median 1.9 ms to run, 0.09 ms when the two were pinned to different CPUs
-/// (docs/speed). The unpinned decode is what the machine's scheduler gives; the pinned one,
-/// what the decoder's two threads do on two CPUs.
+/// (this bench's wake-up latency line). The unpinned decode is what the machine's scheduler
+/// gives; the pinned one, what the decoder's two threads do on two CPUs.
 fn pinned_pool(threads: usize) -> Option<Arc<rayon::ThreadPool>> {
     let cores = core_affinity::get_core_ids()?;
     if cores.len() < threads {
@@ -474,23 +474,8 @@ fn explicit_scene(
     row.symbols = coded.len();
     (row.floor, row.floor_outside) = floor(&coded, a.rounds);
 
-    // Peer files, written once from the same PLY.
     let st = a.splat_transform.as_deref();
-    let mut peer_files = Vec::new();
-    if let Some(st) = st {
-        for format in ["spz", "sog"] {
-            let f = cache.join(format!("{scene}.{format}"));
-            if a.fresh || !f.exists() {
-                let mut c = st_command(st);
-                c.args(["-q", "-w"]);
-                if format == "sog" {
-                    c.args(["-g", "cpu"]);
-                }
-                run_timed(c.arg(ply).arg(&f))?;
-            }
-            peer_files.push(f);
-        }
-    }
+    let peer_files = peer_files(a, scene, ply, cache)?;
 
     // What a viewer decodes: the Gaussians, not the symbols they came from.
     let d1 = Decoder::builder().threads(1).gaussians_only(true).build();
@@ -509,10 +494,8 @@ fn explicit_scene(
     let work = target_dir().join("decode_speed/work");
     std::fs::create_dir_all(&work)?;
     let out_ply = work.join(format!("{scene}.decoded.ply"));
-    let peer_ply = work.join(format!("{scene}.peer.ply"));
-    let (mut t1, mut t2, mut t2b, mut ratio, mut cmd) = (vec![], vec![], vec![], vec![], vec![]);
+    let (mut t1, mut t2, mut t2b, mut ratio) = (vec![], vec![], vec![], vec![]);
     let mut t2p = vec![];
-    let mut peers: [Vec<f64>; 5] = Default::default();
     // One round untimed first, as the commands' timer does (their warm-up run).
     drop((d1.decode(&stream), d2.decode(&stream)));
     drop(d2p.as_ref().map(|d| d.decode(&stream)));
@@ -526,30 +509,7 @@ fn explicit_scene(
         t2b.push(again);
         ratio.push(s2 / s1);
     }
-    // The commands in rounds of their own: on this VM a 2-thread decode in process ran
-    // slower for a while after Node had run (docs/speed).
-    for _ in 0..a.rounds {
-        cmd.push(run_timed(
-            // Each round replaces the last one's PLY, as splat-transform's `-w` below.
-            Command::new(salvq)
-                .arg("decode")
-                .arg(&path)
-                .arg("-o")
-                .arg(&out_ply)
-                .arg("--force"),
-        )?);
-        if let Some(st) = st {
-            for (i, f) in peer_files.iter().enumerate() {
-                peers[i].push(run_timed(
-                    st_command(st).args(["-q", "-w"]).arg(f).arg(&peer_ply),
-                )?);
-                let written = salvq_render::ply::read_ply_lenient(&std::fs::read(&peer_ply)?)?;
-                assert_eq!(written.len(), n, "{scene}: splat-transform's PLY holds N");
-                peers[2 + i].push(run_timed(st_command(st).arg("-q").arg(f).arg("null"))?);
-            }
-            peers[4].push(run_timed(st_command(st).arg("--version"))?);
-        }
-    }
+    let (mut cmd, peers) = command_times(a, salvq, &path, &work, scene, &peer_files, n)?;
     let written = salvq_render::ply::read_ply(&std::fs::read(&out_ply)?)?;
     assert!(
         written == reference.gaussians,
@@ -576,4 +536,66 @@ fn explicit_scene(
         row.bytes, row.one, row.two
     );
     Ok(row)
+}
+
+/// The peers' files of `scene` (SPZ, SOG), written once from the same PLY by splat-transform
+/// when it is given.
+fn peer_files(a: &Args, scene: &str, ply: &Path, cache: &Path) -> Res<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    if let Some(st) = a.splat_transform.as_deref() {
+        for format in ["spz", "sog"] {
+            let f = cache.join(format!("{scene}.{format}"));
+            if a.fresh || !f.exists() {
+                let mut c = st_command(st);
+                c.args(["-q", "-w"]);
+                if format == "sog" {
+                    c.args(["-g", "cpu"]);
+                }
+                run_timed(c.arg(ply).arg(&f))?;
+            }
+            files.push(f);
+        }
+    }
+    Ok(files)
+}
+
+/// Seconds of `salvq decode` to a PLY per round, and of the peers' commands: each peer file
+/// to a PLY, to nothing, and splat-transform's start-up (`--version`).
+fn command_times(
+    a: &Args,
+    salvq: &Path,
+    path: &Path,
+    work: &Path,
+    scene: &str,
+    peer_files: &[PathBuf],
+    n: usize,
+) -> Res<(Vec<f64>, [Vec<f64>; 5])> {
+    let out_ply = work.join(format!("{scene}.decoded.ply"));
+    let peer_ply = work.join(format!("{scene}.peer.ply"));
+    let (mut cmd, mut peers): (Vec<f64>, [Vec<f64>; 5]) = Default::default();
+    // The commands in rounds of their own: on this VM a 2-thread decode in process ran
+    // slower for a while after Node had run.
+    for _ in 0..a.rounds {
+        cmd.push(run_timed(
+            // Each round replaces the last one's PLY, as splat-transform's `-w` below.
+            Command::new(salvq)
+                .arg("decode")
+                .arg(path)
+                .arg("-o")
+                .arg(&out_ply)
+                .arg("--force"),
+        )?);
+        if let Some(st) = a.splat_transform.as_deref() {
+            for (i, f) in peer_files.iter().enumerate() {
+                peers[i].push(run_timed(
+                    st_command(st).args(["-q", "-w"]).arg(f).arg(&peer_ply),
+                )?);
+                let written = salvq_render::ply::read_ply_lenient(&std::fs::read(&peer_ply)?)?;
+                assert_eq!(written.len(), n, "{scene}: splat-transform's PLY holds N");
+                peers[2 + i].push(run_timed(st_command(st).arg("-q").arg(f).arg("null"))?);
+            }
+            peers[4].push(run_timed(st_command(st).arg("--version"))?);
+        }
+    }
+    Ok((cmd, peers))
 }

@@ -188,8 +188,10 @@ type Series = (
     fn(&Row) -> Option<f64>,
 );
 
-pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
-    let series: [Series; 15] = [
+/// The explicit profile's series: native on 1 and 2 threads, wasm, and the bare coder and
+/// network floors.
+fn explicit_series() -> [Series; 7] {
+    [
         (
             "explicit, native, 1 thread",
             RGBColor(0, 114, 178),
@@ -239,6 +241,13 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
             "explicit",
             |r| Some(r.receive()),
         ),
+    ]
+}
+
+/// The anchors profile's series: native on 1 and 2 threads, wasm (with the neural Gaussians
+/// the wasm call computes), and the bare coder and network floors.
+fn anchors_series() -> [Series; 8] {
+    [
         (
             "anchors, native, 1 thread",
             RGBColor(213, 94, 0),
@@ -295,7 +304,15 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
             "anchors",
             |r| Some(r.receive()),
         ),
-    ];
+    ]
+}
+
+/// The chart: decode time against scene size, log-log, every series of both profiles.
+pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
+    let series: Vec<Series> = explicit_series()
+        .into_iter()
+        .chain(anchors_series())
+        .collect();
     let points = |s: &Series| -> Vec<(f64, f64)> {
         let mut v: Vec<(f64, f64)> = rows
             .iter()
@@ -306,18 +323,7 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
         v
     };
     let all: Vec<(f64, f64)> = series.iter().flat_map(points).collect();
-    let fold = |f: fn(f64, f64) -> f64, init: f64, sel: fn(&(f64, f64)) -> f64| {
-        all.iter().map(sel).fold(init, f)
-    };
-    let (x0, x1) = (
-        fold(f64::min, f64::INFINITY, |p| p.0) * 0.7,
-        fold(f64::max, 1.0, |p| p.0) * 1.4,
-    );
-    let (y0, y1) = (
-        fold(f64::min, f64::INFINITY, |p| p.1).max(1e-6) * 0.6,
-        // Headroom above the data for the legend (upper left).
-        fold(f64::max, 1e-5, |p| p.1) * 15.0,
-    );
+    let ((x0, x1), (y0, y1)) = axis_ranges(&all);
     let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let caption = if wasm {
@@ -344,22 +350,7 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
         let color = s.1;
         let style = color.stroke_width(2);
         if s.2 {
-            // Dashed: short segments along each line.
-            let mut dashes = Vec::new();
-            for w in xy.windows(2) {
-                let (a, b) = (w[0], w[1]);
-                for i in 0..12 {
-                    let (t0, t1) = (i as f64 / 12.0, (i as f64 + 0.5) / 12.0);
-                    let lerp = |t: f64| {
-                        (
-                            (a.0.ln() + t * (b.0.ln() - a.0.ln())).exp(),
-                            (a.1.ln() + t * (b.1.ln() - a.1.ln())).exp(),
-                        )
-                    };
-                    dashes.push(PathElement::new(vec![lerp(t0), lerp(t1)], style));
-                }
-            }
-            c.draw_series(dashes)?
+            c.draw_series(dashes(&xy, style))?
                 .label(s.0)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 8, y)], color));
         } else {
@@ -384,4 +375,41 @@ pub(crate) fn chart(path: &Path, rows: &[Row], wasm: bool) -> Res<()> {
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+/// The chart's x and y ranges around every point `all`: margins on the log scale, and
+/// headroom above the data for the legend (upper left).
+fn axis_ranges(all: &[(f64, f64)]) -> ((f64, f64), (f64, f64)) {
+    let fold = |f: fn(f64, f64) -> f64, init: f64, sel: fn(&(f64, f64)) -> f64| {
+        all.iter().map(sel).fold(init, f)
+    };
+    let x = (
+        fold(f64::min, f64::INFINITY, |p| p.0) * 0.7,
+        fold(f64::max, 1.0, |p| p.0) * 1.4,
+    );
+    let y = (
+        fold(f64::min, f64::INFINITY, |p| p.1).max(1e-6) * 0.6,
+        fold(f64::max, 1e-5, |p| p.1) * 15.0,
+    );
+    (x, y)
+}
+
+/// A dashed line through `xy`: short segments along each stretch, evenly spaced on the
+/// log-log axes.
+fn dashes(xy: &[(f64, f64)], style: ShapeStyle) -> Vec<PathElement<(f64, f64)>> {
+    let mut dashes = Vec::new();
+    for w in xy.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        for i in 0..12 {
+            let (t0, t1) = (i as f64 / 12.0, (i as f64 + 0.5) / 12.0);
+            let lerp = |t: f64| {
+                (
+                    (a.0.ln() + t * (b.0.ln() - a.0.ln())).exp(),
+                    (a.1.ln() + t * (b.1.ln() - a.1.ln())).exp(),
+                )
+            };
+            dashes.push(PathElement::new(vec![lerp(t0), lerp(t1)], style));
+        }
+    }
+    dashes
 }

@@ -50,8 +50,7 @@ const _: () = assert!(MIN_PRECISION >= COARSE_BITS);
 
 /// Runs `$body` with `$p` (a runtime precision in `MIN_PRECISION..=MAX_PRECISION`) bound to
 /// the const generic `$P`. `constriction` takes the precision as a const generic parameter.
-/// Exported for the research benches that time the bare coder; not part of the API.
-#[doc(hidden)]
+/// The encoder's symbol writer and the benches that time the bare coder use it too.
 #[macro_export]
 macro_rules! with_precision {
     ($p:expr, $P:ident => $body:expr) => {
@@ -114,7 +113,6 @@ macro_rules! with_precision {
         }
     };
 }
-#[doc(hidden)]
 pub use crate::with_precision;
 
 /// One coded event as the coder sees it: the interval [cum, cum + freq) of 2^P (§6.2.1).

@@ -156,7 +156,6 @@ impl GaussianTables {
     /// vectors): in scale `k`'s table one unit of frequency moves from u = 0 to u = 1, so one
     /// cumulative entry is off by one while the table still sums to 2^P. `test-hooks` only.
     #[cfg(feature = "test-hooks")]
-    #[doc(hidden)]
     pub fn with_one_wrong_entry(&self, k: u8) -> GaussianTables {
         let mut wrong = self.clone();
         if let Some(t) = wrong.scales.get_mut(usize::from(k)) {

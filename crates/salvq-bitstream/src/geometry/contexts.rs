@@ -23,7 +23,8 @@ impl Counts {
         self.freq_one_at(Precision::new(p))
     }
 
-    /// [`Counts::freq_one`] at `p`, its shift and bound worked out once per set of contexts.
+    /// P(1) in units of 2^−p (as `freq_one` in the tests), its shift and bound worked out once
+    /// per set of contexts.
     #[inline(always)]
     fn freq_one_at(self, p: Precision) -> u32 {
         let (c0, c1) = (self.0 & 0xffff, self.0 >> 16);

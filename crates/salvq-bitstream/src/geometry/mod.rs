@@ -303,15 +303,7 @@ pub fn walk_with<E: Events>(
                 let is_single = events.bit(single.freq_one(ctx), what)?;
                 single.update(ctx, is_single);
                 if is_single {
-                    let mut v = p;
-                    for level in k + 1..=d {
-                        let what = DirectOctant {
-                            depth: k,
-                            cell: p,
-                            level,
-                        };
-                        v = child_cell(v, (events.octant(what)? & 7) as usize);
-                    }
+                    let v = direct_voxel(events, p, k, d)?;
                     check_room(children.len(), k, anchors)?;
                     bytes[pi] = 1 << octant_of(v, below);
                     children.push(v);
@@ -370,7 +362,19 @@ pub fn walk_with<E: Events>(
         std::mem::swap(nodes, children);
         std::mem::swap(direct, child_direct);
     }
-    // §8.4: counts.
+    leaf_counts(nodes, depth, anchors, precision, events)
+}
+
+/// §8.4: how many anchors each leaf voxel holds (1 + the count's unary events), the voxels
+/// repeated as often, `anchors` in all.
+fn leaf_counts<E: Events>(
+    nodes: &[[u32; 3]],
+    depth: u8,
+    anchors: u32,
+    precision: u32,
+    events: &mut E,
+) -> Result<Vec<[u32; 3]>> {
+    let n = anchors as usize;
     let mut counts = Contexts::<COUNT_CONTEXTS>::new(precision);
     let mut out = Vec::with_capacity(n);
     for (j, &leaf) in nodes.iter().enumerate() {
@@ -404,6 +408,21 @@ pub fn walk_with<E: Events>(
         });
     }
     Ok(out)
+}
+/// §8.2: the voxel a direct node at depth `k` holds, its octant at every depth below read
+/// from the body.
+#[inline(always)]
+fn direct_voxel<E: Events>(events: &mut E, p: [u32; 3], k: u32, d: u32) -> Result<[u32; 3]> {
+    let mut v = p;
+    for level in k + 1..=d {
+        let what = DirectOctant {
+            depth: k,
+            cell: p,
+            level,
+        };
+        v = child_cell(v, (events.octant(what)? & 7) as usize);
+    }
+    Ok(v)
 }
 
 /// The decoder reads every event from the body.

@@ -265,7 +265,7 @@ impl GridLayout {
 /// entries, and a HAC-size grid (12 3D levels of 2^13 entries, 3 × 4 2D levels of 2^15) takes
 /// 1.77 MB as bytes, which the L2 cache (2 MB on this machine) cannot hold beside the rest of
 /// a decode; as signs it takes 222 KB. A 100 k-anchor decode spent 7 … 10 % less time
-/// (docs/speed).
+/// (`perf record` profiles, and the two builds' decodes timed in turn).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GridSigns {
     /// The 3D, xy, xz and yz tensors' words.

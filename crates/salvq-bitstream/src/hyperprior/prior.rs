@@ -190,7 +190,8 @@ impl Prior {
     pub fn prefetch(&self, grid: GridRef<'_>, v: [u32; 3]) {
         match (&self.fast_grid, grid.signs) {
             // The signs fit this machine's L2 cache beside the rest of a decode: requesting
-            // their words ahead cost more than waiting for them (docs/speed).
+            // their words ahead cost more than waiting for them (the one-thread decode was
+            // faster without the prefetch).
             (_, Some(_)) => {}
             (Some(k), None) => k.prefetch(&self.layout, grid.values, v),
             (None, None) => self.layout.prefetch(grid.values, v),

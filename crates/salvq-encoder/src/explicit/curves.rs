@@ -5,7 +5,8 @@
 //! ([`super::sensitivity`]), with each part's constant calibrated on two renders of the
 //! sample ([`Effort::Default`]) or taken from the prior ([`Effort::Fast`]).
 
-use super::layer::{grid, group_bits, group_coordinates, BitCost, SizeClasses};
+use super::grid::{grid, group_coordinates, Grid};
+use super::layer::{group_bits, BitCost, SizeClasses};
 use super::prepare::PreparedGaussians;
 use super::ratios::{parts, quantized, trial_exponents, Curve, Part};
 use super::sample::Sample;
@@ -242,7 +243,7 @@ struct Bits<'a> {
     p: &'a PreparedGaussians,
     class_of: Vec<u8>,
     variant: Variant,
-    reference: super::layer::Grid,
+    reference: Grid,
     /// Octree bits per Gaussian at each trial exponent, shared by the position parts.
     octree: rustc_hash::FxHashMap<i32, f64>,
 }

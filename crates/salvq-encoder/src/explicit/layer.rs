@@ -3,27 +3,27 @@
 //! order, the tiles, the lattice coordinates, and the causal prior's tables fitted to them
 //! by their exact coded cost.
 
-use nalgebra::DMatrix;
-
+use super::grid::grid;
+use super::grid::Grid;
 use super::prepare::PreparedGaussians;
 use super::prior::{
     bit_cost, entropy_bits, fit_prior, freq, group_histograms, Histograms, PRED_LEVEL_CANDIDATES,
 };
 pub use super::prior::{group_bits, BitCost, Variant};
+use super::quantize::{quantize, Quantized};
 use super::writer::{rest_count_freq, Writer};
 use crate::error::Result;
 use salvq_bitstream::container::chunk::{write_chunk, ChunkTag};
 use salvq_bitstream::container::payload::METHOD_CODED;
 use salvq_bitstream::entropy::GaussianTables;
-use salvq_bitstream::explicit::attributes::{walk, TileSymbols, MAX_COORDINATE};
+use salvq_bitstream::explicit::attributes::{walk, TileSymbols};
 use salvq_bitstream::explicit::groups::{Group, GroupKind};
 use salvq_bitstream::explicit::layer::{
-    rest_count_nodes, rest_values, Layer, CONTEXT_CLASSES, MAX_COORD_BITS, SIZE_CLASSES,
+    rest_count_nodes, rest_values, Layer, CONTEXT_CLASSES, SIZE_CLASSES,
 };
 use salvq_bitstream::explicit::reconstruct::reconstruct_tile_into;
 use salvq_bitstream::explicit::refinement::Precision;
 use salvq_bitstream::explicit::Gaussians;
-use salvq_bitstream::model::morton3;
 use salvq_bitstream::tiles::{join_bodies, TileTable};
 
 /// What one rate's layer quantizes with (Annex A.8.2).
@@ -163,108 +163,9 @@ pub struct LayerState {
     pub precision: Precision,
 }
 
-/// The layer's grid: the voxel of each Gaussian and the canonical order.
-#[derive(Debug, Clone)]
-pub struct Grid {
-    /// Bits per voxel coordinate.
-    pub coord_bits: u8,
-    /// Edge of a voxel in world units.
-    pub voxel_size: f32,
-    /// World position of voxel (0, 0, 0)'s corner.
-    pub origin: [f32; 3],
-    /// Canonical order: `order[k]` is the input index of the k-th Gaussian.
-    pub order: Vec<usize>,
-    /// Voxels in canonical order.
-    pub voxels: Vec<[u32; 3]>,
-}
-
-/// The grid whose voxel edge is about `step` (Annex A.8.3): the fewest bits whose voxels of
-/// edge `step` cover the box, at most 21 (then the edge grows to cover it).
-pub fn grid(p: &PreparedGaussians, origin: [f32; 3], step: f64) -> Grid {
-    let extent = p.extent.max(f64::MIN_POSITIVE);
-    let mut bits = ((extent / step).log2().ceil() as i64 + 1).clamp(1, MAX_COORD_BITS.into()) as u8;
-    let mut size = step as f32;
-    let cells = |size: f32| extent / f64::from(size) + 1.0;
-    while cells(size) >= (1u64 << bits) as f64 {
-        if bits < MAX_COORD_BITS {
-            bits += 1;
-        } else {
-            size *= 1.0 + 1.0 / 1024.0;
-        }
-    }
-    let max = (1u32 << bits) - 1;
-    let vox: Vec<[u32; 3]> = p
-        .positions
-        .iter()
-        .map(|q| {
-            std::array::from_fn(|a| {
-                let t = (q[a] - f64::from(origin[a])) / f64::from(size);
-                (t.floor().max(0.0) as u64).min(u64::from(max)) as u32
-            })
-        })
-        .collect();
-    let mut order: Vec<usize> = (0..p.len()).collect();
-    order.sort_by_key(|&i| (morton3(vox[i]), i));
-    let voxels = order.iter().map(|&i| vox[i]).collect();
-    Grid {
-        coord_bits: bits,
-        voxel_size: size,
-        origin,
-        order,
-        voxels,
-    }
-}
-
-/// One group's lattice coordinates (`dim` per Gaussian, canonical `order`) with step
-/// `delta · 2^shift[k]` for the k-th Gaussian ([`group_coordinates_at`]).
-pub fn group_coordinates(
-    values: &[f64],
-    g: &Group,
-    delta: f32,
-    shift: &dyn Fn(usize) -> i8,
-    order: &[usize],
-) -> Vec<i32> {
-    let step = |k: usize| delta * salvq_bitstream::explicit::reconstruct::pow2(shift(k).into());
-    group_coordinates_at(values, g, &step, order)
-}
-
-/// One group's lattice coordinates (`dim` per Gaussian, canonical `order`) with the step
-/// `step(k)` for the k-th Gaussian: `round(B⁻¹ (x − mean) / Δ)`, the nearest lattice point
-/// for the identity and for `B = U·diag(s)` with orthogonal columns.
-pub fn group_coordinates_at(
-    values: &[f64],
-    g: &Group,
-    step: &dyn Fn(usize) -> f32,
-    order: &[usize],
-) -> Vec<i32> {
-    let d = g.dim;
-    let inverse = g.basis.as_ref().map(|_| {
-        let b = DMatrix::from_row_slice(d, d, &g.matrix().to_f64());
-        b.try_inverse().unwrap_or_else(|| DMatrix::identity(d, d))
-    });
-    let limit = MAX_COORDINATE as f64;
-    let mut out = Vec::with_capacity(order.len() * d);
-    let mut t = vec![0.0f64; d];
-    for (k, &i) in order.iter().enumerate() {
-        let s = f64::from(step(k));
-        let x = &values[i * d..(i + 1) * d];
-        for j in 0..d {
-            t[j] = (x[j] - f64::from(g.mean[j])) / s;
-        }
-        for j in 0..d {
-            let w = match &inverse {
-                None => t[j],
-                Some(inv) => (0..d).map(|c| inv[(j, c)] * t[c]).sum(),
-            };
-            out.push(w.round().clamp(-limit, limit) as i32);
-        }
-    }
-    out
-}
-
 /// Codes layer `rate` of `p` with the quantizers `groups` (rate steps), `classes` and the
 /// rate's `plan` (Annex A.8.3), in tiles of at most `tile_gaussians` (0: the reference's
-/// automatic tiles, [`TileTable::cut_auto`]).
+/// automatic tiles, [`crate::writers::tile_cut::cut_auto`]).
 #[allow(clippy::too_many_arguments)]
 pub fn encode_layer(
     p: &PreparedGaussians,
@@ -297,35 +198,13 @@ pub fn encode_layer(
         tiles: &tiles,
         tables,
     };
-    let FittedPrior {
-        pred_level,
-        predict,
-        scale_table,
-        scale_offset,
-        mut group_bits,
-    } = fit_layer_prior(&coder, plan, variant, cost);
-    let (rotation_freq, rotation_bits) = rotation_probabilities(&q.rotation);
-    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rotation) {
-        group_bits[gi] += rotation_bits;
-    }
+    let prior = fit_layer_prior(&coder, plan, variant, cost);
+    let (mut layer, mut group_bits) = layer_header(&grid, plan, &q, groups, prior);
     let refine_bits: f64 = q
         .size_class
         .iter()
         .map(|&c| 3.0 * f64::from(plan.refine[usize::from(c)]))
         .sum();
-    let mut layer = Layer {
-        coord_bits: grid.coord_bits,
-        voxel_size: grid.voxel_size,
-        pred_level,
-        rotation_freq,
-        size_threshold: q.size_threshold,
-        refine: plan.refine,
-        shift: plan.shift.clone(),
-        scale_offset,
-        predict: predict.clone(),
-        rest_count_freq: vec![1 << 15; rest_count_nodes(rest_values(groups.len(), q.values))],
-        scale_table,
-    };
     if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rest) {
         let counts = coder.rest_counts(&layer)?;
         let (freq, bits) = rest_count_freq(&counts, groups[gi].dim);
@@ -343,7 +222,7 @@ pub fn encode_layer(
             rate,
             coord_bits: grid.coord_bits,
             voxel_size: grid.voxel_size,
-            pred_level,
+            pred_level: layer.pred_level,
             refine: plan.refine,
             glay_bytes,
             tils_bytes,
@@ -351,7 +230,7 @@ pub fn encode_layer(
             gatt_bytes,
             group_bits,
             refine_bits,
-            predict,
+            predict: layer.predict,
             tiles: tiles.len(),
         },
         state: LayerState {
@@ -366,145 +245,9 @@ pub fn encode_layer(
     })
 }
 
-/// A layer's Gaussians quantized to the rate's plan (§3.5), in canonical order.
-struct Quantized {
-    /// Lattice coordinates, `values` per Gaussian: every group's, side by side.
-    coords: Vec<i32>,
-    /// Coded values per Gaussian.
-    values: usize,
-    /// Size class of each Gaussian.
-    size_class: Vec<u8>,
-    /// GLAY's `size_threshold`: the class bounds on the scale group's coordinates.
-    size_threshold: [i32; SIZE_CLASSES - 1],
-    /// Per group, the step shift of each Gaussian (the scale group's are 0).
-    shifts: Vec<Vec<i8>>,
-    /// Position bits below the voxel of each Gaussian, per axis.
-    refinement: Vec<[u32; 3]>,
-    /// Index of each Gaussian's largest rotation component.
-    rotation: Vec<u8>,
-}
-
-/// Quantizes `p` on `grid` with the rate's `plan`: size classes, position refinement,
-/// every group's coordinates and the rotation indices.
-fn quantize(
-    p: &PreparedGaussians,
-    groups: &[Group],
-    classes: &SizeClasses,
-    plan: &RatePlan,
-    grid: &Grid,
-    origin: [f32; 3],
-    rate: u8,
-) -> Quantized {
-    let values: usize = groups.iter().map(|g| g.dim).sum();
-    let (scale_coords, size_threshold, size_class) =
-        scale_classes(p, &groups[0], rate, classes, &grid.order);
-    let refinement = position_refinement(p, grid, origin, &plan.refine, &size_class);
-    let (coords, shifts) =
-        layer_coordinates(p, groups, plan, rate, grid, &size_class, &scale_coords);
-    let rotation = grid.order.iter().map(|&i| p.rotation_index[i]).collect();
-    Quantized {
-        coords,
-        values,
-        size_class,
-        size_threshold,
-        shifts,
-        refinement,
-        rotation,
-    }
-}
-
-/// The scale group's coordinates (its step unshifted) and, from them, GLAY's size
-/// thresholds and each Gaussian's size class (§3.5): the decoder classes Gaussians by
-/// their coded scales, so the encoder must too.
-fn scale_classes(
-    p: &PreparedGaussians,
-    scale: &Group,
-    rate: u8,
-    classes: &SizeClasses,
-    order: &[usize],
-) -> (Vec<i32>, [i32; SIZE_CLASSES - 1], Vec<u8>) {
-    let scale_delta = scale.rate_step(rate);
-    let scale_coords = group_coordinates(&p.values[0], scale, scale_delta, &|_| 0, order);
-    let threshold_u = classes.thresholds.map(|t| {
-        let u = ((t - f64::from(scale.mean[0])) / f64::from(scale_delta)).round();
-        u.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
-    });
-    let size_class = scale_coords
-        .chunks_exact(scale.dim)
-        .map(|c| {
-            let largest = c.iter().copied().max().unwrap_or(0);
-            threshold_u.iter().filter(|&&t| t <= largest).count() as u8
-        })
-        .collect();
-    (scale_coords, threshold_u, size_class)
-}
-
-/// Each Gaussian's position refinement (canonical order): the fine cell within its coarse
-/// voxel, `refine[class]` bits per axis.
-fn position_refinement(
-    p: &PreparedGaussians,
-    grid: &Grid,
-    origin: [f32; 3],
-    refine: &[u8; SIZE_CLASSES],
-    size_class: &[u8],
-) -> Vec<[u32; 3]> {
-    (0..grid.order.len())
-        .map(|k| {
-            let e = refine[usize::from(size_class[k])];
-            let h = f64::from(grid.voxel_size) / f64::from(1u32 << e);
-            let q = p.positions[grid.order[k]];
-            std::array::from_fn(|a| {
-                let fine = ((q[a] - f64::from(origin[a])) / h).floor().max(0.0) as u64;
-                let lo = u64::from(grid.voxels[k][a]) << e;
-                (fine.clamp(lo, lo + (1u64 << e) - 1) - lo) as u32
-            })
-        })
-        .collect()
-}
-
-/// Every group's coordinates side by side (all values of each Gaussian together), and
-/// each group's step shift per Gaussian; the scale group's are `scale_coords`.
-fn layer_coordinates(
-    p: &PreparedGaussians,
-    groups: &[Group],
-    plan: &RatePlan,
-    rate: u8,
-    grid: &Grid,
-    size_class: &[u8],
-    scale_coords: &[i32],
-) -> (Vec<i32>, Vec<Vec<i8>>) {
-    let values: usize = groups.iter().map(|g| g.dim).sum();
-    let n = grid.order.len();
-    let mut coords = vec![0i32; n * values];
-    let mut shifts_of: Vec<Vec<i8>> = Vec::with_capacity(groups.len());
-    let mut at = 0;
-    for (gi, g) in groups.iter().enumerate() {
-        let shifts: Vec<i8> = (0..n)
-            .map(|k| plan.class_shifts(gi)[usize::from(size_class[k])])
-            .collect();
-        let c = if gi == 0 {
-            scale_coords.to_vec()
-        } else {
-            group_coordinates(
-                &p.values[gi],
-                g,
-                g.rate_step(rate),
-                &|k| shifts[k],
-                &grid.order,
-            )
-        };
-        for (k, row) in c.chunks_exact(g.dim).enumerate() {
-            coords[k * values + at..k * values + at + g.dim].copy_from_slice(row);
-        }
-        shifts_of.push(shifts);
-        at += g.dim;
-    }
-    (coords, shifts_of)
-}
-
 impl RatePlan {
     /// The step shift of group `gi` per size class (the scale group, first, has none).
-    fn class_shifts(&self, gi: usize) -> [i8; SIZE_CLASSES] {
+    pub(super) fn class_shifts(&self, gi: usize) -> [i8; SIZE_CLASSES] {
         if gi == 0 {
             [0i8; SIZE_CLASSES]
         } else {
@@ -709,6 +452,37 @@ fn fit_layer_prior(
         scale_offset,
         group_bits,
     }
+}
+
+/// GLAY (§3.4) from the grid, the plan, the size thresholds and the fitted `prior`, with the
+/// rotation probabilities fitted to `q` and the `sh_rest` counts' tree still flat; and the
+/// ideal bits per group, the rotation indices' in their group.
+fn layer_header(
+    grid: &Grid,
+    plan: &RatePlan,
+    q: &Quantized,
+    groups: &[Group],
+    prior: FittedPrior,
+) -> (Layer, Vec<f64>) {
+    let mut group_bits = prior.group_bits;
+    let (rotation_freq, rotation_bits) = rotation_probabilities(&q.rotation);
+    if let Some(gi) = groups.iter().position(|g| g.kind == GroupKind::Rotation) {
+        group_bits[gi] += rotation_bits;
+    }
+    let layer = Layer {
+        coord_bits: grid.coord_bits,
+        voxel_size: grid.voxel_size,
+        pred_level: prior.pred_level,
+        rotation_freq,
+        size_threshold: q.size_threshold,
+        refine: plan.refine,
+        shift: plan.shift.clone(),
+        scale_offset: prior.scale_offset,
+        predict: prior.predict,
+        rest_count_freq: vec![1 << 15; rest_count_nodes(rest_values(groups.len(), q.values))],
+        scale_table: prior.scale_table,
+    };
+    (layer, group_bits)
 }
 
 /// GLAY's rotation index probabilities (§3.4: the high bit, then the low bit after each

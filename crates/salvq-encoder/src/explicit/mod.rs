@@ -6,11 +6,13 @@
 
 pub mod curves;
 pub mod fit_rates;
+pub mod grid;
 pub mod input;
 pub mod layer;
 pub mod prepare;
 pub mod prior;
 pub mod progressive;
+mod quantize;
 pub mod ratios;
 pub mod sample;
 pub mod sensitivity;
@@ -99,7 +101,7 @@ pub struct ExplicitOptions {
     /// included, smaller.
     pub klt: Option<Vec<bool>>,
     /// Gaussians per tile at most (§10); 0: the reference's automatic tiles
-    /// ([`salvq_bitstream::tiles::TileTable::cut_auto`]).
+    /// ([`crate::writers::tile_cut::cut_auto`]).
     pub tile_gaussians: u32,
     /// Text for an `encd` chunk (§1.7), written after `GQUA`.
     pub note: Option<String>,

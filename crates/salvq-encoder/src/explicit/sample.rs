@@ -4,7 +4,7 @@
 //! KLT shrinks) costs the same at a million Gaussians as at sixty thousand, and keeps the
 //! local density the octree and the attribute contexts see.
 
-use super::layer::grid;
+use super::grid::grid;
 use super::prepare::PreparedGaussians;
 use super::TrialSteps;
 use salvq_bitstream::explicit::Gaussians;

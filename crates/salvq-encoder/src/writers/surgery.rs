@@ -12,7 +12,7 @@ use salvq_bitstream::limits::Limits;
 ///
 /// # Errors
 /// The first framing error of the stream (§1.2, §1.3); a stream shorter than the signature is
-/// [`crate::Error::Truncated`].
+/// [`salvq_bitstream::Error::Truncated`].
 pub fn chunks(stream: &[u8]) -> Result<Vec<(ChunkTag, Vec<u8>)>> {
     let (_, rest) = signature::Signature::parse(stream)?;
     let mut r = ChunkReader::new(rest, SIGNATURE_LEN as u64, &Limits::default());

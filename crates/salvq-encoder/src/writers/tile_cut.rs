@@ -18,8 +18,9 @@ pub const MIN_AUTO_TILE_ANCHORS: u32 = 2_048;
 /// asked for (informative, §10): `n / AUTO_TILES` rounded up, within
 /// [`MIN_AUTO_TILE_ANCHORS`] … [`DEFAULT_TILE_ANCHORS`]. A scene below 8 · 16 384 would
 /// otherwise be one or a few tiles and decode on one thread; smaller tiles cost bytes (each
-/// restarts the octree and its contexts: 0.1 … 0.9 % of the real scenes' streams at 2 048 …
-/// 4 096, measured in `docs/speed`), so the floor keeps a tile's cost small.
+/// restarts the octree and its contexts: 0.1 … 0.9 % of the real scenes' rate-0 streams at
+/// 2 048 … 4 096 against 16 384, measured with `salvq encode --tile-anchors N`), so the floor
+/// keeps a tile's cost small.
 pub fn auto_tile_anchors(n: usize) -> u32 {
     let per = n.div_ceil(AUTO_TILES as usize);
     u32::try_from(per)

@@ -13,7 +13,7 @@
 //! The weights are re-laid once per stream ([`Avx2Mlp::new`]), as i8 where every weight of
 //! the MLP fits (a stream's `i8` weights, §1.6.2 Table 1-7, always do) and as i16 otherwise:
 //! the kernel streams all its weights through the cache for every anchor, and half the bytes
-//! took 4 … 10 % off a generated 100 k-anchor decode (docs/speed). An i8
+//! took 4 … 10 % off a generated 100 k-anchor decode. An i8
 //! weight is widened to i16 as it is loaded (`vpmovsxbw`), so the products and sums are the
 //! same. Layer 0: rows padded with
 //! zeros to a multiple of 16 columns, row counts padded to a multiple of 8, and the eight rows

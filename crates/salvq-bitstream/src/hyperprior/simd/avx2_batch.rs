@@ -4,7 +4,7 @@
 //! Why: one anchor's evaluation ([`Avx2Mlp::eval`]) loads and widens every weight it
 //! multiplies. Two anchors share those loads; the passes over the weights then run about
 //! 5 200 instructions an anchor, a `vpmaddwd`, a `vpaddd` and half a load for each 16
-//! products. In profiles of the decode (docs/speed) the MLP's time fell by 12 … 14 % against
+//! products. In `perf record` profiles of the decode the MLP's time fell by 12 … 14 % against
 //! the unchanged grid interpolation's. Four anchors leave too few registers for the sums and
 //! ran slower than two.
 //!

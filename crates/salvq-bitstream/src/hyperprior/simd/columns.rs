@@ -8,7 +8,7 @@
 //! scalar remainder is left: 45 values are 6 AVX2 vectors.
 //!
 //! Why: the KLT product of the explicit profile's 45 `sh_rest` values went through memory
-//! once per four columns, and took 18 % of fruit_drops' decode instructions (docs/speed).
+//! once per four columns, and took 18 % of fruit_drops' decode instructions.
 
 /// Rows summed in one pass over the columns: 8 AVX2 vectors.
 const ROWS: usize = 64;

@@ -12,7 +12,7 @@
 //!
 //! Why: the scalar loop spent most of its time on the 144 corners' index and weight
 //! arithmetic, one corner at a time (about 14 % of a generated 100 k-anchor decode on one
-//! thread; docs/speed).
+//! thread, in a profile).
 
 use std::arch::x86_64::{
     __m128i, __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_blend_epi32,

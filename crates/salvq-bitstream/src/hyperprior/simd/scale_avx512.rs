@@ -1,7 +1,7 @@
 //! §5.4 step 3's scale indices of 8 values at once with AVX-512: the bucket table of
 //! `threshold_search` read with gathers, the same integers as its one-value count.
 //!
-//! Why: the count took 9 % of a generated 100 k-anchor decode on one thread (docs/speed),
+//! Why: the count took 9 % of a generated 100 k-anchor decode on one thread (a profile),
 //! some 30 instructions a value, one value at a time. Here a value's bit length is one
 //! `vplzcntq`, and its bucket's count and the two thresholds after it are three gathers for 8
 //! values.
