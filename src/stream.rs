@@ -22,7 +22,7 @@ use std::ops::Range;
 
 use crate::anchors::decode_scene;
 use crate::builder::DecodeOptions;
-use crate::container::chunk::{ChunkReader, ChunkTag, CHUNK_CRC_LEN, CHUNK_HEADER_LEN};
+use crate::container::chunk::{Chunk, ChunkReader, ChunkTag, CHUNK_CRC_LEN, CHUNK_HEADER_LEN};
 use crate::container::method::METHOD_CODED;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
 use crate::entropy::GaussianTables;
@@ -111,6 +111,112 @@ struct Gatt {
     /// The tiles could not all be decoded as they arrived: the whole chunk is decoded once
     /// complete (which reports the error, if there is one).
     whole: bool,
+}
+
+impl Gatt {
+    /// The selected layer's `GATT`, its payload at `payload_at`, of `len` bytes, with
+    /// `tile_count` tiles (0: the layer's parts are missing, and the whole-chunk decoder
+    /// reports what is).
+    fn new(payload_at: usize, len: usize, tile_count: usize) -> Gatt {
+        Gatt {
+            payload_at,
+            len,
+            lens: None,
+            body_at: 0,
+            next_tile: 0,
+            per_tile: vec![None; tile_count],
+            whole: tile_count == 0,
+        }
+    }
+
+    /// §10.2: the method byte, then the T body lengths, which must add up to the payload;
+    /// `payload` is what has arrived of it. Anything else leaves the chunk to the
+    /// whole-chunk decoder.
+    fn read_lengths(&mut self, payload: &[u8]) {
+        let table_end = 1 + 4 * self.per_tile.len();
+        if self.len < table_end {
+            self.whole = true;
+        } else if !self.whole && self.lens.is_none() && payload.len() >= table_end {
+            let lens: Vec<usize> = payload[1..table_end]
+                .chunks_exact(4)
+                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]) as usize)
+                .collect();
+            let total = lens.iter().try_fold(0usize, |a, &l| a.checked_add(l));
+            if payload[0] != METHOD_CODED || total != Some(self.len - table_end) {
+                self.whole = true;
+            } else {
+                self.body_at = self.payload_at + table_end;
+                self.lens = Some(lens);
+            }
+        }
+    }
+
+    /// Decodes and hands out the selected tiles whose bodies lie in `arrived` (the stream
+    /// so far); the first that fails leaves the rest to the whole-chunk decoder.
+    fn decode_arrived(
+        &mut self,
+        arrived: &[u8],
+        decoder: &ExplicitDecoder,
+        gaussians: &mut Gaussians,
+        ready: &mut Vec<DecodedTile>,
+    ) {
+        let tables = GaussianTables::standard();
+        let (false, Some(lens)) = (self.whole, &self.lens) else {
+            return;
+        };
+        let tile_count = self.per_tile.len();
+        while self.next_tile < tile_count && self.body_at + lens[self.next_tile] <= arrived.len() {
+            let t = self.next_tile;
+            let body = &arrived[self.body_at..self.body_at + lens[t]];
+            self.body_at += lens[t];
+            self.next_tile += 1;
+            let (selected, inputs) = (decoder.is_selected(t), decoder.tile_inputs());
+            if !selected {
+                continue;
+            }
+            let Ok((layer, groups, tiles, voxels)) = inputs else {
+                self.whole = true;
+                break;
+            };
+            let decoded = decode_tile(layer, groups, &voxels[tiles.range(t)], body, tables)
+                .and_then(|symbols| {
+                    hand_out(decoder, t, symbols.as_ref(), gaussians, ready)?;
+                    Ok(symbols)
+                });
+            match decoded {
+                Ok(symbols) => self.per_tile[t] = Some(symbols),
+                Err(_) => {
+                    self.whole = true;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// The chunk has arrived whole and its CRC holds: the tiles not decoded yet are, or the
+    /// whole-chunk decoder reports the error.
+    fn finish(
+        self,
+        decoder: &mut ExplicitDecoder,
+        chunk: Chunk<'_>,
+        gaussians: &mut Gaussians,
+        tiles: &mut Vec<DecodedTile>,
+    ) -> Result<()> {
+        if self.whole || self.next_tile < self.per_tile.len() {
+            // The whole-chunk decoder gives the error, or (if the tiles could not be taken
+            // one by one for another reason) the symbols; tiles not yet reconstructed are.
+            decoder.chunk(chunk.tag, chunk.payload, &[])?;
+            // The tiles handed out already are those `self.per_tile` holds: a prefix, in order.
+            for (t, handed_out) in self.per_tile.iter().enumerate() {
+                if let (Some(s), None) = (decoder.tile_symbols(t), handed_out) {
+                    hand_out(decoder, t, s, gaussians, tiles)?;
+                }
+            }
+        } else {
+            decoder.gatt_decoded(self.per_tile)?;
+        }
+        Ok(())
+    }
 }
 
 impl StreamDecoder {
@@ -304,82 +410,22 @@ impl StreamDecoder {
         let Profile::Explicit(e) = &mut self.profile else {
             return Ok(false);
         };
-        let tables = GaussianTables::standard();
         if e.gatt.is_none() {
-            let tile_count = match e.decoder.select_tiles() {
-                Ok(s) => s.len(),
-                Err(_) => 0,
-            };
+            let tile_count = e.decoder.select_tiles().map_or(0, |s| s.len());
             self.gaussians.sh_degree = e.decoder.header().map_or(0, |h| h.sh_degree);
-            e.gatt = Some(Gatt {
-                payload_at: at + CHUNK_HEADER_LEN,
-                len,
-                lens: None,
-                body_at: 0,
-                next_tile: 0,
-                per_tile: vec![None; tile_count],
-                // Without the layer's parts, the whole-chunk decoder reports what is missing.
-                whole: tile_count == 0,
-            });
+            e.gatt = Some(Gatt::new(at + CHUNK_HEADER_LEN, len, tile_count));
         }
         let Some(g) = e.gatt.as_mut() else {
             return Ok(false);
         };
         let arrived = self.buf.len().min(g.payload_at + g.len);
-        let payload = &self.buf[g.payload_at..arrived];
-        let tile_count = g.per_tile.len();
-        // The method byte and the T body lengths (§10.2).
-        let table_end = 1 + 4 * tile_count;
-        if g.len < table_end {
-            g.whole = true;
-        } else if !g.whole && g.lens.is_none() && payload.len() >= table_end {
-            // §10.2: the method byte, then T body lengths that must add up to the payload.
-            let lens: Vec<usize> = payload[1..table_end]
-                .chunks_exact(4)
-                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]) as usize)
-                .collect();
-            let total = lens.iter().try_fold(0usize, |a, &l| a.checked_add(l));
-            if payload[0] != METHOD_CODED || total != Some(g.len - table_end) {
-                g.whole = true;
-            } else {
-                g.body_at = g.payload_at + table_end;
-                g.lens = Some(lens);
-            }
-        }
-        if let (false, Some(lens)) = (g.whole, &g.lens) {
-            while g.next_tile < tile_count && g.body_at + lens[g.next_tile] <= arrived {
-                let t = g.next_tile;
-                let body = &self.buf[g.body_at..g.body_at + lens[t]];
-                g.body_at += lens[t];
-                g.next_tile += 1;
-                let (selected, inputs) = (e.decoder.is_selected(t), e.decoder.tile_inputs());
-                if !selected {
-                    continue;
-                }
-                let Ok((layer, groups, tiles, voxels)) = inputs else {
-                    g.whole = true;
-                    break;
-                };
-                let decoded = decode_tile(layer, groups, &voxels[tiles.range(t)], body, tables)
-                    .and_then(|symbols| {
-                        hand_out(
-                            &e.decoder,
-                            t,
-                            symbols.as_ref(),
-                            &mut self.gaussians,
-                            &mut self.tiles,
-                        )?;
-                        Ok(symbols)
-                    });
-                match decoded {
-                    Ok(symbols) => g.per_tile[t] = Some(symbols),
-                    Err(_) => {
-                        g.whole = true;
-                        break;
-                    }
-                }
-            }
-        }
+        g.read_lengths(&self.buf[g.payload_at..arrived]);
+        g.decode_arrived(
+            &self.buf[..arrived],
+            &e.decoder,
+            &mut self.gaussians,
+            &mut self.tiles,
+        );
         let complete = CHUNK_HEADER_LEN + g.len + CHUNK_CRC_LEN;
         if self.buf.len() < at + complete {
             return Ok(false);
@@ -397,19 +443,7 @@ impl StreamDecoder {
         let Some(g) = e.gatt.take() else {
             return Ok(false);
         };
-        if g.whole || g.next_tile < tile_count {
-            // The whole-chunk decoder gives the error, or (if the tiles could not be taken
-            // one by one for another reason) the symbols; tiles not yet reconstructed are.
-            e.decoder.chunk(chunk.tag, chunk.payload, &[])?;
-            // The tiles handed out already are those `g.per_tile` holds: a prefix, in order.
-            for (t, handed_out) in g.per_tile.iter().enumerate() {
-                if let (Some(s), None) = (e.decoder.tile_symbols(t), handed_out) {
-                    hand_out(&e.decoder, t, s, &mut self.gaussians, &mut self.tiles)?;
-                }
-            }
-        } else {
-            e.decoder.gatt_decoded(g.per_tile)?;
-        }
+        g.finish(&mut e.decoder, chunk, &mut self.gaussians, &mut self.tiles)?;
         self.first_layer_tiles = self.tiles.len();
         self.at = at + complete;
         Ok(true)

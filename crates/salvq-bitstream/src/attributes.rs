@@ -210,6 +210,88 @@ pub struct AttributesMut<'a> {
     pub symbols: Option<[&'a mut [i64]; 3]>,
 }
 
+/// What every anchor of a tile shares while its symbols are read (§6.6.2).
+struct AnchorReader<'a> {
+    prior: &'a Prior,
+    lattices: &'a [GroupLattices; 2],
+    masks: &'a [u8],
+    first: u32,
+    /// (F, S, K).
+    dims: (usize, usize, usize),
+}
+
+impl AnchorReader<'_> {
+    /// Reads the symbols of anchor `i`, the b-th of the block whose priors `current` holds,
+    /// from the three `readers`, and writes its values, and its symbols where they are kept,
+    /// into `out`; `u` and `z` have room for max(F, S) coordinates and lattice products.
+    #[inline(always)]
+    fn read(
+        &self,
+        readers: &mut [SymbolReader<'_>],
+        current: &PriorBlock,
+        b: usize,
+        i: usize,
+        out: &mut AttributesMut<'_>,
+        (u, z): (&mut [i64], &mut [f32]),
+    ) -> Result<()> {
+        let (prior, lattices, masks, first) = (self.prior, self.lattices, self.masks, self.first);
+        let (f, s, k) = self.dims;
+        let cout = prior.mlp.cout;
+        let width = f + s + 3 * k;
+        let y = &current.ys[b * cout..(b + 1) * cout];
+        let kk = &current.ks[b * width..(b + 1) * width];
+        let delta = current.deltas[b];
+        let [sym_f, sym_s, sym_o] = match out.symbols.as_mut() {
+            Some([a, b, c]) => [Some(&mut **a), Some(&mut **b), Some(&mut **c)],
+            None => [None, None, None],
+        };
+        for (g, w, at, dst, sym) in [
+            (Group::Feature, f, 0, &mut *out.feat, sym_f),
+            (Group::Scaling, s, f, &mut *out.scaling, sym_s),
+        ] {
+            let dst = &mut dst[i * w..(i + 1) * w];
+            let reader = &mut readers[g as usize];
+            let lattice = lattices[g as usize].for_anchor(first + i as u32);
+            let delta = delta[g as usize];
+            // §6.6.2: the group's w coordinates, in order.
+            for (j, uj) in u[..w].iter_mut().enumerate() {
+                *uj = reader.symbol(kk[at + j])?;
+            }
+            if let Some(sym) = sym {
+                sym[i * w..(i + 1) * w].copy_from_slice(&u[..w]);
+            }
+            if lattice.is_identity() {
+                prior.reconstruct_values(y, g, 0, delta, &u[..w], dst);
+                continue;
+            }
+            // §7.3: μ + Δ·(B u).
+            lattice.apply(&u[..w], &mut z[..w]);
+            for (j, (x, &zj)) in dst.iter_mut().zip(&z[..w]).enumerate() {
+                *x = reconstruct_value(prior.mean_f32(y, g, j), delta, zj);
+            }
+        }
+        let reader = &mut readers[2];
+        let row = &mut out.offsets[i * 3 * k..(i + 1) * 3 * k];
+        let mut sym_row = sym_o.map(|o| &mut o[i * 3 * k..(i + 1) * 3 * k]);
+        for slot in 0..k {
+            if masks[i * k + slot] == 0 {
+                row[3 * slot..3 * slot + 3].fill(0.0);
+                continue;
+            }
+            let mut us = [0i64; 3];
+            for (c, uc) in us.iter_mut().enumerate() {
+                *uc = reader.symbol(kk[f + s + 3 * slot + c])?;
+            }
+            if let Some(sr) = sym_row.as_deref_mut() {
+                sr[3 * slot..3 * slot + 3].copy_from_slice(&us);
+            }
+            let (dst, offsets) = (&mut row[3 * slot..3 * slot + 3], Group::Offsets);
+            prior.reconstruct_values(y, offsets, 3 * slot, delta[2], &us, dst);
+        }
+        Ok(())
+    }
+}
+
 /// §6.6.2: decodes `AFEA`, `ASCL` and `AOFF` together, anchor by anchor: for anchor i, its F
 /// feature symbols from `AFEA`, its S scaling symbols from `ASCL`, then 3 symbols from `AOFF`
 /// for each offset whose mask is 1 (masked offsets decode as 0.0).
@@ -259,6 +341,13 @@ pub fn read_attributes(
     };
     let (mut current, mut next) = (new_block(), new_block());
     let dims = (f, s, k);
+    let anchor = AnchorReader {
+        prior,
+        lattices,
+        masks,
+        first,
+        dims,
+    };
     if let Some(first) = blocks.first() {
         current.fill(prior, grid, first, &masks[..first.len() * k], dims);
     }
@@ -277,56 +366,7 @@ pub fn read_attributes(
                 let (mut u, mut z) = (vec![0i64; f.max(s)], vec![0f32; f.max(s)]);
                 for b in 0..block.len() {
                     let i = bi * BLOCK + b;
-                    let y = &current.ys[b * cout..(b + 1) * cout];
-                    let kk = &current.ks[b * width..(b + 1) * width];
-                    let delta = current.deltas[b];
-                    let [sym_f, sym_s, sym_o] = match out.symbols.as_mut() {
-                        Some([a, b, c]) => [Some(&mut **a), Some(&mut **b), Some(&mut **c)],
-                        None => [None, None, None],
-                    };
-                    for (g, w, at, dst, sym) in [
-                        (Group::Feature, f, 0, &mut *out.feat, sym_f),
-                        (Group::Scaling, s, f, &mut *out.scaling, sym_s),
-                    ] {
-                        let dst = &mut dst[i * w..(i + 1) * w];
-                        let reader = &mut readers[g as usize];
-                        let lattice = lattices[g as usize].for_anchor(first + i as u32);
-                        let delta = delta[g as usize];
-                        // §6.6.2: the group's w coordinates, in order.
-                        for (j, uj) in u[..w].iter_mut().enumerate() {
-                            *uj = reader.symbol(kk[at + j])?;
-                        }
-                        if let Some(sym) = sym {
-                            sym[i * w..(i + 1) * w].copy_from_slice(&u[..w]);
-                        }
-                        if lattice.is_identity() {
-                            prior.reconstruct_values(y, g, 0, delta, &u[..w], dst);
-                            continue;
-                        }
-                        // §7.3: μ + Δ·(B u).
-                        lattice.apply(&u[..w], &mut z[..w]);
-                        for (j, (x, &zj)) in dst.iter_mut().zip(&z[..w]).enumerate() {
-                            *x = reconstruct_value(prior.mean_f32(y, g, j), delta, zj);
-                        }
-                    }
-                    let reader = &mut readers[2];
-                    let row = &mut out.offsets[i * 3 * k..(i + 1) * 3 * k];
-                    let mut sym_row = sym_o.map(|o| &mut o[i * 3 * k..(i + 1) * 3 * k]);
-                    for slot in 0..k {
-                        if masks[i * k + slot] == 0 {
-                            row[3 * slot..3 * slot + 3].fill(0.0);
-                            continue;
-                        }
-                        let mut us = [0i64; 3];
-                        for (c, uc) in us.iter_mut().enumerate() {
-                            *uc = reader.symbol(kk[f + s + 3 * slot + c])?;
-                        }
-                        if let Some(sr) = sym_row.as_deref_mut() {
-                            sr[3 * slot..3 * slot + 3].copy_from_slice(&us);
-                        }
-                        let (dst, offsets) = (&mut row[3 * slot..3 * slot + 3], Group::Offsets);
-                        prior.reconstruct_values(y, offsets, 3 * slot, delta[2], &us, dst);
-                    }
+                    anchor.read(&mut readers, &current, b, i, &mut out, (&mut u, &mut z))?;
                 }
                 Ok(())
             },

@@ -126,16 +126,31 @@ fn shift_field(field: Field, value: u8, max: u8) -> Result<()> {
 pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
     let tag = ChunkTag::MLPS;
     let body = body(tag, payload, METHOD_CODED)?;
-    let cin = d.context_input();
-    let h = u64::from(d.context_hidden);
-    let cout = d.context_output();
     let layout = scaffold_layout(d);
     let scaffold: u64 = layout
         .iter()
         .map(|&(_, i, h, o)| h * i + h + o * h + o)
         .sum();
-    // §1.6.2 checks, in order: `context_precision` (the body's first byte), then
-    // `scaffold_precision` (its position follows from the first), then the exact length.
+    let (context_precision, precision) = read_precisions(body, d, scaffold)?;
+    let context = context_bytes(d, context_precision);
+    expect_len(tag, body, context + 1 + precision.bytes() * scaffold)?;
+    let mut r = PayloadReader::new(tag, body);
+    r.u8()?; // context_precision, read above
+    let ctx = read_context_mlp(&mut r, d, context_precision)?;
+    r.u8()?; // scaffold_precision, read above
+    let scaffold = read_scaffold(&mut r, layout, precision)?;
+    r.finish()?;
+    Ok((ctx, scaffold))
+}
+
+/// `context_precision` (the body's first byte), then `scaffold_precision` (its position
+/// follows from the first): §1.6.2 checks them in this order, before the exact length.
+fn read_precisions(
+    body: &[u8],
+    d: &Dims,
+    scaffold: u64,
+) -> Result<(ContextPrecision, ScaffoldPrecision)> {
+    let tag = ChunkTag::MLPS;
     let Some(&context_code) = body.first() else {
         return Err(Error::ChunkSizeMismatch {
             tag,
@@ -175,9 +190,18 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
             })
         }
     };
-    expect_len(tag, body, context + 1 + precision.bytes() * scaffold)?;
-    let mut r = PayloadReader::new(tag, body);
-    r.u8()?; // context_precision, read above
+    Ok((context_precision, precision))
+}
+
+/// The integer context MLP (§1.6.2, Table 5-1), after `context_precision`.
+fn read_context_mlp(
+    r: &mut PayloadReader<'_>,
+    d: &Dims,
+    context_precision: ContextPrecision,
+) -> Result<IntMlp> {
+    let cin = d.context_input();
+    let h = u64::from(d.context_hidden);
+    let cout = d.context_output();
     let w0_frac_bits = r.u8()?;
     let shift0 = r.u8()?;
     let w1_frac_bits = r.take(cout as usize)?.to_vec();
@@ -187,11 +211,6 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
     for &a in &w1_frac_bits {
         shift_field(Field::W1FracBits, a, 30)?;
     }
-    let i16s = |b: &[u8]| -> Vec<i16> {
-        b.chunks_exact(2)
-            .map(|c| i16::from_le_bytes([c[0], c[1]]))
-            .collect()
-    };
     let i32s = |b: &[u8]| -> Vec<i32> {
         b.chunks_exact(4)
             .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
@@ -200,7 +219,10 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
     // i8 weights are the same integers, sign-extended (§5.3 evaluates them as i16).
     let weights = |b: &[u8]| -> Vec<i16> {
         match context_precision {
-            ContextPrecision::I16 => i16s(b),
+            ContextPrecision::I16 => b
+                .chunks_exact(2)
+                .map(|c| i16::from_le_bytes([c[0], c[1]]))
+                .collect(),
             ContextPrecision::I8 => b.iter().map(|&x| i16::from(x as i8)).collect(),
         }
     };
@@ -209,8 +231,7 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
     let b0 = i32s(r.take(4 * h as usize)?);
     let w1 = weights(r.take((wb * cout * h) as usize)?);
     let b1 = i32s(r.take(4 * cout as usize)?);
-    r.u8()?; // scaffold_precision, read above
-    let ctx = IntMlp {
+    Ok(IntMlp {
         cin: cin as usize,
         hidden: h as usize,
         cout: cout as usize,
@@ -221,7 +242,15 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
         w1,
         b1,
         w1_frac_bits,
-    };
+    })
+}
+
+/// The three Scaffold-GS MLPs (§1.6.2) at `precision`, each value finite (§2.3).
+fn read_scaffold(
+    r: &mut PayloadReader<'_>,
+    layout: [([&'static str; 4], u64, u64, u64); 3],
+    precision: ScaffoldPrecision,
+) -> Result<[Mlp; 3]> {
     let mut out = Vec::with_capacity(3);
     for (names, i, h, o) in layout {
         let shapes = [vec![h, i], vec![h], vec![o, h], vec![o]];
@@ -244,9 +273,7 @@ pub fn read_mlps(payload: &[u8], d: &Dims) -> Result<(IntMlp, [Mlp; 3])> {
             .map_err(|_| Error::TensorMissing { tensor: names[0] })?;
         out.push(Mlp { w0, b0, w1, b1 });
     }
-    r.finish()?;
-    let scaffold: [Mlp; 3] = out.try_into().map_err(|_| Error::TensorMissing {
+    out.try_into().map_err(|_| Error::TensorMissing {
         tensor: names::MLP_OPACITY[0],
-    })?;
-    Ok((ctx, scaffold))
+    })
 }

@@ -6,7 +6,10 @@ use std::fmt;
 /// A four-byte chunk type (spec §1.3). The case of the first byte tells whether a decoder
 /// must understand the chunk: upper case is critical, lower case is ancillary.
 #[derive(Clone, Copy, PartialEq, Eq, Hash)]
-pub struct ChunkTag(pub [u8; 4]);
+pub struct ChunkTag(
+    /// The tag's bytes as they appear in the stream.
+    pub [u8; 4],
+);
 
 impl ChunkTag {
     /// Preflight: dimensions, geometry and decoded size (§1.4). Critical, first.

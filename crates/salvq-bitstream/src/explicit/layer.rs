@@ -102,6 +102,34 @@ pub(crate) fn write_prior(
     }
 }
 
+/// One row of `SIZE_CLASSES` signed bytes per group after the first, each within ±`max`
+/// (`GLAY`'s `shift` and `scale_offset`, §3.4).
+fn class_rows(
+    r: &mut PayloadReader<'_>,
+    groups: usize,
+    tensor: &'static str,
+    max: i8,
+    allowed: &'static str,
+) -> Result<Vec<[i8; SIZE_CLASSES]>> {
+    let mut rows = Vec::with_capacity(groups - 1);
+    for g in 1..groups {
+        let mut row = [0i8; SIZE_CLASSES];
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = r.u8()? as i8;
+            if !(-max..=max).contains(v) {
+                return Err(Error::ValueInvalid {
+                    tensor,
+                    index: vec![g as u64 - 1, c as u64],
+                    value: (*v).into(),
+                    allowed,
+                });
+            }
+        }
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
 /// Reads and checks the prior's fields ([`Prior`]) of `groups` groups and `values` coded
 /// values, each as it is read (§3.4 rules 9 – 11, §3.8.1 rules 5 – 7).
 pub(crate) fn read_prior(r: &mut PayloadReader, groups: usize, values: usize) -> Result<Prior> {
@@ -249,38 +277,14 @@ impl Layer {
                 return Err(out_of_range(Field::Refine, (*e).into(), 0, most.into()));
             }
         }
-        let mut shift = Vec::with_capacity(groups - 1);
-        for g in 1..groups {
-            let mut row = [0i8; SIZE_CLASSES];
-            for (c, s) in row.iter_mut().enumerate() {
-                *s = r.u8()? as i8;
-                if !(-MAX_SHIFT..=MAX_SHIFT).contains(s) {
-                    return Err(Error::ValueInvalid {
-                        tensor: "GLAY.shift",
-                        index: vec![g as u64 - 1, c as u64],
-                        value: (*s).into(),
-                        allowed: "−16 … 16 (§3.4)",
-                    });
-                }
-            }
-            shift.push(row);
-        }
-        let mut scale_offset = Vec::with_capacity(groups - 1);
-        for g in 1..groups {
-            let mut row = [0i8; SIZE_CLASSES];
-            for (c, o) in row.iter_mut().enumerate() {
-                *o = r.u8()? as i8;
-                if !(-MAX_SCALE_OFFSET..=MAX_SCALE_OFFSET).contains(o) {
-                    return Err(Error::ValueInvalid {
-                        tensor: "GLAY.scale_offset",
-                        index: vec![g as u64 - 1, c as u64],
-                        value: (*o).into(),
-                        allowed: "−63 … 63 (§3.4)",
-                    });
-                }
-            }
-            scale_offset.push(row);
-        }
+        let shift = class_rows(&mut r, groups, "GLAY.shift", MAX_SHIFT, "−16 … 16 (§3.4)")?;
+        let scale_offset = class_rows(
+            &mut r,
+            groups,
+            "GLAY.scale_offset",
+            MAX_SCALE_OFFSET,
+            "−63 … 63 (§3.4)",
+        )?;
         let (predict, rest_count_freq, scale_table) = read_prior(&mut r, groups, values)?;
         r.finish()?;
         Ok(Layer {

@@ -339,9 +339,30 @@ fn check_group(
 /// Validates a whole model (spec §2): shapes against its dimensions, then values,
 /// in Table 2-1 order, so the first broken rule is reported.
 pub fn validate_model(m: &SceneModel) -> Result<()> {
-    let d = &m.dims;
-    check_dims(d)?;
+    check_dims(&m.dims)?;
     check_geometry(&m.origin, m.voxel_size)?;
+    check_anchors(m)?;
+    check_grid(m)?;
+    let d = &m.dims;
+    let k = u64::from(d.offsets);
+    let hs = u64::from(d.scaffold_hidden);
+    let si = d.scaffold_input();
+    check_mlp(
+        names::MLP_GRID,
+        &m.mlp_grid,
+        d.context_input(),
+        d.context_hidden.into(),
+        d.context_output(),
+    )?;
+    check_mlp(names::MLP_OPACITY, &m.mlp_opacity, si, hs, k)?;
+    check_mlp(names::MLP_COV, &m.mlp_cov, si, hs, 7 * k)?;
+    check_mlp(names::MLP_COLOR, &m.mlp_color, si, hs, 3 * k)?;
+    check_quantizers(m)
+}
+
+/// The anchors' tensors (§2.2, §2.3): voxels within 2^21, masks 0 or 1, attributes finite.
+fn check_anchors(m: &SceneModel) -> Result<()> {
+    let d = &m.dims;
     let n = u64::from(d.anchors);
     let k = u64::from(d.offsets);
     let f = u64::from(d.feat_dim);
@@ -378,6 +399,12 @@ pub fn validate_model(m: &SceneModel) -> Result<()> {
         check_len(name, values.len(), &shape)?;
         check_finite(name, values, &shape)?;
     }
+    Ok(())
+}
+
+/// The hash grid's four tables (§2.3, §2.4): every entry −1 or +1.
+fn check_grid(m: &SceneModel) -> Result<()> {
+    let d = &m.dims;
     let c = u64::from(d.grid_channels);
     for (name, values, entries) in [
         (names::GRID_3D, &m.grid.grid_3d, d.entries_3d()),
@@ -395,18 +422,14 @@ pub fn validate_model(m: &SceneModel) -> Result<()> {
             });
         }
     }
-    let hs = u64::from(d.scaffold_hidden);
-    let si = d.scaffold_input();
-    check_mlp(
-        names::MLP_GRID,
-        &m.mlp_grid,
-        d.context_input(),
-        d.context_hidden.into(),
-        d.context_output(),
-    )?;
-    check_mlp(names::MLP_OPACITY, &m.mlp_opacity, si, hs, k)?;
-    check_mlp(names::MLP_COV, &m.mlp_cov, si, hs, 7 * k)?;
-    check_mlp(names::MLP_COLOR, &m.mlp_color, si, hs, 3 * k)?;
+    Ok(())
+}
+
+/// The three groups' quantizers and the feature and scaling regions (§2.6).
+fn check_quantizers(m: &SceneModel) -> Result<()> {
+    let d = &m.dims;
+    let f = u64::from(d.feat_dim);
+    let s = u64::from(d.scaling_dim);
     let (qf, qs) = (&names::QUANT_FEAT, &names::QUANT_SCALING);
     check_group(
         qf,
