@@ -50,7 +50,7 @@ fn tiled(count: usize, sh: u8, seed: u64, tile: u32) -> salvq_encoder::explicit:
     .unwrap()
 }
 
-/// `decode_any` of a stream that must be explicit and must decode.
+/// The Gaussians of a stream that must be explicit and must decode.
 fn gaussians_of(stream: &[u8], o: &DecoderBuilder) -> DecodedGaussians {
     match o.build().decode(stream).unwrap() {
         salvq::Scene::Gaussians(d) => *d,

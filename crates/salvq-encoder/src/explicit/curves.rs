@@ -6,7 +6,8 @@
 //! sample ([`Effort::Default`]) or taken from the prior ([`Effort::Fast`]).
 
 use super::grid::{grid, group_coordinates, Grid};
-use super::layer::{group_bits, BitCost, SizeClasses};
+use super::layer::{group_bits, BitCost};
+use super::plan::SizeClasses;
 use super::prepare::PreparedGaussians;
 use super::ratios::{parts, quantized, trial_exponents, Curve, Part};
 use super::sample::Sample;

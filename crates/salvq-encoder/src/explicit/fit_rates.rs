@@ -4,7 +4,8 @@
 //! target at the quality yardstick ([`ratios::QUALITY_WIDTH`]).
 
 use super::curves::{self, Effort};
-use super::layer::{self, RatePlan, SizeClasses};
+use super::layer;
+use super::plan::{RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
 use super::sample::{spatial_sample, SAMPLE_GAUSSIANS};
 use super::{fit_groups, ratios, RateControl};

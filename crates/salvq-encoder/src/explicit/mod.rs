@@ -9,6 +9,7 @@ pub mod fit_rates;
 pub mod grid;
 pub mod input;
 pub mod layer;
+pub mod plan;
 pub mod prepare;
 pub mod prior;
 pub mod progressive;
@@ -22,7 +23,8 @@ use half::f16;
 use nalgebra::{DMatrix, SymmetricEigen};
 
 pub use fit_rates::{choose_klt, rate_plans, Progress};
-pub use layer::{CodedLayer, LayerReport, RatePlan, SizeClasses, Variant};
+pub use layer::{CodedLayer, LayerReport, Variant};
+pub use plan::{RatePlan, SizeClasses};
 pub use prepare::PreparedGaussians;
 
 use crate::error::{Error, Result};

@@ -8,7 +8,8 @@ use std::ops::Range;
 use rustc_hash::FxHashMap;
 
 use super::grid::group_coordinates_at;
-use super::layer::{CodedLayer, LayerReport, LayerState, RatePlan};
+use super::layer::{CodedLayer, LayerReport, LayerState};
+use super::plan::RatePlan;
 use super::prepare::PreparedGaussians;
 use super::prior::{entropy_bits, fit_prior, BitCost, Histograms, PRED_LEVEL_CANDIDATES};
 use super::writer::{rest_count_freq, Writer};

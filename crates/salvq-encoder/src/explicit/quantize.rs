@@ -3,7 +3,7 @@
 //! coordinates at its shifted step.
 
 use super::grid::{group_coordinates, Grid};
-use super::layer::{RatePlan, SizeClasses};
+use super::plan::{RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
 use salvq_bitstream::explicit::groups::Group;
 use salvq_bitstream::explicit::layer::SIZE_CLASSES;

@@ -5,7 +5,7 @@
 //! target error each part takes the step minimising `D + λ·R`, the equal-slope condition of
 //! rate-distortion theory, with λ bisected until the parts' errors add up to the target.
 
-use super::layer::RatePlan;
+use super::plan::RatePlan;
 use super::prepare::PreparedGaussians;
 use super::TrialSteps;
 use salvq_bitstream::explicit::groups::GroupKind;
