@@ -269,6 +269,11 @@ fn tils_of(stream: &[u8]) -> Vec<u8> {
         .1
 }
 
+/// Where tile `t`'s TILS entry, its anchor count first, starts (after method and T).
+fn count_at(t: usize) -> usize {
+    5 + ENTRY * t
+}
+
 #[test]
 fn broken_tile_tables_are_typed_errors() {
     let m = model(500);
@@ -277,9 +282,36 @@ fn broken_tile_tables_are_typed_errors() {
     let tils = tils_of(s);
     let nt = u32::from_le_bytes([tils[1], tils[2], tils[3], tils[4]]) as usize;
     assert!(nt >= 3);
-    let count_at = |t: usize| 5 + ENTRY * t;
     let count0 = u32::from_le_bytes(tils[5..9].try_into().unwrap());
-    // T = 0 and T > N.
+    broken_tile_count(s);
+    broken_tile_anchor_counts(s, nt, count0);
+    broken_tile_cells(s, e.expected().coord_bits());
+    // A box that is not its anchors'.
+    let bad = edit_payload(s, ChunkTag::TILS, |p| p[count_at(2) + 17] ^= 1);
+    assert!(matches!(
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
+        Error::TileBoxMismatch { tile: 2, .. }
+    ));
+    // Tile lengths that do not add up to the chunk.
+    let bad = edit_payload(s, ChunkTag::AFEA, |p| {
+        let l = u32::from_le_bytes([p[5], p[6], p[7], p[8]]) + 4;
+        p[5..9].copy_from_slice(&l.to_le_bytes());
+    });
+    assert!(matches!(
+        decode(&bad)
+            .and_then(salvq::Scene::try_into_anchors)
+            .unwrap_err(),
+        Error::ChunkSizeMismatch {
+            tag: ChunkTag::AFEA,
+            ..
+        }
+    ));
+}
+
+/// A TILS tile count T of 0 or above N (= 500 anchors in `s`) is out of its range.
+fn broken_tile_count(s: &[u8]) {
     let bad = edit_payload(s, ChunkTag::TILS, |p| {
         p[1..5].copy_from_slice(&0u32.to_le_bytes())
     });
@@ -306,6 +338,11 @@ fn broken_tile_tables_are_typed_errors() {
             ..
         }
     ));
+}
+
+/// Tile anchor counts that do not share out N (= 500 in `s`, `nt` tiles, tile 0 with
+/// `count0`) are out of their range.
+fn broken_tile_anchor_counts(s: &[u8], nt: usize, count0: u32) {
     // Counts: tile 0 taking every anchor leaves none for the others; counts that fall
     // short of N at the last tile.
     let bad = edit_payload(s, ChunkTag::TILS, |p| {
@@ -334,8 +371,11 @@ fn broken_tile_tables_are_typed_errors() {
             ..
         }
     ));
-    // A cell level above coord_bits, and a cell outside the cube.
-    let bits = e.expected().coord_bits();
+}
+
+/// A tile's cell level above `coord_bits` (`bits`), and a cell outside the cube, are out of
+/// their ranges.
+fn broken_tile_cells(s: &[u8], bits: u8) {
     let bad = edit_payload(s, ChunkTag::TILS, |p| p[count_at(0) + 4] = bits + 1);
     assert!(matches!(
         decode(&bad)
@@ -356,28 +396,6 @@ fn broken_tile_tables_are_typed_errors() {
             .unwrap_err(),
         Error::FieldOutOfRange {
             field: Field::TileCell,
-            ..
-        }
-    ));
-    // A box that is not its anchors'.
-    let bad = edit_payload(s, ChunkTag::TILS, |p| p[count_at(2) + 17] ^= 1);
-    assert!(matches!(
-        decode(&bad)
-            .and_then(salvq::Scene::try_into_anchors)
-            .unwrap_err(),
-        Error::TileBoxMismatch { tile: 2, .. }
-    ));
-    // Tile lengths that do not add up to the chunk.
-    let bad = edit_payload(s, ChunkTag::AFEA, |p| {
-        let l = u32::from_le_bytes([p[5], p[6], p[7], p[8]]) + 4;
-        p[5..9].copy_from_slice(&l.to_le_bytes());
-    });
-    assert!(matches!(
-        decode(&bad)
-            .and_then(salvq::Scene::try_into_anchors)
-            .unwrap_err(),
-        Error::ChunkSizeMismatch {
-            tag: ChunkTag::AFEA,
             ..
         }
     ));

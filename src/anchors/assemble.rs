@@ -37,16 +37,7 @@ pub(super) fn assemble(
         [&quant_feat, &quant_scaling, &quant_offsets],
         usize::from(p.rate),
     );
-    // §7.2: the reconstruction matrices of the feature and scaling groups.
-    // §7.6: one matrix per spatial region.
-    let lattices = [
-        GroupLattices::new(d.feat_lattice, usize::from(d.feat_dim), &quant_feat),
-        GroupLattices::new(
-            d.scaling_lattice,
-            usize::from(d.scaling_dim),
-            &quant_scaling,
-        ),
-    ];
+    let lattices = group_lattices(d, &quant_feat, &quant_scaling);
     let chosen: Vec<usize> = (0..tiles.len()).filter(|&t| p.selected[t]).collect();
     let mut out = Output::allocate(d, &tiles, &chosen, symbol_limits, head.decoded_bytes)?;
     // §10: the selected tiles, each from its own bodies, in parallel; the lowest tile's
@@ -57,16 +48,9 @@ pub(super) fn assemble(
     let signs = prior.grid_signs(&grid);
     let grid_ref = GridRef::new(&grid, signs.as_ref());
     let size = |j: usize| tiles.range(chosen[j]).len();
-    let mut mask_at = 0;
-    let inputs: Vec<(usize, usize)> = chosen
-        .iter()
-        .map(|&t| {
-            mask_at += tiles.range(t).len() * k;
-            (t, mask_at - tiles.range(t).len() * k)
-        })
-        .collect();
+    let mask_starts = mask_starts(&tiles, &chosen, k);
     let decoded = map_largest_first(out.rows(d, &tiles, &chosen), size, |j, row| {
-        let (t, m0) = inputs[j];
+        let (t, m0) = (chosen[j], mask_starts[j]);
         let r = tiles.range(t);
         read_attributes(
             bodies[t],
@@ -118,6 +102,31 @@ pub(super) fn assemble(
         dims,
     };
     Ok((model, out.symbols))
+}
+
+/// §7.2: the reconstruction matrices of the feature and scaling groups; §7.6: one per
+/// spatial region.
+fn group_lattices(
+    d: &Dims,
+    quant_feat: &GroupQuantizer,
+    quant_scaling: &GroupQuantizer,
+) -> [GroupLattices; 2] {
+    [
+        GroupLattices::new(d.feat_lattice, usize::from(d.feat_dim), quant_feat),
+        GroupLattices::new(d.scaling_lattice, usize::from(d.scaling_dim), quant_scaling),
+    ]
+}
+
+/// Where each chosen tile's masks start in the selected tiles' masks (`k` per anchor).
+fn mask_starts(tiles: &TileTable, chosen: &[usize], k: usize) -> Vec<usize> {
+    let mut at = 0;
+    chosen
+        .iter()
+        .map(|&t| {
+            at += tiles.range(t).len() * k;
+            at - tiles.range(t).len() * k
+        })
+        .collect()
 }
 
 /// The output tensors, allocated once and cut into each tile's rows.

@@ -317,9 +317,9 @@ fn check_rates(rows: &[Row], work: &Workload, n: usize) {
     );
 }
 
-fn main() {
-    let n = env_usize("SALVQ_BENCH_SYMBOLS", 1 << 20);
-    let runs = env_usize("SALVQ_BENCH_RUNS", 9);
+/// The bench's symbols: `n` samples with σ_u log-uniform in [0.2, 8] (seed [`SEED`]), their
+/// scale indices, and their information at the true σ and at the scale grid's σ_k.
+fn workload(n: usize) -> Workload {
     let samples = synthetic_samples(n, SEED, 0.2, 8.0);
     let ks: Vec<u8> = samples
         .iter()
@@ -336,13 +336,49 @@ fn main() {
             discretized_gaussian_bits(s.u, f64::from(SIGMA_Q16[usize::from(k)]) / 65536.0)
         })
         .sum();
-    let scale_pct = 100.0 * (bits_grid / bits_true - 1.0);
-    let work = Workload {
+    Workload {
         samples,
         ks,
         bits_true,
         bits_grid,
-    };
+    }
+}
+
+/// The table of every configuration's times and overheads; `bare`: the bare coder's
+/// nanoseconds per symbol at each precision.
+fn print_table(rows: &[Row], bare: &[(u32, f64)]) {
+    println!();
+    println!("| P | TAIL | R_MAX | build ms | encode ns/sym | decode ns/sym | decode / bare | rate overhead % | table overhead % | escapes |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for r in rows {
+        let bare_p = bare
+            .iter()
+            .find(|(p, _)| *p == r.precision)
+            .map_or(f64::NAN, |b| b.1);
+        println!(
+            "| {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.4} | {:.4} | {} |",
+            r.precision,
+            tail_label(r.tail_q4),
+            r.r_max,
+            r.build_ms,
+            r.encode_ns,
+            r.decode_ns,
+            r.decode_ns / bare_p,
+            r.overhead_pct,
+            r.table_pct,
+            r.escapes
+        );
+    }
+    println!();
+    println!("rate overhead = coded bits / Σ −log2 p_true − 1 (p_true: exact f64 discretized Gaussian at the true σ);");
+    println!("table overhead = Σ ideal_bits / Σ −log2 p(σ_k) − 1 (frequency quantization, tails and escapes alone).");
+}
+
+fn main() {
+    let n = env_usize("SALVQ_BENCH_SYMBOLS", 1 << 20);
+    let runs = env_usize("SALVQ_BENCH_RUNS", 9);
+    let work = workload(n);
+    let scale_pct = 100.0 * (work.bits_grid / work.bits_true - 1.0);
 
     println!("entropy_precision: {n} symbols, σ_u log-uniform in [0.2, 8], seed {SEED}, {runs} runs (median)");
     println!(
@@ -376,31 +412,7 @@ fn main() {
     rows.push(measure(&work, PRECISION, TAIL_Q4, R_MAX, runs));
     check_rates(&rows, &work, n);
 
-    println!();
-    println!("| P | TAIL | R_MAX | build ms | encode ns/sym | decode ns/sym | decode / bare | rate overhead % | table overhead % | escapes |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
-    for r in &rows {
-        let bare_p = bare
-            .iter()
-            .find(|(p, _)| *p == r.precision)
-            .map_or(f64::NAN, |b| b.1);
-        println!(
-            "| {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.4} | {:.4} | {} |",
-            r.precision,
-            tail_label(r.tail_q4),
-            r.r_max,
-            r.build_ms,
-            r.encode_ns,
-            r.decode_ns,
-            r.decode_ns / bare_p,
-            r.overhead_pct,
-            r.table_pct,
-            r.escapes
-        );
-    }
-    println!();
-    println!("rate overhead = coded bits / Σ −log2 p_true − 1 (p_true: exact f64 discretized Gaussian at the true σ);");
-    println!("table overhead = Σ ideal_bits / Σ −log2 p(σ_k) − 1 (frequency quantization, tails and escapes alone).");
+    print_table(&rows, &bare);
 
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../..")

@@ -189,6 +189,102 @@ fn measure(delta: f64, per_batch: usize) -> [Vec<f64>; 3] {
     sums
 }
 
+/// The gain of lattice `i` over Z⁸ (`sums[0]`) in dB over all batches, and the 95% CI
+/// half-width of the per-batch gains.
+fn gain_over_z(sums: &[Vec<f64>; 3], i: usize) -> (f64, f64) {
+    let gains: Vec<f64> = sums[0]
+        .iter()
+        .zip(&sums[i])
+        .map(|(z, l)| 10.0 * (z / l).log10())
+        .collect();
+    let (_, ci) = mean_ci(&gains);
+    let z_total: f64 = sums[0].iter().sum();
+    let gain = 10.0 * (z_total / sums[i].iter().sum::<f64>()).log10();
+    (gain, ci)
+}
+
+/// One Δ's table: measures every lattice and prints a row each; at high rate checks G and
+/// E8's gain against theory and the order E8 < D8 < Z⁸. Returns the checks made and E8's
+/// gain over Z⁸ in dB with its 95% CI half-width.
+fn delta_table(delta: f64, per_batch: usize, theory_gain: f64) -> (usize, Option<(f64, f64)>) {
+    let mut checked = 0;
+    let mut e8 = None;
+    let start = Instant::now();
+    let sums = measure(delta, per_batch);
+    let secs = start.elapsed().as_secs_f64();
+    println!();
+    println!("Δ = {delta} ({secs:.1} s)");
+    println!(
+        "{:<5} {:>9} {:>13} {:>10} {:>10} {:>10} {:>9} {:>9} {:>7}",
+        "lat", "step", "MSE/dim", "G", "±95%", "G theory", "gain dB", "±95%", "theory"
+    );
+    let denom = per_batch as f64 * 8.0 * delta * delta;
+    for (i, k) in KINDS.iter().enumerate() {
+        let gs: Vec<f64> = sums[i].iter().map(|s| s / denom).collect();
+        let (g, g_ci) = mean_ci(&gs);
+        let mse = g * delta * delta;
+        assert!(
+            mse.is_finite() && mse > 0.0 && g_ci.is_finite(),
+            "{} at Δ = {delta}: MSE {mse}, ±{g_ci}",
+            k.name()
+        );
+        if let Some(t) = k.theory_g().filter(|_| delta <= HIGH_RATE_DELTA) {
+            assert!(
+                (g - t).abs() <= CI_WIDTHS * g_ci,
+                "{} at Δ = {delta}: G = {g:.7} ± {g_ci:.7}, theory {t:.7}",
+                k.name()
+            );
+            checked += 1;
+        }
+        let theory = k.theory_g().map_or("-".into(), |t| format!("{t:.7}"));
+        let (gain_s, gain_ci_s, gain_th) = if i == 0 {
+            ("-".to_string(), "-".to_string(), "-".to_string())
+        } else {
+            let (gain, ci) = gain_over_z(&sums, i);
+            let th = k.theory_g().map(|t| 10.0 * (G_Z / t).log10());
+            if matches!(k, Kind::E8) {
+                e8 = Some((gain, ci));
+                if delta <= HIGH_RATE_DELTA {
+                    assert!(
+                        (gain - theory_gain).abs() <= CI_WIDTHS * ci,
+                        "E8 gain at Δ = {delta}: {gain:.4} ± {ci:.4} dB, theory \
+                         {theory_gain:.4} dB"
+                    );
+                    checked += 1;
+                }
+            }
+            (
+                format!("{gain:.4}"),
+                format!("{ci:.4}"),
+                th.map_or("-".into(), |t| format!("{t:.3}")),
+            )
+        };
+        println!(
+            "{:<5} {:>9.6} {:>13.6e} {:>10.7} {:>10.7} {:>10} {:>9} {:>9} {:>7}",
+            k.name(),
+            delta * k.step_scale(),
+            mse,
+            g,
+            g_ci,
+            theory,
+            gain_s,
+            gain_ci_s,
+            gain_th
+        );
+    }
+    // Same cell volume: at high rate the better lattice has the smaller MSE, E8 < D8 < Z⁸
+    // (G(D8) = 0.0758 lies between).
+    if delta <= HIGH_RATE_DELTA {
+        let [z, d, e] = sums.each_ref().map(|v| v.iter().sum::<f64>());
+        assert!(
+            e < d && d < z,
+            "Δ = {delta}: squared errors E8 {e}, D8 {d}, Z^8 {z}: not E8 < D8 < Z^8"
+        );
+        checked += 1;
+    }
+    (checked, e8)
+}
+
 fn main() {
     let scale = env_f64("SALVQ_BENCH_SCALE", 1.0);
     let per_batch = ((VECTORS * scale) as usize / BATCHES).max(2);
@@ -208,85 +304,10 @@ fn main() {
     let mut last = (0.0, 0.0, 0.0);
     let mut checked = 0;
     for &delta in &DELTAS {
-        let start = Instant::now();
-        let sums = measure(delta, per_batch);
-        let secs = start.elapsed().as_secs_f64();
-        println!();
-        println!("Δ = {delta} ({secs:.1} s)");
-        println!(
-            "{:<5} {:>9} {:>13} {:>10} {:>10} {:>10} {:>9} {:>9} {:>7}",
-            "lat", "step", "MSE/dim", "G", "±95%", "G theory", "gain dB", "±95%", "theory"
-        );
-        let denom = per_batch as f64 * 8.0 * delta * delta;
-        let z_total: f64 = sums[0].iter().sum();
-        for (i, k) in KINDS.iter().enumerate() {
-            let gs: Vec<f64> = sums[i].iter().map(|s| s / denom).collect();
-            let (g, g_ci) = mean_ci(&gs);
-            let mse = g * delta * delta;
-            assert!(
-                mse.is_finite() && mse > 0.0 && g_ci.is_finite(),
-                "{} at Δ = {delta}: MSE {mse}, ±{g_ci}",
-                k.name()
-            );
-            if let Some(t) = k.theory_g().filter(|_| delta <= HIGH_RATE_DELTA) {
-                assert!(
-                    (g - t).abs() <= CI_WIDTHS * g_ci,
-                    "{} at Δ = {delta}: G = {g:.7} ± {g_ci:.7}, theory {t:.7}",
-                    k.name()
-                );
-                checked += 1;
-            }
-            let theory = k.theory_g().map_or("-".into(), |t| format!("{t:.7}"));
-            let (gain_s, gain_ci_s, gain_th) = if i == 0 {
-                ("-".to_string(), "-".to_string(), "-".to_string())
-            } else {
-                let gains: Vec<f64> = sums[0]
-                    .iter()
-                    .zip(&sums[i])
-                    .map(|(z, l)| 10.0 * (z / l).log10())
-                    .collect();
-                let (_, ci) = mean_ci(&gains);
-                let gain = 10.0 * (z_total / sums[i].iter().sum::<f64>()).log10();
-                let th = k.theory_g().map(|t| 10.0 * (G_Z / t).log10());
-                if matches!(k, Kind::E8) {
-                    last = (delta, gain, ci);
-                    if delta <= HIGH_RATE_DELTA {
-                        assert!(
-                            (gain - theory_gain).abs() <= CI_WIDTHS * ci,
-                            "E8 gain at Δ = {delta}: {gain:.4} ± {ci:.4} dB, theory \
-                             {theory_gain:.4} dB"
-                        );
-                        checked += 1;
-                    }
-                }
-                (
-                    format!("{gain:.4}"),
-                    format!("{ci:.4}"),
-                    th.map_or("-".into(), |t| format!("{t:.3}")),
-                )
-            };
-            println!(
-                "{:<5} {:>9.6} {:>13.6e} {:>10.7} {:>10.7} {:>10} {:>9} {:>9} {:>7}",
-                k.name(),
-                delta * k.step_scale(),
-                mse,
-                g,
-                g_ci,
-                theory,
-                gain_s,
-                gain_ci_s,
-                gain_th
-            );
-        }
-        // Same cell volume: at high rate the better lattice has the smaller MSE, E8 < D8 < Z⁸
-        // (G(D8) = 0.0758 lies between).
-        if delta <= HIGH_RATE_DELTA {
-            let [z, d, e] = sums.each_ref().map(|v| v.iter().sum::<f64>());
-            assert!(
-                e < d && d < z,
-                "Δ = {delta}: squared errors E8 {e}, D8 {d}, Z^8 {z}: not E8 < D8 < Z^8"
-            );
-            checked += 1;
+        let (checks, e8) = delta_table(delta, per_batch, theory_gain);
+        checked += checks;
+        if let Some((gain, ci)) = e8 {
+            last = (delta, gain, ci);
         }
     }
     println!();

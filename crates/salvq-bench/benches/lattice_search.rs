@@ -231,55 +231,14 @@ fn main() {
         let reference_bound = if n <= 16 { u64::MAX } else { ref_nodes };
         let methods = methods(cfg, reference_bound);
         for cond in [1.0, 10.0, 100.0, 1000.0] {
-            let mut accs = vec![Acc::default(); methods.len()];
-            let mut build = [0.0f64; 2];
-            for _ in 0..cfg.bases {
-                let b = salvq_basis(&mut rng, n, cond);
-                let t = Instant::now();
-                let l75 = Lattice::new(n, &b).expect("SALVQ basis");
-                build[0] += t.elapsed().as_secs_f64();
-                let t = Instant::now();
-                let l99 = Lattice::with_delta(n, &b, 0.99).expect("SALVQ basis");
-                build[1] += t.elapsed().as_secs_f64();
-                let ys = targets(&mut rng, n, &b, vectors);
-                for (m, acc) in methods.iter().zip(accs.iter_mut()) {
-                    run(if m.delta99 { &l99 } else { &l75 }, &b, &ys, m, acc);
-                }
-            }
-            let total = accs[0].d2.len();
-            let best: Vec<f64> = (0..total)
-                .map(|i| accs.iter().map(|a| a.d2[i]).fold(f64::INFINITY, f64::min))
-                .collect();
-            let best_mse = best.iter().sum::<f64>() / total as f64;
-            checks.answers += total * methods.len();
-            checks.proven += check_proven(&methods, &accs, &best, reference_bound);
-            for (m, acc) in methods.iter().zip(&accs) {
-                let mse = acc.d2.iter().sum::<f64>() / total as f64;
-                let not_opt = acc
-                    .d2
-                    .iter()
-                    .zip(&best)
-                    .filter(|(d, r)| **d > **r * (1.0 + 1e-9) + 1e-12)
-                    .count();
-                println!(
-                    "{:>3} {:>5} {:<24} {:>11.0} {:>10.4} {:>8.2}% {:>7.1}% {:>5.0}% {:>9.0}",
-                    n,
-                    cond,
-                    m.name,
-                    acc.secs * 1e9 / total as f64,
-                    mse / n as f64,
-                    (mse / best_mse - 1.0) * 100.0,
-                    100.0 * not_opt as f64 / total as f64,
-                    100.0 * acc.exact as f64 / total as f64,
-                    acc.nodes as f64 / total as f64,
-                );
-            }
-            println!(
-                "{:>3} {:>5} Lattice::new per basis: {:.0} µs (δ .75), {:.0} µs (δ .99)\n",
-                n,
+            condition_block(
+                &mut rng,
+                cfg,
                 cond,
-                build[0] * 1e6 / cfg.bases as f64,
-                build[1] * 1e6 / cfg.bases as f64
+                vectors,
+                &methods,
+                reference_bound,
+                &mut checks,
             );
         }
     }
@@ -290,6 +249,71 @@ fn main() {
          ones are closest among all methods' (the complete searches for n <= 16 certify every \
          vector); {roots} fast D_n / E8 answers equal the exact search's distance",
         checks.answers, checks.proven
+    );
+}
+
+/// One block of the table, lattices of dimension `cfg.n` and condition number `cond`: every
+/// method on `vectors` targets for each of `cfg.bases` random bases; prints a row per method
+/// and the bases' reduction times, and counts the answers checked into `checks`.
+fn condition_block(
+    rng: &mut Rng,
+    cfg: &Config,
+    cond: f64,
+    vectors: usize,
+    methods: &[Method],
+    reference_bound: u64,
+    checks: &mut Checks,
+) {
+    let n = cfg.n;
+    let mut accs = vec![Acc::default(); methods.len()];
+    let mut build = [0.0f64; 2];
+    for _ in 0..cfg.bases {
+        let b = salvq_basis(rng, n, cond);
+        let t = Instant::now();
+        let l75 = Lattice::new(n, &b).expect("SALVQ basis");
+        build[0] += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let l99 = Lattice::with_delta(n, &b, 0.99).expect("SALVQ basis");
+        build[1] += t.elapsed().as_secs_f64();
+        let ys = targets(rng, n, &b, vectors);
+        for (m, acc) in methods.iter().zip(accs.iter_mut()) {
+            run(if m.delta99 { &l99 } else { &l75 }, &b, &ys, m, acc);
+        }
+    }
+    let total = accs[0].d2.len();
+    let best: Vec<f64> = (0..total)
+        .map(|i| accs.iter().map(|a| a.d2[i]).fold(f64::INFINITY, f64::min))
+        .collect();
+    let best_mse = best.iter().sum::<f64>() / total as f64;
+    checks.answers += total * methods.len();
+    checks.proven += check_proven(methods, &accs, &best, reference_bound);
+    for (m, acc) in methods.iter().zip(&accs) {
+        let mse = acc.d2.iter().sum::<f64>() / total as f64;
+        let not_opt = acc
+            .d2
+            .iter()
+            .zip(&best)
+            .filter(|(d, r)| **d > **r * (1.0 + 1e-9) + 1e-12)
+            .count();
+        println!(
+            "{:>3} {:>5} {:<24} {:>11.0} {:>10.4} {:>8.2}% {:>7.1}% {:>5.0}% {:>9.0}",
+            n,
+            cond,
+            m.name,
+            acc.secs * 1e9 / total as f64,
+            mse / n as f64,
+            (mse / best_mse - 1.0) * 100.0,
+            100.0 * not_opt as f64 / total as f64,
+            100.0 * acc.exact as f64 / total as f64,
+            acc.nodes as f64 / total as f64,
+        );
+    }
+    println!(
+        "{:>3} {:>5} Lattice::new per basis: {:.0} µs (δ .75), {:.0} µs (δ .99)\n",
+        n,
+        cond,
+        build[0] * 1e6 / cfg.bases as f64,
+        build[1] * 1e6 / cfg.bases as f64
     );
 }
 

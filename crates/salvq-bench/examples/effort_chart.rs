@@ -25,6 +25,7 @@ use plotters::prelude::*;
 use salvq_bench::peers::peer_encode;
 use salvq_bench::real::{bytes_at, provenance};
 use salvq_render::compare::RingTarget;
+use salvq_render::Gaussians;
 
 /// One salvq encode, or one peer file.
 #[derive(Debug, Clone)]
@@ -106,21 +107,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )?);
         }
         if let Some(st) = &peer {
-            let reference = RingTarget::new(&g, 8, 512, 384)?;
-            for format in ["spz", "sog"] {
-                eprintln!("{name}: splat-transform {format}");
-                if let Some(p) = peer_encode(st, name, path, format, scratch.path(), &reference)? {
-                    runs.push(Run {
-                        scene: name.into(),
-                        gaussians: g.len() as u64,
-                        codec: format.into(),
-                        wall_s: p.encode_s,
-                        cpu_s: None,
-                        peak_rss: None,
-                        rates: vec![(None, p.bytes, p.psnr_db)],
-                    });
-                }
-            }
+            runs.extend(peer_runs(st, name, path, &g, scratch.path())?);
         }
     }
     let text = table(&runs);
@@ -129,19 +116,54 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     chart(&out.join("effort.svg"), &runs)?;
     print!("{text}");
     if smoke {
-        for r in &runs {
-            let ok = r.wall_s > 0.0
-                && !r.rates.is_empty()
-                && r.rates
-                    .iter()
-                    .all(|x| x.1 > 0 && x.2.is_finite() && x.2 > 10.0)
-                && r.rates.windows(2).all(|w| w[0].1 >= w[1].1);
-            if !ok {
-                return Err(format!("smoke: implausible measurement {r:?}").into());
-            }
-        }
-        eprintln!("smoke: {} runs measured and checked", runs.len());
+        check_plausible(&runs)?;
     }
+    Ok(())
+}
+
+/// splat-transform's SPZ and SOG files of `scene` (`g`, its Gaussians), each a run at the
+/// quality yardstick (8 ring views at 512x384); a format it could not write is left out.
+fn peer_runs(
+    st: &str,
+    name: &str,
+    path: &Path,
+    g: &Gaussians,
+    work: &Path,
+) -> Result<Vec<Run>, Box<dyn std::error::Error>> {
+    let mut runs = Vec::new();
+    let reference = RingTarget::new(g, 8, 512, 384)?;
+    for format in ["spz", "sog"] {
+        eprintln!("{name}: splat-transform {format}");
+        if let Some(p) = peer_encode(st, name, path, format, work, &reference)? {
+            runs.push(Run {
+                scene: name.into(),
+                gaussians: g.len() as u64,
+                codec: format.into(),
+                wall_s: p.encode_s,
+                cpu_s: None,
+                peak_rss: None,
+                rates: vec![(None, p.bytes, p.psnr_db)],
+            });
+        }
+    }
+    Ok(runs)
+}
+
+/// The smoke run's check: every run took time and has rates, each with bytes and a PSNR over
+/// 10 dB, their bytes not growing from one rate to the next.
+fn check_plausible(runs: &[Run]) -> Result<(), Box<dyn std::error::Error>> {
+    for r in runs {
+        let ok = r.wall_s > 0.0
+            && !r.rates.is_empty()
+            && r.rates
+                .iter()
+                .all(|x| x.1 > 0 && x.2.is_finite() && x.2 > 10.0)
+            && r.rates.windows(2).all(|w| w[0].1 >= w[1].1);
+        if !ok {
+            return Err(format!("smoke: implausible measurement {r:?}").into());
+        }
+    }
+    eprintln!("smoke: {} runs measured and checked", runs.len());
     Ok(())
 }
 

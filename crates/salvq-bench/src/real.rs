@@ -192,6 +192,57 @@ fn variants() -> Vec<(&'static str, Variant, Option<bool>)> {
     ]
 }
 
+/// One scene's lines of bits per Gaussian per attribute group, a line per rate, with the
+/// groups coded in a fitted (KLT) basis.
+fn group_bits_text(scene: &str, e: &EncodedGaussians, n: usize) -> String {
+    let names: Vec<&str> = e.groups.iter().map(|gr| gr.kind.name()).collect();
+    let mut text = format!(
+        "\n{scene} ({}; KLT: {}): bits per Gaussian, rate: position (octree + refinement) {}\n",
+        provenance(scene),
+        e.groups
+            .iter()
+            .filter(|gr| gr.basis.is_some())
+            .map(|gr| gr.kind.name())
+            .collect::<Vec<_>>()
+            .join(", "),
+        names.join(" ")
+    );
+    for (report, _, _) in &e.layers {
+        let nn = n.max(1) as f64;
+        let g: Vec<String> = report
+            .group_bits
+            .iter()
+            .map(|b| format!("{:.2}", b / nn))
+            .collect();
+        text.push_str(&format!(
+            "  rate {}: {:.2} ({:.2} + {:.2}) {}\n",
+            report.rate,
+            (report.apos_bytes as f64 * 8.0 + report.refine_bits) / nn,
+            report.apos_bytes as f64 * 8.0 / nn,
+            report.refine_bits / nn,
+            g.join(" ")
+        ));
+    }
+    text
+}
+
+/// One multi-rate file against single-rate files (each = the extracted rate): one scene's
+/// line, from salvq's `rows` of that scene.
+fn multi_rate_line(scene: &str, e: &EncodedGaussians, rows: &[Row]) -> String {
+    let single: u64 = rows
+        .iter()
+        .filter(|r| r.scene == scene && r.codec == "salvq")
+        .map(|r| r.bytes)
+        .sum();
+    format!(
+        "  {scene}: one file with {} rates {} bytes; the same rates as separate files {} bytes ({:.1} %)\n",
+        e.layers.len(),
+        e.stream.len(),
+        single,
+        100.0 * (single as f64 / e.stream.len().max(1) as f64 - 1.0)
+    )
+}
+
 /// Runs the bench; returns the text summary (also written to `real.txt`).
 pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
     std::fs::create_dir_all(&o.out).map_err(|e| io_err(&o.out, e))?;
@@ -237,48 +288,8 @@ pub fn run(o: &RealOptions, progress: &dyn Fn(&str)) -> Result<String> {
         progress(&format!("{scene}: salvq"));
         let (e, encode_s) = encode(Variant::default(), None)?;
         rows.extend(salvq_rows(scene, "salvq", &e, encode_s, &reference)?);
-        // Bits per Gaussian per group, per rate.
-        let names: Vec<&str> = e.groups.iter().map(|gr| gr.kind.name()).collect();
-        groups_text.push_str(&format!(
-            "\n{scene} ({}; KLT: {}): bits per Gaussian, rate: position (octree + refinement) {}\n",
-            provenance(scene),
-            e.groups
-                .iter()
-                .filter(|gr| gr.basis.is_some())
-                .map(|gr| gr.kind.name())
-                .collect::<Vec<_>>()
-                .join(", "),
-            names.join(" ")
-        ));
-        for (report, _, _) in &e.layers {
-            let nn = n.max(1) as f64;
-            let g: Vec<String> = report
-                .group_bits
-                .iter()
-                .map(|b| format!("{:.2}", b / nn))
-                .collect();
-            groups_text.push_str(&format!(
-                "  rate {}: {:.2} ({:.2} + {:.2}) {}\n",
-                report.rate,
-                (report.apos_bytes as f64 * 8.0 + report.refine_bits) / nn,
-                report.apos_bytes as f64 * 8.0 / nn,
-                report.refine_bits / nn,
-                g.join(" ")
-            ));
-        }
-        // One multi-rate file against single-rate files (each = the extracted rate).
-        let single: u64 = rows
-            .iter()
-            .filter(|r| &r.scene == scene && r.codec == "salvq")
-            .map(|r| r.bytes)
-            .sum();
-        multi_text.push_str(&format!(
-            "  {scene}: one file with {} rates {} bytes; the same rates as separate files {} bytes ({:.1} %)\n",
-            e.layers.len(),
-            e.stream.len(),
-            single,
-            100.0 * (single as f64 / e.stream.len().max(1) as f64 - 1.0)
-        ));
+        groups_text.push_str(&group_bits_text(scene, &e, n));
+        multi_text.push_str(&multi_rate_line(scene, &e, &rows));
         if o.ablations {
             for (name, variant, klt) in variants() {
                 progress(&format!("{scene}: ablation {name}"));

@@ -7,6 +7,7 @@ use std::process::Command;
 
 use plotters::prelude::*;
 
+use salvq_bitstream::model::SceneModel;
 use salvq_encoder::{encode_full, EncodeOptions};
 use salvq_encoder::{Error, Result};
 use salvq_gen::{generate, GenParams};
@@ -134,63 +135,77 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
     let dir = tempfile::tempdir().map_err(|e| io_err(out, e))?;
     let mut rows = Vec::new();
     for &n in SIZES.iter().filter(|&&n| n <= max) {
-        let m = generate(&GenParams {
-            feat_basis: false,
-            ..GenParams::new(n, 1)
-        });
-        let e = encode_full(&m, &EncodeOptions::default())?;
-        let path = dir.path().join(format!("s{n}.salvq"));
-        std::fs::write(&path, &e.stream).map_err(|err| io_err(&path, err))?;
-        // An eighth of the scene by volume: the lower half, on every axis, of the box of all
-        // anchors.
-        let (o, vs) = (m.origin.map(f64::from), f64::from(m.voxel_size));
-        let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
-        for v in &m.anchors.voxel {
-            for a in 0..3 {
-                lo[a] = lo[a].min(v[a]);
-                hi[a] = hi[a].max(v[a]);
-            }
-        }
-        let mid = [0, 1, 2].map(|a| (f64::from(lo[a]) + f64::from(hi[a]) + 1.0) / 2.0);
-        let inside = m
-            .anchors
-            .voxel
-            .iter()
-            .filter(|v| (0..3).all(|a| f64::from(v[a]) + 0.5 < mid[a]))
-            .count();
-        let region: Vec<String> = (0..6)
-            .map(|c| {
-                let a = c % 3;
-                if c < 3 {
-                    format!("{}", o[a] + f64::from(lo[a]) * vs)
-                } else {
-                    format!("{}", o[a] + mid[a] * vs - 1e-9 * vs)
-                }
-            })
-            .collect();
-        let t = |k: u32| vec!["--threads".to_string(), k.to_string()];
-        let mut region_args = t(1);
-        region_args.push("--region".to_string());
-        region_args.push(region.join(","));
-        rows.push(Row {
-            in_region: inside as u64,
-            anchors: n,
-            stream_bytes: e.stream.len() as u64,
-            one: decode_child(&path, &t(1))?,
-            two: decode_child(&path, &t(2))?,
-            region: decode_child(&path, &region_args)?,
-        });
+        rows.push(measure_size(dir.path(), n)?);
     }
+    let csv = csv(&rows);
+    let text = text(&rows);
+    super::charts::write_report(out, "scale", |p| chart(p, &rows), &csv, &text)?;
+    Ok(text)
+}
+
+/// One scene of `n` anchors: generated, encoded into `dir`, and decoded in child processes
+/// on 1 and 2 threads and over the region of [`region_box`].
+fn measure_size(dir: &Path, n: u32) -> Result<Row> {
+    let m = generate(&GenParams {
+        feat_basis: false,
+        ..GenParams::new(n, 1)
+    });
+    let e = encode_full(&m, &EncodeOptions::default())?;
+    let path = dir.join(format!("s{n}.salvq"));
+    std::fs::write(&path, &e.stream).map_err(|err| io_err(&path, err))?;
+    let (region, inside) = region_box(&m);
+    let t = |k: u32| vec!["--threads".to_string(), k.to_string()];
+    let mut region_args = t(1);
+    region_args.push("--region".to_string());
+    region_args.push(region);
+    Ok(Row {
+        in_region: inside as u64,
+        anchors: n,
+        stream_bytes: e.stream.len() as u64,
+        one: decode_child(&path, &t(1))?,
+        two: decode_child(&path, &t(2))?,
+        region: decode_child(&path, &region_args)?,
+    })
+}
+
+/// An eighth of the scene by volume: the lower half, on every axis, of the box of all
+/// anchors, as `--region`'s six comma-separated bounds; and how many anchors' voxel centres
+/// lie in it.
+fn region_box(m: &SceneModel) -> (String, usize) {
+    let (o, vs) = (m.origin.map(f64::from), f64::from(m.voxel_size));
+    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
+    for v in &m.anchors.voxel {
+        for a in 0..3 {
+            lo[a] = lo[a].min(v[a]);
+            hi[a] = hi[a].max(v[a]);
+        }
+    }
+    let mid = [0, 1, 2].map(|a| (f64::from(lo[a]) + f64::from(hi[a]) + 1.0) / 2.0);
+    let inside = m
+        .anchors
+        .voxel
+        .iter()
+        .filter(|v| (0..3).all(|a| f64::from(v[a]) + 0.5 < mid[a]))
+        .count();
+    let region: Vec<String> = (0..6)
+        .map(|c| {
+            let a = c % 3;
+            if c < 3 {
+                format!("{}", o[a] + f64::from(lo[a]) * vs)
+            } else {
+                format!("{}", o[a] + mid[a] * vs - 1e-9 * vs)
+            }
+        })
+        .collect();
+    (region.join(","), inside)
+}
+
+/// `scale.csv`: a line per scene size.
+fn csv(rows: &[Row]) -> String {
     let mut csv = String::from(
         "anchors,stream_bytes,decoded_bytes,secs_1t,secs_2t,peak_rss_1t,peak_rss_2t,region_anchors,region_secs_1t\n",
     );
-    let mut text = String::from(
-        "Decode time and peak memory vs scene size (GenParams::new(N, 1), USQ, rate 0, tiles of 16384; \
-         each decode a child process, median of 3):\n\n\
-         anchors     µs/anchor 1t  µs/anchor 2t  speedup  peak/decoded 1t  2t    region: in box, decoded, time/full\n",
-    );
-    for r in &rows {
-        let per = |m: &Measured| m.secs * 1e6 / f64::from(r.anchors);
+    for r in rows {
         csv.push_str(&format!(
             "{},{},{},{:.6},{:.6},{},{},{},{:.6}\n",
             r.anchors,
@@ -203,6 +218,20 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
             r.region.anchors,
             r.region.secs
         ));
+    }
+    csv
+}
+
+/// `scale.txt`: the table, and the log-log slopes of time and memory against size from
+/// 10 000 anchors on.
+fn text(rows: &[Row]) -> String {
+    let mut text = String::from(
+        "Decode time and peak memory vs scene size (GenParams::new(N, 1), USQ, rate 0, tiles of 16384; \
+         each decode a child process, median of 3):\n\n\
+         anchors     µs/anchor 1t  µs/anchor 2t  speedup  peak/decoded 1t  2t    region: in box, decoded, time/full\n",
+    );
+    for r in rows {
+        let per = |m: &Measured| m.secs * 1e6 / f64::from(r.anchors);
         text.push_str(&format!(
             "{:>9}   {:>10.3}  {:>12.3}  {:>7.2}  {:>15.2}  {:>5.2}   {:>5.1} %  {:>5.1} %  {:>6.2}\n",
             r.anchors,
@@ -239,8 +268,7 @@ pub fn run(out: &Path, max: u32) -> Result<String> {
             fit[fit.len() - 1].anchors
         ));
     }
-    super::charts::write_report(out, "scale", |p| chart(p, &rows), &csv, &text)?;
-    Ok(text)
+    text
 }
 
 /// A chart line: label, colour, and the value it plots.

@@ -149,30 +149,7 @@ pub fn run(
             hint: "a scene needs at least one Gaussian to encode",
         });
     }
-    let source = if files::is_stdio(&a.input) {
-        "standard input".to_string()
-    } else {
-        a.input.display().to_string()
-    };
-    progress.say(&format!(
-        "read {} Gaussians (SH degree {}) from {source}",
-        g.len(),
-        g.sh_degree
-    ));
-    let ignored = salvq_render::ply::unused_properties(bytes);
-    if !ignored.is_empty() {
-        progress.say(&format!(
-            "ignored PLY properties (not part of a 3DGS Gaussian): {}",
-            ignored.join(", ")
-        ));
-    }
-    let changes = value_changes(&g);
-    for c in &changes {
-        progress.say(&format!(
-            "changed on input: {} {} values of {} became {} (Annex A.8.1)",
-            c.count, c.property, c.was, c.became
-        ));
-    }
+    let changes = say_input(&a, bytes, &g, progress);
     if let Some(given) = &targets_given {
         progress.say(&format!(
             "--psnr {}: sorted finest first, so rate 0 is the finest: {}",
@@ -180,20 +157,7 @@ pub fn run(
             list(&targets)
         ));
     }
-    let options = ExplicitOptions {
-        rates: RateControl::Psnr(targets.clone()),
-        coded: a.rates.clone(),
-        klt: None,
-        tile_gaussians: a.tile_anchors.unwrap_or(0),
-        note: a.note.clone(),
-        variant: Default::default(),
-        progressive: !a.layered,
-        effort: match a.effort {
-            crate::encode::EffortArg::Fast => explicit::curves::Effort::Fast,
-            crate::encode::EffortArg::Default => explicit::curves::Effort::Default,
-            crate::encode::EffortArg::Best => explicit::curves::Effort::Best,
-        },
-    };
+    let options = explicit_options(&a, &targets);
     let encoded = explicit::encode_gaussians(&g, &options, &|p| {
         progress.step(p.step, Some((p.done, p.total)))
     })?;
@@ -239,6 +203,55 @@ pub fn run(
     let names: Vec<&str> = encoded.groups.iter().map(|gr| gr.kind.name()).collect();
     progress.say(report(&summary, &names).trim_end());
     Ok(())
+}
+
+/// Says what was read from the PLY (`bytes`, decoded as `g`): the Gaussians and where from,
+/// the properties left out, and the values changed on input (Annex A.8.1), which it returns
+/// for the summary.
+fn say_input(a: &EncodeArgs, bytes: &[u8], g: &Gaussians, progress: &Progress) -> Vec<ValueChange> {
+    let source = if files::is_stdio(&a.input) {
+        "standard input".to_string()
+    } else {
+        a.input.display().to_string()
+    };
+    progress.say(&format!(
+        "read {} Gaussians (SH degree {}) from {source}",
+        g.len(),
+        g.sh_degree
+    ));
+    let ignored = salvq_render::ply::unused_properties(bytes);
+    if !ignored.is_empty() {
+        progress.say(&format!(
+            "ignored PLY properties (not part of a 3DGS Gaussian): {}",
+            ignored.join(", ")
+        ));
+    }
+    let changes = value_changes(g);
+    for c in &changes {
+        progress.say(&format!(
+            "changed on input: {} {} values of {} became {} (Annex A.8.1)",
+            c.count, c.property, c.was, c.became
+        ));
+    }
+    changes
+}
+
+/// The encoder's options from the command line, the PSNR `targets` sorted finest first.
+fn explicit_options(a: &EncodeArgs, targets: &[f64]) -> ExplicitOptions {
+    ExplicitOptions {
+        rates: RateControl::Psnr(targets.to_vec()),
+        coded: a.rates.clone(),
+        klt: None,
+        tile_gaussians: a.tile_anchors.unwrap_or(0),
+        note: a.note.clone(),
+        variant: Default::default(),
+        progressive: !a.layered,
+        effort: match a.effort {
+            crate::encode::EffortArg::Fast => explicit::curves::Effort::Fast,
+            crate::encode::EffortArg::Default => explicit::curves::Effort::Default,
+            crate::encode::EffortArg::Best => explicit::curves::Effort::Best,
+        },
+    }
 }
 
 /// `62, 56, 50` for a list of targets.

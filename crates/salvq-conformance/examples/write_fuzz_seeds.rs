@@ -8,6 +8,11 @@
 
 use std::path::Path;
 
+use salvq_bitstream::model::LatticeKind;
+use salvq_encoder::writers::surgery::chunks;
+use salvq_encoder::{encode_full, EncodeOptions, Search};
+use salvq_gen::{generate, GenParams};
+
 fn files(dir: &Path) -> Vec<std::path::PathBuf> {
     let mut out: Vec<_> = std::fs::read_dir(dir)
         .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
@@ -20,7 +25,6 @@ fn files(dir: &Path) -> Vec<std::path::PathBuf> {
 /// and anchor count (`salvq_conformance::fuzzing::geometry_input`'s layout).
 fn write_geometry_seeds(dir: &Path, stream: &[u8]) {
     use salvq_bitstream::container::chunk::ChunkTag;
-    use salvq_encoder::writers::surgery::chunks;
     let all = chunks(stream).unwrap();
     let payload = |tag| &all.iter().find(|(t, _)| *t == tag).unwrap().1;
     let (tils, apos) = (payload(ChunkTag::TILS), payload(ChunkTag::APOS));
@@ -43,18 +47,22 @@ fn write_geometry_seeds(dir: &Path, stream: &[u8]) {
 }
 
 fn main() {
-    use salvq_encoder::writers::surgery::chunks;
     // This package's folder is crates/salvq-conformance.
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    // Stream seeds for `decode`, and the same with a rate byte first for `extract`.
-    use salvq_bitstream::model::LatticeKind;
-    use salvq_encoder::{encode_full, EncodeOptions, Search};
-    use salvq_gen::{generate, GenParams};
+    write_stream_seeds(&root);
+    write_payload_seeds(&root);
+    write_preflight_seeds(&root);
+}
+
+/// The streams seeding `decode` and `extract`: a name, the generated scene, the encoder's
+/// options, and the rate `extract` asks for: small scenes, coded with USQ, two rates, D_n,
+/// tiled E8 with RDO, and fitted bases by region.
+fn seed_streams() -> [(&'static str, GenParams, EncodeOptions, u8); 5] {
     let small = |n, seed, basis| GenParams {
         feat_basis: basis,
         ..GenParams::small(n, seed)
     };
-    let streams: [(&str, GenParams, EncodeOptions, u8); 5] = [
+    [
         ("usq", small(40, 1, false), EncodeOptions::default(), 0),
         (
             "salvq_2rates",
@@ -99,8 +107,13 @@ fn main() {
             },
             0,
         ),
-    ];
-    for (name, params, options, rate) in streams {
+    ]
+}
+
+/// Stream seeds for `decode`, and the same with a rate byte first for `extract`; the tiled
+/// one's tiles seed `geometry`.
+fn write_stream_seeds(root: &Path) {
+    for (name, params, options, rate) in seed_streams() {
         let stream = encode_full(&generate(&params), &options).unwrap().stream;
         std::fs::write(
             root.join(format!("fuzz/seeds/decode/{name}.salvq")),
@@ -114,6 +127,11 @@ fn main() {
             write_geometry_seeds(&root.join("fuzz/seeds/geometry"), &stream);
         }
     }
+}
+
+/// The explicit-profile base stream (spec §3) as a `decode` and `extract` seed, and the
+/// `payload` target's seeds: each payload of the two base streams after its tag's index.
+fn write_payload_seeds(root: &Path) {
     // An explicit-profile stream (spec §3): the payload target's explicit base.
     let explicit = salvq_conformance::fuzzing::explicit_payload_base();
     std::fs::write(root.join("fuzz/seeds/decode/explicit_sh1.salvq"), explicit).unwrap();
@@ -139,6 +157,11 @@ fn main() {
         seed.extend_from_slice(payload);
         std::fs::write(dir.join(format!("explicit-{}.bin", tag.as_str())), seed).unwrap();
     }
+}
+
+/// The `preflight` target's seeds: the `HEAD` payload of each valid anchors-profile
+/// conformance vector.
+fn write_preflight_seeds(root: &Path) {
     let dir = root.join("fuzz/seeds/preflight");
     std::fs::create_dir_all(&dir).unwrap();
     for v in files(&root.join("conformance/vectors")) {

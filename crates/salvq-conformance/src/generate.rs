@@ -94,6 +94,32 @@ pub fn normative_sections(spec_dir: &Path) -> Result<Vec<SpecSection>, String> {
 /// Builds every vector. `spec_dir`: where to read the section list for the coverage table.
 pub fn build(spec_dir: &Path) -> Result<Generated, String> {
     let mut files = BTreeMap::new();
+    let mut entries = anchors_valid_entries(&mut files)?;
+    entries.extend(explicit_valid_entries(&mut files)?);
+    entries.extend(must_fail_entries(&mut files)?);
+    let manifest = Manifest {
+        format_version: format!("{FORMAT_MAJOR}.{FORMAT_MINOR}"),
+        defined_in: "spec/11-conformance.md".into(),
+        vectors: entries,
+    };
+    let coverage = coverage_table(&manifest, &normative_sections(spec_dir)?)?;
+    let mut json = serde_json::to_string_pretty(&manifest)
+        .map_err(|e| format!("writing the manifest: {e}"))?;
+    json.push('\n');
+    files.insert(MANIFEST_FILE.to_string(), json.into_bytes());
+    Ok(Generated {
+        files,
+        manifest,
+        coverage,
+    })
+}
+
+/// The anchors-profile valid vectors' entries: each rate decoded by the reference decoder,
+/// checked against the encoder's prediction, its canonical form and region decodes put in
+/// `files` beside the stream.
+fn anchors_valid_entries(
+    files: &mut BTreeMap<String, Vec<u8>>,
+) -> Result<Vec<VectorEntry>, String> {
     let mut entries = Vec::new();
     let valid = valid_vectors().map_err(|e| format!("building the valid vectors: {e}"))?;
     for v in valid {
@@ -112,9 +138,9 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
                 ));
             }
             let tensors = canonical_tensors(&model, &symbols);
-            decodes.push(expected_decode(v.name, rate, &tensors, &mut files));
+            decodes.push(expected_decode(v.name, rate, &tensors, files));
         }
-        decodes.extend(region_decodes(v.name, &v.stream, &mut files)?);
+        decodes.extend(region_decodes(v.name, &v.stream, files)?);
         entries.push(VectorEntry {
             decodes,
             ..entry(
@@ -127,6 +153,15 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         });
         files.insert(file, v.stream);
     }
+    Ok(entries)
+}
+
+/// The explicit-profile valid vectors' entries (the encoder's and the edited ones), as
+/// [`anchors_valid_entries`]'s.
+fn explicit_valid_entries(
+    files: &mut BTreeMap<String, Vec<u8>>,
+) -> Result<Vec<VectorEntry>, String> {
+    let mut entries = Vec::new();
     let explicit = explicit_valid_vectors()
         .and_then(|mut v| {
             v.extend(edited_valid_vectors()?);
@@ -151,9 +186,9 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
                 ));
             }
             let tensors = explicit_canonical_tensors(&d);
-            decodes.push(expected_decode(v.name, rate, &tensors, &mut files));
+            decodes.push(expected_decode(v.name, rate, &tensors, files));
         }
-        decodes.extend(region_decodes(v.name, &v.stream, &mut files)?);
+        decodes.extend(region_decodes(v.name, &v.stream, files)?);
         let mut sections = EXPLICIT_SECTIONS.to_vec();
         sections.extend(v.sections.iter().filter(|s| !EXPLICIT_SECTIONS.contains(s)));
         entries.push(VectorEntry {
@@ -168,6 +203,13 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         });
         files.insert(file, v.stream);
     }
+    Ok(entries)
+}
+
+/// The must-fail vectors' entries, both profiles: each checked to fail in the reference
+/// decoder with its error class (Table 9-1), its stream and region decodes put in `files`.
+fn must_fail_entries(files: &mut BTreeMap<String, Vec<u8>>) -> Result<Vec<VectorEntry>, String> {
+    let mut entries = Vec::new();
     for v in must_fail_vectors()
         .into_iter()
         .chain(explicit_must_fail_vectors())
@@ -191,7 +233,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
             sections.push("§9.2");
         }
         entries.push(VectorEntry {
-            decodes: region_decodes(v.name, &v.stream, &mut files)?,
+            decodes: region_decodes(v.name, &v.stream, files)?,
             rate: Some(v.rate),
             error_class: Some(v.class.to_string()),
             ..entry(
@@ -204,21 +246,7 @@ pub fn build(spec_dir: &Path) -> Result<Generated, String> {
         });
         files.insert(file, v.stream);
     }
-    let manifest = Manifest {
-        format_version: format!("{FORMAT_MAJOR}.{FORMAT_MINOR}"),
-        defined_in: "spec/11-conformance.md".into(),
-        vectors: entries,
-    };
-    let coverage = coverage_table(&manifest, &normative_sections(spec_dir)?)?;
-    let mut json = serde_json::to_string_pretty(&manifest)
-        .map_err(|e| format!("writing the manifest: {e}"))?;
-    json.push('\n');
-    files.insert(MANIFEST_FILE.to_string(), json.into_bytes());
-    Ok(Generated {
-        files,
-        manifest,
-        coverage,
-    })
+    Ok(entries)
 }
 
 /// The manifest's record of one expected decode, its file `<name>.r<rate>.safetensors` put

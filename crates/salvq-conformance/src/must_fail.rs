@@ -490,107 +490,138 @@ mod tests {
     fn vectors_reach_the_named_rule() {
         for v in must_fail_vectors() {
             let e = decode_vector(&v);
-            let ok = match v.name {
-                "x-truncated-signature" => matches!(
-                    e,
-                    salvq::Error::Truncated {
-                        structure: Structure::Signature,
-                        ..
-                    }
-                ),
-                "x-truncated-chunk-header" | "x-truncated-before-send" => matches!(
-                    e,
-                    salvq::Error::Truncated {
-                        structure: Structure::ChunkHeader,
-                        ..
-                    }
-                ),
-                "x-truncated-chunk-crc" => matches!(
-                    e,
-                    salvq::Error::Truncated {
-                        structure: Structure::ChunkCrc,
-                        ..
-                    }
-                ),
-                "x-truncated-head" => matches!(
-                    e,
-                    salvq::Error::Truncated {
-                        structure: Structure::Payload(ChunkTag::HEAD),
-                        ..
-                    }
-                ),
-                "x-octree-too-many-nodes" | "x-octree-direct-too-many-nodes" => {
-                    octree_rule(&e) == Some(geometry::MORE_NODES_THAN_ANCHORS)
-                }
-                "x-octree-counts-above" => octree_rule(&e) == Some(geometry::COUNTS_ABOVE),
-                "x-octree-counts-below" => octree_rule(&e) == Some(geometry::COUNTS_BELOW),
-                "x-ans-zero-top-word-apos" => matches!(
-                    e,
-                    salvq::Error::AnsStreamInvalid {
-                        tag: ChunkTag::APOS,
-                        fault: AnsFault::ZeroTopWord
-                    }
-                ),
-                "x-ans-lowest-tile-reported" => matches!(
-                    e,
-                    salvq::Error::AnsStreamInvalid {
-                        tag: ChunkTag::AOFF,
-                        fault: AnsFault::ZeroTopWord
-                    }
-                ),
-                "x-truncated-tile-lengths" => matches!(
-                    e,
-                    salvq::Error::Truncated {
-                        structure: Structure::Payload(ChunkTag::APOS),
-                        ..
-                    }
-                ),
-                "x-tile-lengths-mismatch" => matches!(
-                    e,
-                    salvq::Error::ChunkSizeMismatch {
-                        tag: ChunkTag::AFEA,
-                        ..
-                    }
-                ),
-                "x-ans-out-of-words-afea" => matches!(
-                    e,
-                    salvq::Error::AnsStreamInvalid {
-                        tag: ChunkTag::AFEA,
-                        fault: AnsFault::OutOfWords
-                    }
-                ),
-                "x-escape-overflow" => matches!(
-                    e,
-                    salvq::Error::EscapeOverflow {
-                        tag: ChunkTag::AFEA,
-                        symbol: 0,
-                        prefix_bits: 31
-                    }
-                ),
-                "x-limit-chunk-length" => matches!(
-                    e,
-                    salvq::Error::LimitExceeded {
-                        limit: salvq_bitstream::limits::LimitKind::ChunkBytes,
-                        ..
-                    }
-                ),
-                "x-limit-anchors" => matches!(
-                    e,
-                    salvq::Error::LimitExceeded {
-                        limit: salvq_bitstream::limits::LimitKind::Anchors,
-                        ..
-                    }
-                ),
-                "x-limit-allocation" => matches!(
-                    e,
-                    salvq::Error::LimitExceeded {
-                        limit: salvq_bitstream::limits::LimitKind::AllocationBytes,
-                        ..
-                    }
-                ),
-                _ => true,
-            };
+            let ok = truncation_rule(v.name, &e)
+                .or_else(|| octree_named_rule(v.name, &e))
+                .or_else(|| coded_payload_rule(v.name, &e))
+                .or_else(|| limit_rule(v.name, &e))
+                .unwrap_or(true);
             assert!(ok, "{}: {e:?}", v.name);
+        }
+    }
+
+    /// Whether a truncation vector fails in the structure it cuts short (`None`: not one).
+    fn truncation_rule(name: &str, e: &Error) -> Option<bool> {
+        match name {
+            "x-truncated-signature" => Some(matches!(
+                e,
+                salvq::Error::Truncated {
+                    structure: Structure::Signature,
+                    ..
+                }
+            )),
+            "x-truncated-chunk-header" | "x-truncated-before-send" => Some(matches!(
+                e,
+                salvq::Error::Truncated {
+                    structure: Structure::ChunkHeader,
+                    ..
+                }
+            )),
+            "x-truncated-chunk-crc" => Some(matches!(
+                e,
+                salvq::Error::Truncated {
+                    structure: Structure::ChunkCrc,
+                    ..
+                }
+            )),
+            "x-truncated-head" => Some(matches!(
+                e,
+                salvq::Error::Truncated {
+                    structure: Structure::Payload(ChunkTag::HEAD),
+                    ..
+                }
+            )),
+            "x-truncated-tile-lengths" => Some(matches!(
+                e,
+                salvq::Error::Truncated {
+                    structure: Structure::Payload(ChunkTag::APOS),
+                    ..
+                }
+            )),
+            _ => None,
+        }
+    }
+
+    /// Whether an octree vector breaks the geometry rule its name says (`None`: not one).
+    fn octree_named_rule(name: &str, e: &Error) -> Option<bool> {
+        match name {
+            "x-octree-too-many-nodes" | "x-octree-direct-too-many-nodes" => {
+                Some(octree_rule(e) == Some(geometry::MORE_NODES_THAN_ANCHORS))
+            }
+            "x-octree-counts-above" => Some(octree_rule(e) == Some(geometry::COUNTS_ABOVE)),
+            "x-octree-counts-below" => Some(octree_rule(e) == Some(geometry::COUNTS_BELOW)),
+            _ => None,
+        }
+    }
+
+    /// Whether a vector of broken entropy-coded payloads (ANS words, tile lengths, escapes)
+    /// fails in the chunk and with the fault its name says (`None`: not one).
+    fn coded_payload_rule(name: &str, e: &Error) -> Option<bool> {
+        match name {
+            "x-ans-zero-top-word-apos" => Some(matches!(
+                e,
+                salvq::Error::AnsStreamInvalid {
+                    tag: ChunkTag::APOS,
+                    fault: AnsFault::ZeroTopWord
+                }
+            )),
+            "x-ans-lowest-tile-reported" => Some(matches!(
+                e,
+                salvq::Error::AnsStreamInvalid {
+                    tag: ChunkTag::AOFF,
+                    fault: AnsFault::ZeroTopWord
+                }
+            )),
+            "x-tile-lengths-mismatch" => Some(matches!(
+                e,
+                salvq::Error::ChunkSizeMismatch {
+                    tag: ChunkTag::AFEA,
+                    ..
+                }
+            )),
+            "x-ans-out-of-words-afea" => Some(matches!(
+                e,
+                salvq::Error::AnsStreamInvalid {
+                    tag: ChunkTag::AFEA,
+                    fault: AnsFault::OutOfWords
+                }
+            )),
+            "x-escape-overflow" => Some(matches!(
+                e,
+                salvq::Error::EscapeOverflow {
+                    tag: ChunkTag::AFEA,
+                    symbol: 0,
+                    prefix_bits: 31
+                }
+            )),
+            _ => None,
+        }
+    }
+
+    /// Whether a limit vector exceeds the limit its name says (`None`: not one).
+    fn limit_rule(name: &str, e: &Error) -> Option<bool> {
+        match name {
+            "x-limit-chunk-length" => Some(matches!(
+                e,
+                salvq::Error::LimitExceeded {
+                    limit: salvq_bitstream::limits::LimitKind::ChunkBytes,
+                    ..
+                }
+            )),
+            "x-limit-anchors" => Some(matches!(
+                e,
+                salvq::Error::LimitExceeded {
+                    limit: salvq_bitstream::limits::LimitKind::Anchors,
+                    ..
+                }
+            )),
+            "x-limit-allocation" => Some(matches!(
+                e,
+                salvq::Error::LimitExceeded {
+                    limit: salvq_bitstream::limits::LimitKind::AllocationBytes,
+                    ..
+                }
+            )),
+            _ => None,
         }
     }
 }

@@ -96,46 +96,14 @@ pub fn choose(
     }
     let k = m.n().div_ceil(CONTEXT_SAMPLE).max(1);
     let sample = if k > 1 { subsample(m, k) } else { m.clone() };
-    // The sample is coded with `m`'s quantizers as they stand (no fits, notes or stats), at
-    // rate 0 whatever the stream codes: the choice must depend on the model alone, so that a
-    // rate extracted from a multi-rate stream equals that rate encoded alone (§7.5).
-    let trial = |p| EncodeOptions {
-        encoder_note: None,
-        rates: vec![0],
-        statistics: false,
-        feat_lattice: None,
-        fit_basis: false,
-        fit_scales: false,
-        scaffold_precision: Some(ScaffoldPrecision::F32),
-        context_precision: Some(p),
-        ..options.clone()
-    };
+    let trial = |p| trial_options(options, p);
     let wide = encode_full(&sample, &trial(ContextPrecision::I16))?;
     // Weights too large for i8 at any scale (a0 = 0): i16 it is.
     let Ok(narrow) = encode_full(&sample, &trial(ContextPrecision::I8)) else {
         return Ok(unmeasured(ContextPrecision::I16));
     };
-    let mse = |e: &super::Encoded| {
-        let d = e.expected();
-        [
-            mse(&sample.anchors.feat, &d.anchors.feat),
-            mse(&sample.anchors.scaling, &d.anchors.scaling),
-            mse(&sample.anchors.offsets, &d.anchors.offsets),
-        ]
-    };
-    let ratio = |a: [f64; 3], b: [f64; 3]| {
-        [0, 1, 2].map(|g| {
-            if b[g] > 0.0 {
-                a[g] / b[g]
-            } else if a[g] > 0.0 {
-                f64::INFINITY
-            } else {
-                1.0
-            }
-        })
-    };
-    let reference = mse(&wide);
-    let first = ratio(mse(&narrow), reference);
+    let reference = group_mses(&sample, &wide);
+    let first = ratio(group_mses(&sample, &narrow), reference);
     // Beyond this, i8 moves the reconstructions too much (or the sample is too small to
     // tell): no step refinement chases it.
     if first.iter().any(|&r| r > MAX_REFINED_RATIO) {
@@ -146,21 +114,14 @@ pub fn choose(
             ..unmeasured(ContextPrecision::I16)
         });
     }
-    // Hold the distortion: a group whose error grew gets a finer base step (MSE ~ step²).
-    let step_factors = first.map(|r| {
-        if r.is_finite() && r > 1.0 {
-            1.0 / r.sqrt()
-        } else {
-            1.0
-        }
-    });
+    let step_factors = holding_step_factors(first);
     let (narrow, mse_ratio) = if step_factors == [1.0; 3] {
         (narrow, first)
     } else {
         let stepped = with_step_factors(&sample, step_factors);
         match encode_full(&stepped, &trial(ContextPrecision::I8)) {
             Ok(e) => {
-                let r = ratio(mse(&e), reference);
+                let r = ratio(group_mses(&sample, &e), reference);
                 (e, r)
             }
             Err(_) => return Ok(unmeasured(ContextPrecision::I16)),
@@ -182,5 +143,58 @@ pub fn choose(
         sample_anchors: sample.n(),
         mse_ratio,
         step_factors: if narrow_wins { step_factors } else { [1.0; 3] },
+    })
+}
+
+/// The options of a trial encode at `precision`: the sample is coded with the model's
+/// quantizers as they stand (no fits, notes or stats), at rate 0 whatever the stream codes, so
+/// that the choice depends on the model alone and a rate extracted from a multi-rate stream
+/// equals that rate encoded alone (§7.5).
+fn trial_options(options: &EncodeOptions, precision: ContextPrecision) -> EncodeOptions {
+    EncodeOptions {
+        encoder_note: None,
+        rates: vec![0],
+        statistics: false,
+        feat_lattice: None,
+        fit_basis: false,
+        fit_scales: false,
+        scaffold_precision: Some(ScaffoldPrecision::F32),
+        context_precision: Some(precision),
+        ..options.clone()
+    }
+}
+
+/// The reconstruction MSE per group (feature, scaling, offsets) of the encode `e` of `sample`.
+fn group_mses(sample: &SceneModel, e: &super::Encoded) -> [f64; 3] {
+    let d = e.expected();
+    [
+        mse(&sample.anchors.feat, &d.anchors.feat),
+        mse(&sample.anchors.scaling, &d.anchors.scaling),
+        mse(&sample.anchors.offsets, &d.anchors.offsets),
+    ]
+}
+
+/// Per group, the MSE `a` over the MSE `b` (1 when both are 0, infinite when only `b` is).
+fn ratio(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|g| {
+        if b[g] > 0.0 {
+            a[g] / b[g]
+        } else if a[g] > 0.0 {
+            f64::INFINITY
+        } else {
+            1.0
+        }
+    })
+}
+
+/// The step factors that hold the distortion at the MSE ratios `first`: a group whose error
+/// grew gets a finer base step (MSE ~ step²).
+fn holding_step_factors(first: [f64; 3]) -> [f64; 3] {
+    first.map(|r| {
+        if r.is_finite() && r > 1.0 {
+            1.0 / r.sqrt()
+        } else {
+            1.0
+        }
     })
 }

@@ -233,30 +233,138 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
     let r = Reader { st, lattices };
     let dims = infer_dims(&r)?;
     salvq_bitstream::model::validate::check_dims(&dims)?;
-    let table = tensor_table(&dims);
-    let mut unknown: Vec<String> =
-        r.st.names()
-            .into_iter()
-            .filter(|n| !table.iter().any(|e| e.name == *n))
-            .map(str::to_string)
-            .collect();
-    unknown.sort();
-    if let Some(name) = unknown.into_iter().next() {
-        return Err(salvq::Error::TensorUnexpected { name }.into());
+    let t = Tensors::read(&r, &dims)?;
+    let origin = f32s(t.get(names::ORIGIN));
+    let voxel = anchor_voxels(&i32s(t.get(names::VOXEL)), dims.anchors as usize)?;
+    let i8s = |name: &str| t.get(name).iter().map(|&b| b as i8).collect::<Vec<i8>>();
+    let model = SceneModel {
+        origin: [origin[0], origin[1], origin[2]],
+        voxel_size: f32s(t.get(names::VOXEL_SIZE))
+            .first()
+            .copied()
+            .unwrap_or(f32::NAN),
+        anchors: Anchors {
+            voxel,
+            mask: t.get(names::MASK).to_vec(),
+            feat: f32s(t.get(names::FEAT)),
+            scaling: f32s(t.get(names::SCALING)),
+            offsets: f32s(t.get(names::OFFSETS)),
+        },
+        grid: HashGrid {
+            grid_3d: i8s(names::GRID_3D),
+            grid_xy: i8s(names::GRID_XY),
+            grid_xz: i8s(names::GRID_XZ),
+            grid_yz: i8s(names::GRID_YZ),
+        },
+        mlp_grid: t.mlp(names::MLP_GRID),
+        mlp_opacity: t.mlp(names::MLP_OPACITY),
+        mlp_cov: t.mlp(names::MLP_COV),
+        mlp_color: t.mlp(names::MLP_COLOR),
+        quant_feat: t.group(
+            &names::QUANT_FEAT,
+            &names::QUANT_FEAT_REGIONS,
+            usize::from(dims.feat_dim),
+            dims.feat_lattice.has_factors(),
+        ),
+        quant_scaling: t.group(
+            &names::QUANT_SCALING,
+            &names::QUANT_SCALING_REGIONS,
+            usize::from(dims.scaling_dim),
+            dims.scaling_lattice.has_factors(),
+        ),
+        quant_offsets: t.group(&names::QUANT_OFFSETS, &[""; 4], 3, false),
+        dims,
+    };
+    validate_model(&model)?;
+    Ok(model)
+}
+
+/// The data of every tensor of Table 2-1, each checked for dtype and shape.
+struct Tensors<'a> {
+    /// Table 2-1 for the file's dimensions.
+    table: Vec<TensorEntry>,
+    /// Each entry's bytes, in the table's order.
+    data: Vec<&'a [u8]>,
+}
+
+impl<'a> Tensors<'a> {
+    /// Table 2-1's tensors for `dims` read from `r`: a tensor outside the table is refused
+    /// first (the first by name), then each entry's presence, dtype and shape in table order.
+    fn read(r: &Reader<'a>, dims: &Dims) -> Result<Tensors<'a>> {
+        let table = tensor_table(dims);
+        let mut unknown: Vec<String> =
+            r.st.names()
+                .into_iter()
+                .filter(|n| !table.iter().any(|e| e.name == *n))
+                .map(str::to_string)
+                .collect();
+        unknown.sort();
+        if let Some(name) = unknown.into_iter().next() {
+            return Err(salvq::Error::TensorUnexpected { name }.into());
+        }
+        let mut data = Vec::with_capacity(table.len());
+        for e in &table {
+            data.push(r.data(e)?);
+        }
+        Ok(Tensors { table, data })
     }
-    let mut data = Vec::with_capacity(table.len());
-    for e in &table {
-        data.push(r.data(e)?);
-    }
-    let get = |name: &str| -> &[u8] {
-        table
+
+    /// The bytes of tensor `name` (none for a name outside the table).
+    fn get(&self, name: &str) -> &'a [u8] {
+        self.table
             .iter()
             .position(|e| e.name == name)
-            .map_or(&[], |i| data[i])
-    };
-    let origin = f32s(get(names::ORIGIN));
-    let n = dims.anchors as usize;
-    let voxel_i = i32s(get(names::VOXEL));
+            .map_or(&[], |i| self.data[i])
+    }
+
+    /// The MLP whose layer weights and biases are the tensors `n` (§2.5).
+    fn mlp(&self, n: [&str; 4]) -> Mlp {
+        Mlp {
+            w0: f32s(self.get(n[0])),
+            b0: f32s(self.get(n[1])),
+            w1: f32s(self.get(n[2])),
+            b1: f32s(self.get(n[3])),
+        }
+    }
+
+    /// A group's quantizer from its tensors `n` (step, gains, region 0's basis when `basis`)
+    /// and its regions' tensors `rn` (starts, then stacked factors, §7.6) of `dim` values.
+    fn group(&self, n: &[&str], rn: &[&str; 4], dim: usize, basis: bool) -> GroupQuantizer {
+        // Region r's factors are slice r of each stacked tensor (shapes checked on reading).
+        let starts = i32s(self.get(rn[0]));
+        let (u, s, v) = (
+            f32s(self.get(rn[1])),
+            f32s(self.get(rn[2])),
+            f32s(self.get(rn[3])),
+        );
+        let regions = starts
+            .iter()
+            .enumerate()
+            .map(|(r, &start)| Region {
+                start: start.max(0) as u32,
+                basis: Basis {
+                    u: u[r * dim * dim..(r + 1) * dim * dim].to_vec(),
+                    s: s[r * dim..(r + 1) * dim].to_vec(),
+                    v: v[r * dim * dim..(r + 1) * dim * dim].to_vec(),
+                },
+            })
+            .collect();
+        GroupQuantizer {
+            step: f32s(self.get(n[0])).first().copied().unwrap_or(f32::NAN),
+            gains: f32s(self.get(n[1])),
+            basis: basis.then(|| Basis {
+                u: f32s(self.get(n[2])),
+                s: f32s(self.get(n[3])),
+                v: f32s(self.get(n[4])),
+            }),
+            regions,
+        }
+    }
+}
+
+/// The anchors' voxel coordinates from the `voxel` tensor's values, each checked to be within
+/// 0 … 2^MAX_COORD_BITS − 1 (§2.3, Annex A.2).
+fn anchor_voxels(voxel_i: &[i32], n: usize) -> Result<Vec<[u32; 3]>> {
     let mut voxel = Vec::with_capacity(n);
     for (i, c) in voxel_i.chunks_exact(3).enumerate() {
         let mut v = [0u32; 3];
@@ -274,80 +382,7 @@ pub fn model_from_safetensors(bytes: &[u8]) -> Result<SceneModel> {
         }
         voxel.push(v);
     }
-    let i8s = |name: &str| get(name).iter().map(|&b| b as i8).collect::<Vec<i8>>();
-    let mlp = |n: [&str; 4]| Mlp {
-        w0: f32s(get(n[0])),
-        b0: f32s(get(n[1])),
-        w1: f32s(get(n[2])),
-        b1: f32s(get(n[3])),
-    };
-    let group = |n: &[&str], rn: &[&str; 4], dim: usize, basis: bool| {
-        // Region r's factors are slice r of each stacked tensor (shapes checked above).
-        let starts = i32s(get(rn[0]));
-        let (u, s, v) = (f32s(get(rn[1])), f32s(get(rn[2])), f32s(get(rn[3])));
-        let regions = starts
-            .iter()
-            .enumerate()
-            .map(|(r, &start)| Region {
-                start: start.max(0) as u32,
-                basis: Basis {
-                    u: u[r * dim * dim..(r + 1) * dim * dim].to_vec(),
-                    s: s[r * dim..(r + 1) * dim].to_vec(),
-                    v: v[r * dim * dim..(r + 1) * dim * dim].to_vec(),
-                },
-            })
-            .collect();
-        GroupQuantizer {
-            step: f32s(get(n[0])).first().copied().unwrap_or(f32::NAN),
-            gains: f32s(get(n[1])),
-            basis: basis.then(|| Basis {
-                u: f32s(get(n[2])),
-                s: f32s(get(n[3])),
-                v: f32s(get(n[4])),
-            }),
-            regions,
-        }
-    };
-    let model = SceneModel {
-        origin: [origin[0], origin[1], origin[2]],
-        voxel_size: f32s(get(names::VOXEL_SIZE))
-            .first()
-            .copied()
-            .unwrap_or(f32::NAN),
-        anchors: Anchors {
-            voxel,
-            mask: get(names::MASK).to_vec(),
-            feat: f32s(get(names::FEAT)),
-            scaling: f32s(get(names::SCALING)),
-            offsets: f32s(get(names::OFFSETS)),
-        },
-        grid: HashGrid {
-            grid_3d: i8s(names::GRID_3D),
-            grid_xy: i8s(names::GRID_XY),
-            grid_xz: i8s(names::GRID_XZ),
-            grid_yz: i8s(names::GRID_YZ),
-        },
-        mlp_grid: mlp(names::MLP_GRID),
-        mlp_opacity: mlp(names::MLP_OPACITY),
-        mlp_cov: mlp(names::MLP_COV),
-        mlp_color: mlp(names::MLP_COLOR),
-        quant_feat: group(
-            &names::QUANT_FEAT,
-            &names::QUANT_FEAT_REGIONS,
-            usize::from(dims.feat_dim),
-            dims.feat_lattice.has_factors(),
-        ),
-        quant_scaling: group(
-            &names::QUANT_SCALING,
-            &names::QUANT_SCALING_REGIONS,
-            usize::from(dims.scaling_dim),
-            dims.scaling_lattice.has_factors(),
-        ),
-        quant_offsets: group(&names::QUANT_OFFSETS, &[""; 4], 3, false),
-        dims,
-    };
-    validate_model(&model)?;
-    Ok(model)
+    Ok(voxel)
 }
 
 /// Reads and validates a model file.
@@ -355,44 +390,52 @@ pub fn read_model(path: &Path) -> Result<SceneModel> {
     model_from_safetensors(&crate::io::read_file(path)?)
 }
 
+/// Values are turned into bytes a block at a time and written with one call per block: one
+/// dynamic `write_all` per value took about a third of decoding a 1 M-anchor scene to a file.
+const BLOCK: usize = 1 << 14;
+
+/// Writes f32 values as little-endian bytes. On a little-endian target an f32 tensor's memory
+/// is already its safetensors bytes, written as they are (no copy: 368 MB for a 1 M-anchor
+/// model).
+fn write_f32s(w: &mut dyn Write, v: &[f32]) -> std::io::Result<()> {
+    if cfg!(target_endian = "little") {
+        // In pieces of 1 MiB: written whole, a 1 M-anchor model's 200 MB feature tensor
+        // made the first file a process wrote take 0.5 … 0.95 s here, against 0.10 s.
+        for piece in bytemuck::cast_slice::<f32, u8>(v).chunks(1 << 20) {
+            w.write_all(piece)?;
+        }
+        return Ok(());
+    }
+    let mut bytes = vec![0u8; 4 * BLOCK.min(v.len())];
+    for block in v.chunks(BLOCK) {
+        for (out, x) in bytes.chunks_exact_mut(4).zip(block) {
+            out.copy_from_slice(&x.to_le_bytes());
+        }
+        w.write_all(&bytes[..4 * block.len()])?;
+    }
+    Ok(())
+}
+
+/// Writes i32 values as little-endian bytes, [`BLOCK`] values per call.
+fn write_i32s(w: &mut dyn Write, v: &mut dyn Iterator<Item = i32>) -> std::io::Result<()> {
+    let mut bytes = Vec::with_capacity(4 * BLOCK);
+    for x in v {
+        bytes.extend_from_slice(&x.to_le_bytes());
+        if bytes.len() == 4 * BLOCK {
+            w.write_all(&bytes)?;
+            bytes.clear();
+        }
+    }
+    w.write_all(&bytes)
+}
+
+/// Writes i8 values as their bytes.
+fn write_i8s(w: &mut dyn Write, v: &[i8]) -> std::io::Result<()> {
+    w.write_all(&v.iter().map(|&x| x as u8).collect::<Vec<u8>>())
+}
+
 /// A tensor's little-endian bytes, streamed to `w`.
 pub fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::Result<()> {
-    // Values are turned into bytes a block at a time and written with one call per block:
-    // one dynamic `write_all` per value took about a third of decoding a 1 M-anchor scene to
-    // a file. On a little-endian target an f32 tensor's memory is already its safetensors
-    // bytes, written as they are (no copy: 368 MB for a 1 M-anchor model).
-    const BLOCK: usize = 1 << 14;
-    let f = |w: &mut dyn Write, v: &[f32]| -> std::io::Result<()> {
-        if cfg!(target_endian = "little") {
-            // In pieces of 1 MiB: written whole, a 1 M-anchor model's 200 MB feature tensor
-            // made the first file a process wrote take 0.5 … 0.95 s here, against 0.10 s.
-            for piece in bytemuck::cast_slice::<f32, u8>(v).chunks(1 << 20) {
-                w.write_all(piece)?;
-            }
-            return Ok(());
-        }
-        let mut bytes = vec![0u8; 4 * BLOCK.min(v.len())];
-        for block in v.chunks(BLOCK) {
-            for (out, x) in bytes.chunks_exact_mut(4).zip(block) {
-                out.copy_from_slice(&x.to_le_bytes());
-            }
-            w.write_all(&bytes[..4 * block.len()])?;
-        }
-        Ok(())
-    };
-    let i = |w: &mut dyn Write, v: &mut dyn Iterator<Item = i32>| -> std::io::Result<()> {
-        let mut bytes = Vec::with_capacity(4 * BLOCK);
-        for x in v {
-            bytes.extend_from_slice(&x.to_le_bytes());
-            if bytes.len() == 4 * BLOCK {
-                w.write_all(&bytes)?;
-                bytes.clear();
-            }
-        }
-        w.write_all(&bytes)
-    };
-    let b =
-        |w: &mut dyn Write, v: &[i8]| w.write_all(&v.iter().map(|&x| x as u8).collect::<Vec<u8>>());
     let d = &m.dims;
     let mlps = [
         (names::MLP_GRID, &m.mlp_grid),
@@ -402,7 +445,7 @@ pub fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::R
     ];
     for (n, mlp) in mlps {
         if let Some(p) = n.iter().position(|&x| x == name) {
-            return f(w, [&mlp.w0, &mlp.b0, &mlp.w1, &mlp.b1][p]);
+            return write_f32s(w, [&mlp.w0, &mlp.b0, &mlp.w1, &mlp.b1][p]);
         }
     }
     let groups: [(&[&str], &GroupQuantizer); 3] = [
@@ -416,10 +459,10 @@ pub fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::R
     ];
     for (n, q) in region_groups {
         match n.iter().position(|&x| x == name) {
-            Some(0) => return i(w, &mut q.regions.iter().map(|r| r.start as i32)),
+            Some(0) => return write_i32s(w, &mut q.regions.iter().map(|r| r.start as i32)),
             Some(p) => {
                 for r in &q.regions {
-                    f(w, [&r.basis.u, &r.basis.s, &r.basis.v][p - 1])?;
+                    write_f32s(w, [&r.basis.u, &r.basis.s, &r.basis.v][p - 1])?;
                 }
                 return Ok(());
             }
@@ -428,33 +471,33 @@ pub fn write_tensor(m: &SceneModel, name: &str, w: &mut dyn Write) -> std::io::R
     }
     for (n, q) in groups {
         match n.iter().position(|&x| x == name) {
-            Some(0) => return f(w, &[q.step]),
-            Some(1) => return f(w, &q.gains),
+            Some(0) => return write_f32s(w, &[q.step]),
+            Some(1) => return write_f32s(w, &q.gains),
             Some(p) => {
                 let basis = q.basis.as_ref().map(|b| [&b.u, &b.s, &b.v][p - 2]);
-                return f(w, basis.map_or(&[][..], |v| &v[..]));
+                return write_f32s(w, basis.map_or(&[][..], |v| &v[..]));
             }
             None => {}
         }
     }
     match name {
-        names::ORIGIN => f(w, &m.origin),
-        names::VOXEL_SIZE => f(w, &[m.voxel_size]),
-        names::VOXEL => i(w, &mut m.anchors.voxel.iter().flatten().map(|&c| c as i32)),
+        names::ORIGIN => write_f32s(w, &m.origin),
+        names::VOXEL_SIZE => write_f32s(w, &[m.voxel_size]),
+        names::VOXEL => write_i32s(w, &mut m.anchors.voxel.iter().flatten().map(|&c| c as i32)),
         names::MASK => w.write_all(&m.anchors.mask),
-        names::FEAT => f(w, &m.anchors.feat),
-        names::SCALING => f(w, &m.anchors.scaling),
-        names::OFFSETS => f(w, &m.anchors.offsets),
-        names::RES_3D => i(w, &mut d.res_3d.iter().map(|&r| r.into())),
-        names::RES_2D => i(w, &mut d.res_2d.iter().map(|&r| r.into())),
-        names::LOG2_SIZE => i(
+        names::FEAT => write_f32s(w, &m.anchors.feat),
+        names::SCALING => write_f32s(w, &m.anchors.scaling),
+        names::OFFSETS => write_f32s(w, &m.anchors.offsets),
+        names::RES_3D => write_i32s(w, &mut d.res_3d.iter().map(|&r| r.into())),
+        names::RES_2D => write_i32s(w, &mut d.res_2d.iter().map(|&r| r.into())),
+        names::LOG2_SIZE => write_i32s(
             w,
             &mut [d.log2_size_3d, d.log2_size_2d].into_iter().map(i32::from),
         ),
-        names::GRID_3D => b(w, &m.grid.grid_3d),
-        names::GRID_XY => b(w, &m.grid.grid_xy),
-        names::GRID_XZ => b(w, &m.grid.grid_xz),
-        names::GRID_YZ => b(w, &m.grid.grid_yz),
+        names::GRID_3D => write_i8s(w, &m.grid.grid_3d),
+        names::GRID_XY => write_i8s(w, &m.grid.grid_xy),
+        names::GRID_XZ => write_i8s(w, &m.grid.grid_xz),
+        names::GRID_YZ => write_i8s(w, &m.grid.grid_yz),
         _ => Ok(()),
     }
 }

@@ -276,12 +276,68 @@ pub fn unused_properties(bytes: &[u8]) -> Vec<String> {
         .collect()
 }
 
+/// [`read_ply`] (`strict`) or [`read_ply_lenient`]: the vertex element located, its
+/// properties found by name, then every record read (Annex C.3).
 fn read_ply_with(bytes: &[u8], strict: bool) -> Result<Gaussians> {
     let header = parse_header(bytes)?;
     let body = &bytes[header.body_start..];
-    // Skip the elements before `vertex`; each must have a fixed record size.
+    let (element, offset, stride) = locate_vertex(&header, body)?;
+    let data = &body[offset as usize..][..(element.count * stride) as usize];
+    let VertexColumns {
+        required,
+        rest,
+        sh_degree,
+    } = vertex_columns(element)?;
+    let rest_count = rest.len();
+    let n = element.count as usize;
+    let little = header.little_endian;
+    let mut g = Gaussians {
+        positions: Vec::with_capacity(n),
+        sh_degree,
+        f_dc: Vec::with_capacity(n),
+        f_rest: Vec::with_capacity(n * rest_count),
+        opacity_logit: Vec::with_capacity(n),
+        log_scales: Vec::with_capacity(n),
+        rotations: Vec::with_capacity(n),
+    };
+    let mut values = [0f32; REQUIRED.len()];
+    for (v, record) in data.chunks_exact(stride as usize).enumerate() {
+        let read = |c: Column<'_>| -> Result<f32> {
+            let x = c.2.read(&record[c.1..], little);
+            // An infinite opacity logit is an alpha of exactly 0 or 1, which tools that
+            // store 8-bit alphas write (splat-transform); the renderer's sigmoid takes it.
+            if !strict || x.is_finite() || (c.0 == "opacity" && x.is_infinite()) {
+                Ok(x)
+            } else {
+                Err(Error::PlyValueNotFinite {
+                    vertex: v as u64,
+                    property: c.0.to_string(),
+                })
+            }
+        };
+        for (slot, &c) in values.iter_mut().zip(&required) {
+            *slot = read(c)?;
+        }
+        let [x, y, z, d0, d1, d2, o, s0, s1, s2, r0, r1, r2, r3] = values;
+        g.positions.push([x, y, z]);
+        g.f_dc.push([d0, d1, d2]);
+        g.opacity_logit.push(o);
+        g.log_scales.push([s0, s1, s2]);
+        g.rotations.push([r0, r1, r2, r3]);
+        for &c in &rest {
+            g.f_rest.push(read(c)?);
+        }
+    }
+    Ok(g)
+}
+
+/// A property's name, byte offset in the record, and type.
+type Column<'a> = (&'a str, usize, Scalar);
+
+/// The `vertex` element of `header`, its byte offset in `body`, and its record size: the
+/// elements before it are skipped, each of a fixed record size and all within the file.
+fn locate_vertex<'h>(header: &'h Header, body: &[u8]) -> Result<(&'h Element, u64, u64)> {
     let mut offset = 0u64;
-    let mut vertex = None;
     for e in &header.elements {
         let stride = e.stride().ok_or_else(|| {
             header_error(
@@ -300,16 +356,27 @@ fn read_ply_with(bytes: &[u8], strict: bool) -> Result<Gaussians> {
             });
         }
         if e.name == "vertex" {
-            vertex = Some((e, offset, stride));
-            break;
+            return Ok((e, offset, stride));
         }
         offset += needed.unwrap_or(0);
     }
-    let (element, offset, stride) =
-        vertex.ok_or_else(|| header_error(0, "the file has no 'vertex' element"))?;
-    let data = &body[offset as usize..][..(element.count * stride) as usize];
+    Err(header_error(0, "the file has no 'vertex' element"))
+}
 
-    // Byte offset and type of each property, found by name.
+/// The vertex properties a Gaussian reads, found by name.
+struct VertexColumns<'a> {
+    /// The [`REQUIRED`] properties, in that order.
+    required: Vec<Column<'a>>,
+    /// `f_rest_0` … `f_rest_{3B−1}`, in that order.
+    rest: Vec<Column<'a>>,
+    /// The SH degree their count gives.
+    sh_degree: u8,
+}
+
+/// Finds the [`REQUIRED`] properties and the `f_rest_*` ones of the vertex element `element`
+/// (whose every property has a fixed type, checked by `stride()`); their count gives the SH
+/// degree (Annex C.3).
+fn vertex_columns(element: &Element) -> Result<VertexColumns<'_>> {
     let mut columns = Vec::with_capacity(element.properties.len());
     let mut at = 0usize;
     for (name, t) in &element.properties {
@@ -345,47 +412,11 @@ fn read_ply_with(bytes: &[u8], strict: bool) -> Result<Gaussians> {
             })?,
         );
     }
-
-    let n = element.count as usize;
-    let little = header.little_endian;
-    let mut g = Gaussians {
-        positions: Vec::with_capacity(n),
+    Ok(VertexColumns {
+        required,
+        rest,
         sh_degree,
-        f_dc: Vec::with_capacity(n),
-        f_rest: Vec::with_capacity(n * rest_count),
-        opacity_logit: Vec::with_capacity(n),
-        log_scales: Vec::with_capacity(n),
-        rotations: Vec::with_capacity(n),
-    };
-    let mut values = [0f32; REQUIRED.len()];
-    for (v, record) in data.chunks_exact(stride as usize).enumerate() {
-        let read = |c: (&str, usize, Scalar)| -> Result<f32> {
-            let x = c.2.read(&record[c.1..], little);
-            // An infinite opacity logit is an alpha of exactly 0 or 1, which tools that
-            // store 8-bit alphas write (splat-transform); the renderer's sigmoid takes it.
-            if !strict || x.is_finite() || (c.0 == "opacity" && x.is_infinite()) {
-                Ok(x)
-            } else {
-                Err(Error::PlyValueNotFinite {
-                    vertex: v as u64,
-                    property: c.0.to_string(),
-                })
-            }
-        };
-        for (slot, &c) in values.iter_mut().zip(&required) {
-            *slot = read(c)?;
-        }
-        let [x, y, z, d0, d1, d2, o, s0, s1, s2, r0, r1, r2, r3] = values;
-        g.positions.push([x, y, z]);
-        g.f_dc.push([d0, d1, d2]);
-        g.opacity_logit.push(o);
-        g.log_scales.push([s0, s1, s2]);
-        g.rotations.push([r0, r1, r2, r3]);
-        for &c in &rest {
-            g.f_rest.push(read(c)?);
-        }
-    }
-    Ok(g)
+    })
 }
 
 /// The header of the PLY file [`write_ply`] writes for `n` Gaussians of SH degree `degree`.

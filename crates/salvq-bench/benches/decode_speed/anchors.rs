@@ -8,6 +8,7 @@ use std::time::Instant;
 use salvq::Decoder;
 use salvq::Limits;
 use salvq::Scene;
+use salvq::Symbols;
 use salvq_bench::coder::median;
 use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag};
 use salvq_bitstream::container::preflight::Preflight;
@@ -52,31 +53,34 @@ fn anchors_tiles(stream: &[u8]) -> Res<usize> {
     Err("no TILS chunk".into())
 }
 
-pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) -> Res<Row> {
-    let path = cache.join(format!("anchors_{n}.salvq"));
-    let mut encoder_symbols = None;
-    let mut expected = None;
-    if a.fresh || a.smoke || !path.exists() {
-        let model = generate(&GenParams {
-            feat_basis: false,
-            ..GenParams::new(n, 1)
-        });
-        let t = Instant::now();
-        let e = encode_full(&model, &EncodeOptions::default())?;
-        println!("{n} anchors: encoded in {:.1} s", t.elapsed().as_secs_f64());
-        std::fs::write(&path, &e.stream)?;
-        encoder_symbols = Some(e.report().groups.iter().map(|g| g.symbols).sum::<u64>());
-        expected = Some(e.expected().clone());
+/// Encodes a generated scene of `n` anchors with the defaults into `path`, unless a cached
+/// stream is there and may be reused; returns the encoder's symbol count and its prediction of
+/// the decode when it encoded.
+fn encode_unless_cached(a: &Args, n: u32, path: &Path) -> Res<(Option<u64>, Option<SceneModel>)> {
+    if !(a.fresh || a.smoke || !path.exists()) {
+        return Ok((None, None));
     }
-    let stream = std::fs::read(&path)?;
-    let one_opts = salvq::Decoder::builder().threads(1);
-    let (reference, sy) = one_opts.build().decode_with_symbols(&stream)?;
-    if let Some(expected) = &expected {
-        assert!(
-            reference == *expected,
-            "{n} anchors: the decode is the encoder's prediction"
-        );
-    }
+    let model = generate(&GenParams {
+        feat_basis: false,
+        ..GenParams::new(n, 1)
+    });
+    let t = Instant::now();
+    let e = encode_full(&model, &EncodeOptions::default())?;
+    println!("{n} anchors: encoded in {:.1} s", t.elapsed().as_secs_f64());
+    std::fs::write(path, &e.stream)?;
+    let encoder_symbols = e.report().groups.iter().map(|g| g.symbols).sum::<u64>();
+    Ok((Some(encoder_symbols), Some(e.expected().clone())))
+}
+
+/// The symbols the bare coder times, in stream order: features, scalings, then the offsets of
+/// the set mask slots; their count is checked against the model's dimensions and, when it
+/// encoded, the encoder's.
+fn coded_symbols(
+    n: u32,
+    reference: &SceneModel,
+    sy: &Symbols,
+    encoder_symbols: Option<u64>,
+) -> Vec<i64> {
     let mut symbols: Vec<i64> = sy.feat.clone();
     symbols.extend_from_slice(&sy.scaling);
     for (slot, &m) in reference.anchors.mask.iter().enumerate() {
@@ -101,6 +105,24 @@ pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) 
             "{n} anchors: symbols = the encoder's"
         );
     }
+    symbols
+}
+
+/// One generated scene's row (anchors profile, `n` anchors): its stream decoded in process and
+/// in the wasm package, each timed and checked, against the bare coder on its symbols.
+pub(crate) fn anchors_scene(a: &Args, n: u32, cache: &Path, pkg: Option<&Path>) -> Res<Row> {
+    let path = cache.join(format!("anchors_{n}.salvq"));
+    let (encoder_symbols, expected) = encode_unless_cached(a, n, &path)?;
+    let stream = std::fs::read(&path)?;
+    let one_opts = salvq::Decoder::builder().threads(1);
+    let (reference, sy) = one_opts.build().decode_with_symbols(&stream)?;
+    if let Some(expected) = &expected {
+        assert!(
+            reference == *expected,
+            "{n} anchors: the decode is the encoder's prediction"
+        );
+    }
+    let symbols = coded_symbols(n, &reference, &sy, encoder_symbols);
     let mut row = Row {
         profile: "anchors",
         scene: format!("generated {n}"),

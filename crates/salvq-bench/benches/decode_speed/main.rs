@@ -41,7 +41,6 @@
 //! theirs.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -51,15 +50,17 @@ use salvq_bench::coder::{bare_coder_decode_ns, median};
 use salvq_bitstream::entropy::GaussianTables;
 use salvq_bitstream::explicit::Gaussians;
 
-/// The link a viewer receives the stream over: 50 Mbit/s.
 mod anchors;
+mod commands;
 mod output;
 mod wasm;
 
 use anchors::anchors_scene;
+use commands::{command_times, explicit_stream, peer_files};
 use output::{chart, csv, report};
 use wasm::{build_wasm, wasm_times};
 
+/// The link a viewer receives the stream over: 50 Mbit/s.
 const LINK_BITS_PER_S: f64 = 50e6;
 /// The pause before a round's first 2-thread decode and before the pinned one. On this VM a
 /// pool thread woken after the machine had been idle often waited milliseconds on its
@@ -247,29 +248,6 @@ fn timed<T>(f: impl FnOnce() -> T) -> (f64, T) {
     (t.elapsed().as_secs_f64(), r)
 }
 
-/// Runs a command with its output discarded; the wall time of the whole process.
-fn run_timed(cmd: &mut Command) -> Res<f64> {
-    let t = Instant::now();
-    let out = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).output()?;
-    let s = t.elapsed().as_secs_f64();
-    if !out.status.success() {
-        return Err(format!(
-            "{cmd:?} failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        )
-        .into());
-    }
-    Ok(s)
-}
-
-/// The command line of `st` (e.g. `node path/cli.mjs` or a path).
-fn st_command(st: &str) -> Command {
-    let mut parts = st.split_whitespace();
-    let mut c = Command::new(parts.next().unwrap_or("splat-transform"));
-    c.args(parts);
-    c
-}
-
 /// A decode's Gaussians as the wasm package hands them out, float32 little-endian (see
 /// `wasm/decode_time.cjs`).
 fn dump(g: &Gaussians) -> Vec<u8> {
@@ -405,34 +383,46 @@ fn main() -> Res<()> {
     Ok(())
 }
 
-/// The rate-0 stream of `scene` with default settings, from the cache or encoded now.
-fn explicit_stream(a: &Args, scene: &str, ply: &Path, salvq: &Path, cache: &Path) -> Res<PathBuf> {
-    let all = cache.join(format!("{scene}.salvq"));
-    let r0 = cache.join(format!("{scene}.r0.salvq"));
-    if a.fresh || !r0.exists() {
-        println!("{scene}: salvq encode (default settings) …");
-        let t = run_timed(
-            // --force: a fresh encode replaces the cached streams.
-            Command::new(salvq)
-                .arg("encode")
-                .arg(ply)
-                .arg("-o")
-                .arg(&all)
-                .arg("--force"),
-        )?;
-        run_timed(
-            Command::new(salvq)
-                .arg("extract")
-                .arg(&all)
-                .args(["--rate", "0", "-o"])
-                .arg(&r0)
-                .arg("--force"),
-        )?;
-        println!("{scene}: encoded in {t:.1} s");
-    }
-    Ok(r0)
+/// An explicit scene's row before its timings: its size and tiles from the reference decode,
+/// checked (§3.3), and the bare coder's floor on the symbols the stream codes (§3.5).
+fn explicit_row(
+    a: &Args,
+    scene: &str,
+    reference: &salvq::DecodedGaussians,
+    bytes: u64,
+) -> Res<Row> {
+    let n = reference.gaussians.len();
+    // §3.3: every Gaussian codes each group's `dim` lattice coordinates.
+    let per: usize = reference.groups.iter().map(|g| g.dim).sum();
+    assert_eq!(
+        reference.symbols.coords.len(),
+        n * per,
+        "{scene}: lattice coordinates = N · Σ dims"
+    );
+    let mut row = Row {
+        profile: "explicit",
+        scene: scene.into(),
+        size: n,
+        symbols: reference.symbols.coords.len(),
+        bytes,
+        tiles: reference.tiles.len(),
+        ..Row::default()
+    };
+    // The floor: the symbols GATT codes (§3.5: not the sh_rest values after each Gaussian's
+    // count), in stream order.
+    let coded = salvq_encoder::info::explicit::coded_symbols(reference)?;
+    assert!(
+        coded.len() <= reference.symbols.coords.len(),
+        "{scene}: coded symbols ≤ values"
+    );
+    row.symbols = coded.len();
+    (row.floor, row.floor_outside) = floor(&coded, a.rounds);
+    Ok(row)
 }
 
+/// One real scene's row (explicit profile): its rate-0 stream decoded in process, by
+/// `salvq decode`, by splat-transform from its own files and in the wasm package, each timed
+/// and checked against the reference decode.
 fn explicit_scene(
     a: &Args,
     scene: &str,
@@ -448,31 +438,7 @@ fn explicit_scene(
         return Err(format!("{}: not an explicit-profile stream", path.display()).into());
     };
     let n = reference.gaussians.len();
-    // §3.3: every Gaussian codes each group's `dim` lattice coordinates.
-    let per: usize = reference.groups.iter().map(|g| g.dim).sum();
-    assert_eq!(
-        reference.symbols.coords.len(),
-        n * per,
-        "{scene}: lattice coordinates = N · Σ dims"
-    );
-    let mut row = Row {
-        profile: "explicit",
-        scene: scene.into(),
-        size: n,
-        symbols: reference.symbols.coords.len(),
-        bytes: stream.len() as u64,
-        tiles: reference.tiles.len(),
-        ..Row::default()
-    };
-    // The floor: the symbols GATT codes (§3.5: not the sh_rest values after each Gaussian's
-    // count), in stream order.
-    let coded = salvq_encoder::info::explicit::coded_symbols(&reference)?;
-    assert!(
-        coded.len() <= reference.symbols.coords.len(),
-        "{scene}: coded symbols ≤ values"
-    );
-    row.symbols = coded.len();
-    (row.floor, row.floor_outside) = floor(&coded, a.rounds);
+    let mut row = explicit_row(a, scene, &reference, stream.len() as u64)?;
 
     let st = a.splat_transform.as_deref();
     let peer_files = peer_files(a, scene, ply, cache)?;
@@ -536,66 +502,4 @@ fn explicit_scene(
         row.bytes, row.one, row.two
     );
     Ok(row)
-}
-
-/// The peers' files of `scene` (SPZ, SOG), written once from the same PLY by splat-transform
-/// when it is given.
-fn peer_files(a: &Args, scene: &str, ply: &Path, cache: &Path) -> Res<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    if let Some(st) = a.splat_transform.as_deref() {
-        for format in ["spz", "sog"] {
-            let f = cache.join(format!("{scene}.{format}"));
-            if a.fresh || !f.exists() {
-                let mut c = st_command(st);
-                c.args(["-q", "-w"]);
-                if format == "sog" {
-                    c.args(["-g", "cpu"]);
-                }
-                run_timed(c.arg(ply).arg(&f))?;
-            }
-            files.push(f);
-        }
-    }
-    Ok(files)
-}
-
-/// Seconds of `salvq decode` to a PLY per round, and of the peers' commands: each peer file
-/// to a PLY, to nothing, and splat-transform's start-up (`--version`).
-fn command_times(
-    a: &Args,
-    salvq: &Path,
-    path: &Path,
-    work: &Path,
-    scene: &str,
-    peer_files: &[PathBuf],
-    n: usize,
-) -> Res<(Vec<f64>, [Vec<f64>; 5])> {
-    let out_ply = work.join(format!("{scene}.decoded.ply"));
-    let peer_ply = work.join(format!("{scene}.peer.ply"));
-    let (mut cmd, mut peers): (Vec<f64>, [Vec<f64>; 5]) = Default::default();
-    // The commands in rounds of their own: on this VM a 2-thread decode in process ran
-    // slower for a while after Node had run.
-    for _ in 0..a.rounds {
-        cmd.push(run_timed(
-            // Each round replaces the last one's PLY, as splat-transform's `-w` below.
-            Command::new(salvq)
-                .arg("decode")
-                .arg(path)
-                .arg("-o")
-                .arg(&out_ply)
-                .arg("--force"),
-        )?);
-        if let Some(st) = a.splat_transform.as_deref() {
-            for (i, f) in peer_files.iter().enumerate() {
-                peers[i].push(run_timed(
-                    st_command(st).args(["-q", "-w"]).arg(f).arg(&peer_ply),
-                )?);
-                let written = salvq_render::ply::read_ply_lenient(&std::fs::read(&peer_ply)?)?;
-                assert_eq!(written.len(), n, "{scene}: splat-transform's PLY holds N");
-                peers[2 + i].push(run_timed(st_command(st).arg("-q").arg(f).arg("null"))?);
-            }
-            peers[4].push(run_timed(st_command(st).arg("--version"))?);
-        }
-    }
-    Ok((cmd, peers))
 }

@@ -8,6 +8,18 @@ use super::{Args, Res, Row, GOAL_GAUSSIANS_PER_S};
 
 /// The text tables; `wake`: [`super::wake_latencies`], seconds.
 pub(crate) fn report(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String {
+    let mut t = speed_table(a, rows, wake);
+    let explicit: Vec<&Row> = rows.iter().filter(|r| r.profile == "explicit").collect();
+    t += &explicit_goal(&explicit);
+    t += &wasm_lines(rows);
+    t += &wasm_worker_lines(rows);
+    t += &command_table(&explicit);
+    t
+}
+
+/// The header (rounds, CPUs, pool wake-up latencies) and the table of decode times, one row a
+/// scene.
+fn speed_table(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String {
     let mut t = format!(
         "decode speed, medians of {} rounds (interleaved), {} logical CPUs{}\n",
         a.rounds,
@@ -45,7 +57,13 @@ pub(crate) fn report(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String
             r.two / r.receive()
         );
     }
-    let explicit: Vec<&Row> = rows.iter().filter(|r| r.profile == "explicit").collect();
+    t
+}
+
+/// The explicit profile's scenes against the goal of [`GOAL_GAUSSIANS_PER_S`] on 2 threads;
+/// empty without an explicit scene.
+fn explicit_goal(explicit: &[&Row]) -> String {
+    let mut t = String::new();
     if !explicit.is_empty() {
         t += "\nexplicit profile: goal >= 2 M Gaussians/s on 2 threads (after 50 ms idle; again: the same decoder at once, its threads awake; pinned: a pool whose threads are pinned one per CPU, after 50 ms idle as the first)\n";
         let verdict = |rate: f64| {
@@ -55,7 +73,7 @@ pub(crate) fn report(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String
                 "NOT met"
             }
         };
-        for r in &explicit {
+        for r in explicit {
             let (rate, again) = (r.size as f64 / r.two, r.size as f64 / r.two_again);
             let pinned = r.two_pinned.map_or("-".into(), |p| {
                 let rate = r.size as f64 / p;
@@ -72,6 +90,12 @@ pub(crate) fn report(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String
             );
         }
     }
+    t
+}
+
+/// The WebAssembly decode (one thread in Node) against the native one; empty without a wasm run.
+fn wasm_lines(rows: &[Row]) -> String {
+    let mut t = String::new();
     if rows.iter().any(|r| r.wasm.is_some()) {
         t += "\nWebAssembly (salvq-wasm `decode` in Node's V8, one thread, WebAssembly SIMD; median of the runs after the first)\n";
         for r in rows {
@@ -94,6 +118,12 @@ pub(crate) fn report(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String
             }
         }
     }
+    t
+}
+
+/// The WebAssembly decode split over Node worker threads (spec §10.3.2); empty without one.
+fn wasm_worker_lines(rows: &[Row]) -> String {
+    let mut t = String::new();
     if rows.iter().any(|r| r.wasm_workers.is_some()) {
         t += "\nWebAssembly in Node worker threads (salvq-wasm `decodePart`, spec §10.3.2: each worker its part of the tiles; from sending the bytes to the last part's arrays on the main thread)\n";
         for r in rows {
@@ -120,10 +150,17 @@ pub(crate) fn report(a: &Args, rows: &[Row], wake: (f64, Option<f64>)) -> String
             }
         }
     }
+    t
+}
+
+/// The whole-process table: `salvq decode` and splat-transform's conversions, wall clock;
+/// empty without a timed command.
+fn command_table(explicit: &[&Row]) -> String {
+    let mut t = String::new();
     if explicit.iter().any(|r| r.command.is_some()) {
         t += "\nwhole process (wall clock, output written; splat-transform runs in Node, its startup included)\n";
         t += "| scene | salvq decode -o out.ply | splat-transform SPZ -> PLY | SOG -> PLY | SPZ -> null | SOG -> null | splat-transform --version |\n|---|---:|---:|---:|---:|---:|---:|\n";
-        for r in &explicit {
+        for r in explicit {
             let p = |i: usize| r.peers.map_or("-".into(), |p| format!("{:.3} s", p[i]));
             t += &format!(
                 "| {} | {:.3} s | {} | {} | {} | {} | {} |\n",

@@ -294,8 +294,7 @@ pub fn walk_with<E: Events>(
                 child_direct.push(true);
                 continue;
             }
-            let (row, present) = (&nbr[pi].index, nbr[pi].present);
-            if present == 0 {
+            if nbr[pi].present == 0 {
                 // §8.2: an isolated node says whether it holds a single voxel; if so, that
                 // voxel's octant at every depth below follows at once.
                 let ctx = (d - k).min(DIRECT_CONTEXTS as u32) as usize - 1;
@@ -311,26 +310,7 @@ pub fn walk_with<E: Events>(
                     continue;
                 }
             }
-            // The occupancy bytes of the face neighbours −x, +x, −y, +y, −z, +z (0 where there
-            // is none or it is not walked yet: `bytes` is filled in walking order). They do
-            // not change while this node's children are decided.
-            let last = bytes.len() - 1;
-            let face = |slot: usize| {
-                let has = (present >> slot & 1) as u8;
-                bytes[(row[slot] as usize).min(last)] & 0u8.wrapping_sub(has)
-            };
-            let face_bytes = [
-                face(nb([-1, 0, 0])),
-                face(nb([1, 0, 0])),
-                face(nb([0, -1, 0])),
-                face(nb([0, 1, 0])),
-                face(nb([0, 0, -1])),
-                face(nb([0, 0, 1])),
-            ];
-            // §8.3's `kf` of every child, 4 bits each (at most 3 + 3): first the neighbours
-            // across the node's faces, then, as children are decided, the siblings.
-            let face_counts = face_neighbour_counts(face_bytes);
-            let side_counts = side_neighbour_counts(present);
+            let (side_counts, face_counts) = neighbour_counts(&nbr[pi], bytes);
             let node = NodeContext {
                 depth: k,
                 cell: p,
@@ -340,19 +320,7 @@ pub fn walk_with<E: Events>(
                 anchors,
             };
             let byte = occupancy_byte(events, &mut occ, node)?;
-            // Every child's cell written, the occupied ones kept: no branch per child. All
-            // eight are appended and the rest cut off again, so that the copy has a constant
-            // size (a variable one is a call to `memcpy`).
-            let (mut cells, mut occupied) = ([[0u32; 3]; 8], 0usize);
-            for i in 0..8 {
-                cells[occupied & 7] = child_cell(p, i);
-                occupied += usize::from(byte >> i & 1);
-            }
-            let before = children.len();
-            children.extend_from_slice(&cells);
-            children.truncate(before + occupied);
-            child_direct.extend_from_slice(&[false; 8]);
-            child_direct.truncate(before + occupied);
+            push_children(children, child_direct, p, byte);
             bytes[pi] = byte;
         }
         if k + 1 < d {
@@ -363,6 +331,58 @@ pub fn walk_with<E: Events>(
         std::mem::swap(direct, child_direct);
     }
     leaf_counts(nodes, depth, anchors, precision, events)
+}
+
+/// §8.3's `kf` of every child of a node with neighbours `nbr`, 4 bits each, as (side,
+/// face) counts.
+#[inline(always)]
+fn neighbour_counts(nbr: &Neighbours, bytes: &[u8]) -> (u32, u32) {
+    let (row, present) = (&nbr.index, nbr.present);
+    // The occupancy bytes of the face neighbours −x, +x, −y, +y, −z, +z (0 where there
+    // is none or it is not walked yet: `bytes` is filled in walking order). They do
+    // not change while this node's children are decided.
+    let last = bytes.len() - 1;
+    let face = |slot: usize| {
+        let has = (present >> slot & 1) as u8;
+        bytes[(row[slot] as usize).min(last)] & 0u8.wrapping_sub(has)
+    };
+    let face_bytes = [
+        face(nb([-1, 0, 0])),
+        face(nb([1, 0, 0])),
+        face(nb([0, -1, 0])),
+        face(nb([0, 1, 0])),
+        face(nb([0, 0, -1])),
+        face(nb([0, 0, 1])),
+    ];
+    // §8.3's `kf` of every child, 4 bits each (at most 3 + 3): first the neighbours
+    // across the node's faces, then, as children are decided, the siblings.
+    let face_counts = face_neighbour_counts(face_bytes);
+    let side_counts = side_neighbour_counts(present);
+    (side_counts, face_counts)
+}
+
+/// Appends the children that `byte` marks occupied to the next depth's nodes.
+///
+/// Every child's cell written, the occupied ones kept: no branch per child. All eight are
+/// appended and the rest cut off again, so that the copy has a constant size (a variable
+/// one is a call to `memcpy`).
+#[inline(always)]
+fn push_children(
+    children: &mut Vec<[u32; 3]>,
+    child_direct: &mut Vec<bool>,
+    p: [u32; 3],
+    byte: u8,
+) {
+    let (mut cells, mut occupied) = ([[0u32; 3]; 8], 0usize);
+    for i in 0..8 {
+        cells[occupied & 7] = child_cell(p, i);
+        occupied += usize::from(byte >> i & 1);
+    }
+    let before = children.len();
+    children.extend_from_slice(&cells);
+    children.truncate(before + occupied);
+    child_direct.extend_from_slice(&[false; 8]);
+    child_direct.truncate(before + occupied);
 }
 
 /// §8.4: how many anchors each leaf voxel holds (1 + the count's unary events), the voxels

@@ -7,13 +7,15 @@ use salvq_encoder::EncodeOptions;
 
 /// `HEAD` (§1.4) and the selected rate (§1.5).
 pub(super) fn head_vectors(base: &[u8]) -> Vec<MustFailVector> {
-    let rate1 = encode(
-        &small_scene(13, false),
-        &EncodeOptions {
-            rates: vec![1],
-            ..Default::default()
-        },
-    );
+    let mut out = head_field_vectors(base);
+    out.extend(head_limit_vectors(base));
+    out.extend(rate_vectors(base));
+    out
+}
+
+/// `HEAD`'s payload and fields (§1.4): its length, reserved bits, ranges, and the values its
+/// dimensions imply.
+fn head_field_vectors(base: &[u8]) -> Vec<MustFailVector> {
     vec![
         vector(
             "x-truncated-head",
@@ -71,6 +73,12 @@ pub(super) fn head_vectors(base: &[u8]) -> Vec<MustFailVector> {
             "HEAD decoded_bytes one more than the size the dimensions imply",
             edit_head(base, |h| h.decoded_bytes += 1),
         ),
+    ]
+}
+
+/// `HEAD` fields (§1.4) within their ranges but above the decoder's limits (§9.1).
+fn head_limit_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    vec![
         vector(
             "x-limit-anchors",
             "LimitExceeded",
@@ -92,6 +100,19 @@ pub(super) fn head_vectors(base: &[u8]) -> Vec<MustFailVector> {
                 h.decoded_bytes = decoded_bytes(&h.dims);
             }),
         ),
+    ]
+}
+
+/// The rate selection (§1.5): a rate beyond the stream's, and one it does not code.
+fn rate_vectors(base: &[u8]) -> Vec<MustFailVector> {
+    let rate1 = encode(
+        &small_scene(13, false),
+        &EncodeOptions {
+            rates: vec![1],
+            ..Default::default()
+        },
+    );
+    vec![
         MustFailVector {
             rate: 2,
             ..vector(

@@ -7,8 +7,8 @@ use super::curves::{self, Effort};
 use super::layer;
 use super::plan::{RatePlan, SizeClasses};
 use super::prepare::PreparedGaussians;
-use super::sample::{spatial_sample, SAMPLE_GAUSSIANS};
-use super::{fit_groups, ratios, RateControl};
+use super::sample::{spatial_sample, Sample, SAMPLE_GAUSSIANS};
+use super::{fit_groups, ratios, RateControl, Variant};
 use crate::error::{Error, Result};
 use crate::writers::write_gqua;
 use salvq_bitstream::entropy::GaussianTables;
@@ -52,6 +52,9 @@ fn landing_tries(effort: Effort) -> u64 {
         Effort::Best => 1 + CORRECTIONS as u64,
     }
 }
+
+/// Each part's measured curve, as [`curves::measure_curves`] gives them.
+type PartCurves = Vec<(ratios::Part, ratios::Curve)>;
 
 /// Work units of a whole encode of `p` under `options` ([`Progress::total`]).
 pub fn work_units(p: &PreparedGaussians, options: &super::ExplicitOptions) -> u64 {
@@ -191,59 +194,19 @@ pub fn rate_plans(
         0
     };
     let classes = SizeClasses::for_variant(p, variant);
-    let curve_target = RingTarget::new(
-        g,
-        ratios::CURVE_VIEWS,
-        ratios::CURVE_WIDTH,
-        ratios::CURVE_HEIGHT,
-    )?;
-    let parts = ratios::parts(p).len();
-    let sample = spatial_sample(g, p, SAMPLE_GAUSSIANS);
-    let curves = curves::measure_curves(
-        g,
-        p,
-        sample.as_ref(),
-        &classes,
-        variant,
-        effort,
-        &curve_target,
-        &|number, what, units| {
-            say(
-                &format!("measuring what precision costs, part {number} of {parts}: {what}"),
-                done + units,
-            )
-        },
-    )?;
+    let (sample, curves) = measure_part_curves(g, p, &classes, options, &|step, units| {
+        say(step, done + units)
+    })?;
     done += curves::curve_units(p, effort);
     if quality.is_none() {
         // No render at the yardstick: the ceiling is the curves' finest points, summed.
-        let finest: f64 = curves
-            .iter()
-            .filter_map(|(_, c)| c.last())
-            .map(|t| t.1)
-            .sum();
-        check_ceiling(targets, -10.0 * finest.max(1e-30).log10())?;
+        check_ceiling(targets, curves_ceiling_db(&curves))?;
     }
-    // Each rate: allocate for the target, render what the decoder will output, and
-    // correct the allocation's target by the error it missed by (the parts' errors do not
-    // add up exactly, and the curves were found at another size).
-    let code_in = |p: &PreparedGaussians, groups: &[Group], plan: &RatePlan| {
-        let classes = SizeClasses::for_variant(p, variant);
-        let origin = p.min.map(|v| v as f32);
-        let tables = GaussianTables::standard();
-        layer::encode_layer(p, groups, &classes, plan, origin, 0, 0, variant, tables)
-    };
     let klt = match klt {
         Some(k) => k.to_vec(),
         None => {
             say("choosing a KLT basis for the colours", done);
-            // On the middle target's allocation, coded on the sample of a large scene.
-            let middle = targets[targets.len() / 2];
-            let plan = ratios::allocate(p, &curves, 10f64.powf(-middle / 10.0));
-            let on = sample.as_ref().map_or(p, |s| &s.prepared);
-            choose_klt(on, std::slice::from_ref(&plan), &|groups: &[Group]| {
-                Ok(write_gqua(groups).len() + code_in(on, groups, &plan)?.chunks.len())
-            })?
+            choose_klt_at_middle(p, &curves, targets, sample.as_ref(), variant)?
         }
     };
     done += KLT_UNITS;
@@ -255,11 +218,14 @@ pub fn rate_plans(
         Ok(match effort {
             Effort::Best => {
                 let groups = fit_groups(p, std::slice::from_ref(plan), &klt);
-                code_in(p, &groups, plan)?.expected
+                code_trial(p, &groups, plan, variant)?.expected
             }
             _ => ratios::plan_output(g, p, &quantizers, &classes.thresholds, plan),
         })
     };
+    // Each rate: allocate for the target, render what the decoder will output, and
+    // correct the allocation's target by the error it missed by (the parts' errors do not
+    // add up exactly, and the curves were found at another size).
     let mut out: Vec<RatePlan> = Vec::with_capacity(targets.len());
     for (r, &db) in targets.iter().enumerate() {
         let step = format!(
@@ -285,6 +251,84 @@ pub fn rate_plans(
         out.push(plan);
     }
     Ok((out, Some(klt)))
+}
+
+/// The sample of a large scene (Annex A.8.2) and the parts' curves measured on it (or on the
+/// whole scene) at the curves' size; `report` gets each step and its units done so far.
+fn measure_part_curves(
+    g: &Gaussians,
+    p: &PreparedGaussians,
+    classes: &SizeClasses,
+    options: &super::ExplicitOptions,
+    report: &dyn Fn(&str, u64),
+) -> Result<(Option<Sample>, PartCurves)> {
+    let curve_target = RingTarget::new(
+        g,
+        ratios::CURVE_VIEWS,
+        ratios::CURVE_WIDTH,
+        ratios::CURVE_HEIGHT,
+    )?;
+    let parts = ratios::parts(p).len();
+    let sample = spatial_sample(g, p, SAMPLE_GAUSSIANS);
+    let curves = curves::measure_curves(
+        g,
+        p,
+        sample.as_ref(),
+        classes,
+        options.variant,
+        options.effort,
+        &curve_target,
+        &|number, what, units| {
+            report(
+                &format!("measuring what precision costs, part {number} of {parts}: {what}"),
+                units,
+            )
+        },
+    )?;
+    Ok((sample, curves))
+}
+
+/// The render PSNR (dB) of the curves' finest points, their MSEs summed: the ceiling when
+/// nothing renders at the yardstick.
+fn curves_ceiling_db(curves: &[(ratios::Part, ratios::Curve)]) -> f64 {
+    let finest: f64 = curves
+        .iter()
+        .filter_map(|(_, c)| c.last())
+        .map(|t| t.1)
+        .sum();
+    -10.0 * finest.max(1e-30).log10()
+}
+
+/// `plan`'s layer of `p` coded with the quantizers `groups` (rate 0, automatic tiles): what a
+/// trial measures.
+fn code_trial(
+    p: &PreparedGaussians,
+    groups: &[Group],
+    plan: &RatePlan,
+    variant: Variant,
+) -> Result<layer::CodedLayer> {
+    let classes = SizeClasses::for_variant(p, variant);
+    let origin = p.min.map(|v| v as f32);
+    let tables = GaussianTables::standard();
+    layer::encode_layer(p, groups, &classes, plan, origin, 0, 0, variant, tables)
+}
+
+/// The groups with a KLT basis ([`choose_klt`]), chosen on the middle target's allocation,
+/// coded on `sample` of a large scene: so every rate is fitted with the quantizers it will be
+/// coded with.
+fn choose_klt_at_middle(
+    p: &PreparedGaussians,
+    curves: &[(ratios::Part, ratios::Curve)],
+    targets: &[f64],
+    sample: Option<&Sample>,
+    variant: Variant,
+) -> Result<Vec<bool>> {
+    let middle = targets[targets.len() / 2];
+    let plan = ratios::allocate(p, curves, 10f64.powf(-middle / 10.0));
+    let on = sample.map_or(p, |s| &s.prepared);
+    choose_klt(on, std::slice::from_ref(&plan), &|groups: &[Group]| {
+        Ok(write_gqua(groups).len() + code_trial(on, groups, &plan, variant)?.chunks.len())
+    })
 }
 
 /// The plan of the rate whose target is `db` (nested in `finer` if given): allocated on the

@@ -271,28 +271,7 @@ pub fn encode_prepared(
         .coded
         .clone()
         .unwrap_or_else(|| (0..m as u8).collect());
-    if m == 0 || m > 64 || coded.is_empty() {
-        return Err(Error::FitFailed {
-            tensor: "rates",
-            reason: format!(
-                "1 … 64 rates with at least one coded, not {m} with {} coded",
-                coded.len()
-            ),
-        });
-    }
-    let mut rate_mask = 0u64;
-    for &r in &coded {
-        if usize::from(r) >= m {
-            return Err(salvq::Error::FieldOutOfRange {
-                field: salvq_bitstream::error::Field::CodedRate,
-                value: r.into(),
-                min: 0,
-                max: m as u64 - 1,
-            }
-            .into());
-        }
-        rate_mask |= 1 << r;
-    }
+    let rate_mask = rate_mask(m, &coded)?;
     let tables = GaussianTables::standard();
     let origin = p.min.map(|v| v as f32);
     let header = GaussianHeader {
@@ -317,20 +296,7 @@ pub fn encode_prepared(
             tables,
         )
     };
-    // A KLT is kept where it makes the middle rate's layer (and its basis) smaller, so the
-    // choice does not depend on which rates are coded (extraction, §7.5).
-    let klt = match &options.klt {
-        Some(k) if k.len() == p.kinds.len() => k.clone(),
-        Some(k) => {
-            return Err(Error::FitFailed {
-                tensor: "klt",
-                reason: format!("one choice per group ({}), not {}", p.kinds.len(), k.len()),
-            })
-        }
-        None => choose_klt(p, plans, &|groups: &[Group]| {
-            Ok(write_gqua(groups).len() + code_layer(groups, (m / 2) as u8)?.chunks.len())
-        })?,
-    };
+    let klt = klt_choice(p, plans, options.klt.as_deref(), &code_layer)?;
     let groups = fit_groups(p, plans, &klt);
     let mut stream = Signature::current().to_bytes().to_vec();
     write_chunk(&mut stream, ChunkTag::GHED, &header.to_payload());
@@ -365,6 +331,60 @@ pub fn encode_prepared(
         groups,
         shared_bytes,
         layers,
+    })
+}
+
+/// The header's `rate_mask` (§3.2 Table 3-1) of the `coded` rates among `m`, after checking
+/// that there are 1 … 64 rates, at least one coded, and each coded rate below `m`.
+fn rate_mask(m: usize, coded: &[u8]) -> Result<u64> {
+    if m == 0 || m > 64 || coded.is_empty() {
+        return Err(Error::FitFailed {
+            tensor: "rates",
+            reason: format!(
+                "1 … 64 rates with at least one coded, not {m} with {} coded",
+                coded.len()
+            ),
+        });
+    }
+    let mut rate_mask = 0u64;
+    for &r in coded {
+        if usize::from(r) >= m {
+            return Err(salvq::Error::FieldOutOfRange {
+                field: salvq_bitstream::error::Field::CodedRate,
+                value: r.into(),
+                min: 0,
+                max: m as u64 - 1,
+            }
+            .into());
+        }
+        rate_mask |= 1 << r;
+    }
+    Ok(rate_mask)
+}
+
+/// Which groups get a KLT basis: `given` (one choice per group), or those whose KLT makes the
+/// middle rate's layer, coded by `code_layer`, and its basis smaller, so that the choice does
+/// not depend on which rates are coded (extraction, §7.5).
+fn klt_choice(
+    p: &PreparedGaussians,
+    plans: &[RatePlan],
+    given: Option<&[bool]>,
+    code_layer: &dyn Fn(&[Group], u8) -> Result<layer::CodedLayer>,
+) -> Result<Vec<bool>> {
+    Ok(match given {
+        Some(k) if k.len() == p.kinds.len() => k.to_vec(),
+        Some(k) => {
+            return Err(Error::FitFailed {
+                tensor: "klt",
+                reason: format!("one choice per group ({}), not {}", p.kinds.len(), k.len()),
+            })
+        }
+        None => {
+            choose_klt(p, plans, &|groups: &[Group]| {
+                Ok(write_gqua(groups).len()
+                    + code_layer(groups, (plans.len() / 2) as u8)?.chunks.len())
+            })?
+        }
     })
 }
 

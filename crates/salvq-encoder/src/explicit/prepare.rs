@@ -54,14 +54,6 @@ impl PreparedGaussians {
                 hint: "a stream holds 1 … 2^32 − 1 of them",
             });
         }
-        let b = g.rest_per_channel();
-        let bad = |vertex: usize, property: String| -> Error {
-            salvq_render::Error::PlyValueNotFinite {
-                vertex: vertex as u64,
-                property,
-            }
-            .into()
-        };
         let kinds = GroupKind::present(g.sh_degree);
         let mut values: Vec<Vec<f64>> = kinds
             .iter()
@@ -74,70 +66,13 @@ impl PreparedGaussians {
             let p = g.positions[i];
             for a in 0..3 {
                 if !p[a].is_finite() {
-                    return Err(bad(i, ["x", "y", "z"][a].into()));
+                    return Err(not_finite(i, ["x", "y", "z"][a].into()));
                 }
                 min[a] = min[a].min(f64::from(p[a]));
                 max[a] = max[a].max(f64::from(p[a]));
             }
-            for (gi, kind) in kinds.iter().enumerate() {
-                let out = &mut values[gi];
-                match kind {
-                    GroupKind::Opacity => {
-                        let o = g.opacity_logit[i];
-                        if o.is_nan() {
-                            return Err(bad(i, "opacity".into()));
-                        }
-                        let o = f64::from(o).clamp(-OPACITY_LOGIT_LIMIT, OPACITY_LOGIT_LIMIT);
-                        out.push(o);
-                    }
-                    GroupKind::Scale => {
-                        for a in 0..3 {
-                            let s = g.log_scales[i][a];
-                            if !s.is_finite() {
-                                return Err(bad(i, format!("scale_{a}")));
-                            }
-                            out.push(f64::from(s));
-                        }
-                    }
-                    GroupKind::Rotation => {
-                        let q = g.rotations[i].map(f64::from);
-                        let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-                        if !norm.is_finite() || norm == 0.0 {
-                            return Err(bad(i, "rot_0".into()));
-                        }
-                        let mut largest = 0;
-                        for c in 1..4 {
-                            if q[c].abs() > q[largest].abs() {
-                                largest = c;
-                            }
-                        }
-                        let sign = if q[largest] < 0.0 { -1.0 } else { 1.0 };
-                        for (c, v) in q.iter().enumerate() {
-                            if c != largest {
-                                out.push(sign * v / norm);
-                            }
-                        }
-                        rotation_index.push(largest as u8);
-                    }
-                    GroupKind::Dc => {
-                        for c in 0..3 {
-                            let v = g.f_dc[i][c];
-                            if !v.is_finite() {
-                                return Err(bad(i, format!("f_dc_{c}")));
-                            }
-                            out.push(f64::from(v));
-                        }
-                    }
-                    GroupKind::Rest => {
-                        for k in 0..3 * b {
-                            let v = g.f_rest[i * 3 * b + k];
-                            if !v.is_finite() {
-                                return Err(bad(i, format!("f_rest_{k}")));
-                            }
-                            out.push(f64::from(v));
-                        }
-                    }
-                }
+            for (gi, &kind) in kinds.iter().enumerate() {
+                push_values(g, i, kind, &mut values[gi], &mut rotation_index)?;
             }
         }
         let extent = (0..3).map(|a| max[a] - min[a]).fold(0.0, f64::max);
@@ -176,6 +111,96 @@ impl PreparedGaussians {
             extent: self.extent,
         }
     }
+}
+
+/// The error for Gaussian `vertex`'s `property` that is not finite (Annex A.8.1).
+fn not_finite(vertex: usize, property: String) -> Error {
+    salvq_render::Error::PlyValueNotFinite {
+        vertex: vertex as u64,
+        property,
+    }
+    .into()
+}
+
+/// Appends Gaussian `i`'s values of group `kind` to `out` in coding form (Annex A.8.1),
+/// checking each is finite (opacity: not NaN, then clamped); a rotation also appends its
+/// largest component's index to `rotation_index`.
+fn push_values(
+    g: &Gaussians,
+    i: usize,
+    kind: GroupKind,
+    out: &mut Vec<f64>,
+    rotation_index: &mut Vec<u8>,
+) -> Result<()> {
+    match kind {
+        GroupKind::Opacity => {
+            let o = g.opacity_logit[i];
+            if o.is_nan() {
+                return Err(not_finite(i, "opacity".into()));
+            }
+            let o = f64::from(o).clamp(-OPACITY_LOGIT_LIMIT, OPACITY_LOGIT_LIMIT);
+            out.push(o);
+        }
+        GroupKind::Scale => {
+            for a in 0..3 {
+                let s = g.log_scales[i][a];
+                if !s.is_finite() {
+                    return Err(not_finite(i, format!("scale_{a}")));
+                }
+                out.push(f64::from(s));
+            }
+        }
+        GroupKind::Rotation => {
+            let q = g.rotations[i].map(f64::from);
+            let Some(largest) = push_smallest_three(q, out) else {
+                return Err(not_finite(i, "rot_0".into()));
+            };
+            rotation_index.push(largest);
+        }
+        GroupKind::Dc => {
+            for c in 0..3 {
+                let v = g.f_dc[i][c];
+                if !v.is_finite() {
+                    return Err(not_finite(i, format!("f_dc_{c}")));
+                }
+                out.push(f64::from(v));
+            }
+        }
+        GroupKind::Rest => {
+            let b = g.rest_per_channel();
+            for k in 0..3 * b {
+                let v = g.f_rest[i * 3 * b + k];
+                if !v.is_finite() {
+                    return Err(not_finite(i, format!("f_rest_{k}")));
+                }
+                out.push(f64::from(v));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Appends quaternion `q`, normalised, as its three smallest components with the largest made
+/// positive (§3.6, Annex A.8.1), and returns the largest's index; `None` (nothing appended)
+/// when its length is zero or not finite.
+fn push_smallest_three(q: [f64; 4], out: &mut Vec<f64>) -> Option<u8> {
+    let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !norm.is_finite() || norm == 0.0 {
+        return None;
+    }
+    let mut largest = 0;
+    for c in 1..4 {
+        if q[c].abs() > q[largest].abs() {
+            largest = c;
+        }
+    }
+    let sign = if q[largest] < 0.0 { -1.0 } else { 1.0 };
+    for (c, v) in q.iter().enumerate() {
+        if c != largest {
+            out.push(sign * v / norm);
+        }
+    }
+    Some(largest as u8)
 }
 
 /// Values the encoder changes on input (Annex A.8.1), one entry per property and kind of

@@ -11,7 +11,7 @@ use salvq_bitstream::container::chunk::{ChunkReader, ChunkTag};
 use salvq_bitstream::container::signature::{Signature, SIGNATURE_LEN};
 use salvq_bitstream::entropy::{wide_scale, GaussianTables, SCALE_COUNT, SCALE_INDEX_COUNT};
 use salvq_bitstream::explicit::attributes::{rest_count_of, walk, BitEvent, Events, TileSymbols};
-use salvq_bitstream::explicit::refinement::refine_walk;
+use salvq_bitstream::explicit::refinement::{refine_walk, Refinement};
 use salvq_bitstream::explicit::GroupKind;
 use salvq_bitstream::limits::Limits;
 
@@ -191,23 +191,8 @@ impl Events for Cost<'_> {
 /// Inspects an explicit-profile stream: every coded layer is decoded and its events costed.
 pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
     let (sig, rest) = Signature::parse(data)?;
-    // Section sizes: shared until the first GLAY, then one per layer.
-    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
-    let mut sections: Vec<u64> = vec![0];
-    while let Some(c) = reader.next_chunk()? {
-        if matches!(c.tag, ChunkTag::GLAY | ChunkTag::GREF) {
-            sections.push(0);
-        }
-        if c.tag != ChunkTag::SEND {
-            *sections.last_mut().unwrap_or(&mut 0) += c.payload.len() as u64 + 12;
-        }
-    }
-    let first = salvq::Decoder::builder()
-        .limits(*limits)
-        .rate(None)
-        .build()
-        .decode(data)
-        .and_then(salvq::Scene::try_into_gaussians)?;
+    let sections = section_bytes(rest, limits)?;
+    let first = decode_rate(data, limits, None)?;
     let h = first.header.clone();
     let tables = GaussianTables::standard();
     let n = f64::from(h.count.max(1));
@@ -218,46 +203,15 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
         let d = if rate == first.rate {
             first.clone()
         } else {
-            salvq::Decoder::builder()
-                .limits(*limits)
-                .rate(Some(rate))
-                .build()
-                .decode(data)
-                .and_then(salvq::Scene::try_into_gaussians)?
+            decode_rate(data, limits, Some(rate))?
         };
-        let values: usize = d.groups.iter().map(|g| g.dim).sum();
         let group_of = group_of(&d);
         let mut cost = Cost::new(&d, &group_of, tables);
         let refinement = before
             .as_ref()
             .filter(|_| h.progressive)
             .zip(d.refinements.last());
-        for t in 0..d.tiles.len() {
-            let range = d.tiles.range(t);
-            cost.coords = &d.symbols.coords[range.start * values..range.end * values];
-            let voxels = &d.voxels[range.clone()];
-            if let Some((b, r)) = refinement {
-                // §3.8.2: the tile's symbols before the refinement, refined in place.
-                let mut tile = TileSymbols {
-                    coords: b.symbols.coords[range.start * values..range.end * values].to_vec(),
-                    rotation_index: b.symbols.rotation_index[range.clone()].to_vec(),
-                    size_class: b.symbols.size_class[range.clone()].to_vec(),
-                    refinement: b.symbols.refinement[range.clone()].to_vec(),
-                };
-                refine_walk(r, &d.groups, voxels, &mut cost, &mut tile.as_mut())?;
-                continue;
-            }
-            walk(&d.layer, &d.groups, voxels, &mut cost)?;
-            // The rotation index: two binary events per Gaussian at the layer's frequencies.
-            for &r in &d.symbols.rotation_index[range] {
-                let f = d.layer.rotation_freq;
-                let high = r >> 1;
-                let p_high = f64::from(f[0]) / 65536.0;
-                let p_low = f64::from(f[1 + usize::from(high)]) / 65536.0;
-                let b = |p: f64, one: bool| -(if one { p } else { 1.0 - p }).log2();
-                cost.bits[cost.rotation_group] += b(p_high, high == 1) + b(p_low, r & 1 == 1);
-            }
-        }
+        cost_tiles(&d, refinement, &mut cost)?;
         let layer_bytes = sections.get(li + 1).copied().unwrap_or(0);
         // A progressive rate is read as the stream's prefix up to its layer.
         let read: u64 = match h.progressive {
@@ -286,20 +240,7 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
                 .zip(&cost.bits)
                 .map(|(g, b)| (g.kind.name().to_string(), b / n))
                 .collect(),
-            saturation: d
-                .groups
-                .iter()
-                .zip(&cost.counts)
-                .map(|(g, &[values, wide, widest, escaped])| {
-                    let share = |c: u64| c as f64 / values.max(1) as f64;
-                    GroupSaturation {
-                        group: g.kind.name().to_string(),
-                        wide_scale: share(wide),
-                        widest_scale: share(widest),
-                        escaped: share(escaped),
-                    }
-                })
-                .collect(),
+            saturation: saturation(&d, &cost.counts),
         });
         before = Some(d);
     }
@@ -321,6 +262,87 @@ pub fn inspect_explicit(data: &[u8], limits: &Limits) -> Result<ExplicitInfo> {
             .collect(),
         layers,
     })
+}
+
+/// Framed bytes of each section of the chunks after the signature (`rest`): the shared
+/// chunks until the first `GLAY` (or `GREF`), then one per layer (§3.7); `SEND` is in none.
+fn section_bytes(rest: &[u8], limits: &Limits) -> Result<Vec<u64>> {
+    let mut reader = ChunkReader::new(rest, SIGNATURE_LEN as u64, limits);
+    let mut sections: Vec<u64> = vec![0];
+    while let Some(c) = reader.next_chunk()? {
+        if matches!(c.tag, ChunkTag::GLAY | ChunkTag::GREF) {
+            sections.push(0);
+        }
+        if c.tag != ChunkTag::SEND {
+            *sections.last_mut().unwrap_or(&mut 0) += c.payload.len() as u64 + 12;
+        }
+    }
+    Ok(sections)
+}
+
+/// The stream decoded at `rate` (`None`: the decoder's default rate) as explicit Gaussians.
+fn decode_rate(data: &[u8], limits: &Limits, rate: Option<u8>) -> Result<DecodedGaussians> {
+    Ok(salvq::Decoder::builder()
+        .limits(*limits)
+        .rate(rate)
+        .build()
+        .decode(data)
+        .and_then(salvq::Scene::try_into_gaussians)?)
+}
+
+/// Costs every tile of layer `d` into `cost`: its `GATT` walk and rotation indices (§3.5), or,
+/// for a refinement, its walk over the tile's symbols of the layer `before` it (§3.8.2).
+fn cost_tiles<'a>(
+    d: &'a DecodedGaussians,
+    refinement: Option<(&DecodedGaussians, &Refinement)>,
+    cost: &mut Cost<'a>,
+) -> Result<()> {
+    let values: usize = d.groups.iter().map(|g| g.dim).sum();
+    for t in 0..d.tiles.len() {
+        let range = d.tiles.range(t);
+        cost.coords = &d.symbols.coords[range.start * values..range.end * values];
+        let voxels = &d.voxels[range.clone()];
+        if let Some((b, r)) = refinement {
+            // §3.8.2: the tile's symbols before the refinement, refined in place.
+            let mut tile = TileSymbols {
+                coords: b.symbols.coords[range.start * values..range.end * values].to_vec(),
+                rotation_index: b.symbols.rotation_index[range.clone()].to_vec(),
+                size_class: b.symbols.size_class[range.clone()].to_vec(),
+                refinement: b.symbols.refinement[range.clone()].to_vec(),
+            };
+            refine_walk(r, &d.groups, voxels, cost, &mut tile.as_mut())?;
+            continue;
+        }
+        walk(&d.layer, &d.groups, voxels, cost)?;
+        // The rotation index: two binary events per Gaussian at the layer's frequencies.
+        for &r in &d.symbols.rotation_index[range] {
+            let f = d.layer.rotation_freq;
+            let high = r >> 1;
+            let p_high = f64::from(f[0]) / 65536.0;
+            let p_low = f64::from(f[1 + usize::from(high)]) / 65536.0;
+            let b = |p: f64, one: bool| -(if one { p } else { 1.0 - p }).log2();
+            cost.bits[cost.rotation_group] += b(p_high, high == 1) + b(p_low, r & 1 == 1);
+        }
+    }
+    Ok(())
+}
+
+/// Per group of `d`, the shares of its coded values at a wide scale, at the widest and escaped,
+/// from the per-group `counts` of [`Cost`].
+fn saturation(d: &DecodedGaussians, counts: &[[u64; 4]]) -> Vec<GroupSaturation> {
+    d.groups
+        .iter()
+        .zip(counts)
+        .map(|(g, &[values, wide, widest, escaped])| {
+            let share = |c: u64| c as f64 / values.max(1) as f64;
+            GroupSaturation {
+                group: g.kind.name().to_string(),
+                wide_scale: share(wide),
+                widest_scale: share(widest),
+                escaped: share(escaped),
+            }
+        })
+        .collect()
 }
 
 /// Payload bytes of layer `li`'s `APOS`.
@@ -369,11 +391,6 @@ impl ExplicitInfo {
         if !klt.is_empty() {
             let _ = writeln!(s, "KLT basis (lattice 4): {}", klt.join(", "));
         }
-        let names: Vec<&str> = self
-            .layers
-            .first()
-            .map(|l| l.group_bits.iter().map(|g| g.0.as_str()).collect())
-            .unwrap_or_default();
         if self.progressive {
             let _ = writeln!(
                 s,
@@ -382,6 +399,19 @@ impl ExplicitInfo {
                  its bits/Gaussian those of its own layer"
             );
         }
+        self.write_layers(&mut s);
+        self.write_saturation(&mut s);
+        s
+    }
+
+    /// The report's table of layers: per rate its bytes and its bits per Gaussian by part.
+    fn write_layers(&self, s: &mut String) {
+        use std::fmt::Write;
+        let names: Vec<&str> = self
+            .layers
+            .first()
+            .map(|l| l.group_bits.iter().map(|g| g.0.as_str()).collect())
+            .unwrap_or_default();
         let bytes_head = if self.progressive {
             "bytes to rate  ends at"
         } else {
@@ -412,7 +442,12 @@ impl ExplicitInfo {
                 g.join(" ")
             );
         }
-        // Where a group's values need wide scales or overrun them (§6.3.6, §6.4).
+    }
+
+    /// The report's lines on the groups whose values need wide scales or overrun them
+    /// (§6.3.6, §6.4).
+    fn write_saturation(&self, s: &mut String) {
+        use std::fmt::Write;
         for l in &self.layers {
             let over: Vec<String> = l
                 .saturation
@@ -440,7 +475,6 @@ impl ExplicitInfo {
                 );
             }
         }
-        s
     }
 }
 

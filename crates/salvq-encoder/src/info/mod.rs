@@ -206,8 +206,7 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     let mut preflight = None;
     let mut encoder = Vec::new();
     let mut tiles = None;
-    let mut scaffold_value_bytes = None;
-    let mut context_weight_bytes = 2;
+    let (mut context_weight_bytes, mut scaffold_value_bytes) = (2, 4);
     let (mut model, mut anchor, mut other) = (0u64, 0u64, SIGNATURE_LEN as u64);
     while let Some(c) = reader.next_chunk()? {
         if c.tag == ChunkTag::HEAD && head.is_none() {
@@ -219,28 +218,10 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
             encoder.extend(serde_json::from_slice::<EncodeReport>(c.payload).ok());
         }
         if let (ChunkTag::MLPS, Some(p)) = (c.tag, &preflight) {
-            // §1.6.2: `context_precision` follows the method byte; `scaffold_precision` the
-            // context MLP.
-            let context = match c.payload.get(1) {
-                Some(1) => salvq_bitstream::container::payload::ContextPrecision::I8,
-                _ => salvq_bitstream::container::payload::ContextPrecision::I16,
-            };
-            context_weight_bytes = context.bytes();
-            let at = 1 + salvq_bitstream::container::payload::context_bytes(&p.dims, context);
-            scaffold_value_bytes = match c.payload.get(at as usize) {
-                Some(1) => Some(2),
-                _ => Some(4),
-            };
+            (context_weight_bytes, scaffold_value_bytes) = mlps_precisions(c.payload, p);
         }
         if let (ChunkTag::TILS, Some(p)) = (c.tag, &preflight) {
-            let t =
-                salvq_bitstream::tiles::TileTable::parse(c.payload, p.dims.anchors, p.coord_bits)?;
-            let counts = (0..t.len()).map(|i| t.count(i));
-            tiles = Some(TilesInfo {
-                count: t.len() as u64,
-                min_anchors: counts.clone().min().unwrap_or(0),
-                max_anchors: counts.max().unwrap_or(0),
-            });
+            tiles = Some(tiles_info(c.payload, p)?);
         }
         let total = c.payload.len() as u64 + CHUNK_OVERHEAD;
         let class = byte_class(c.tag);
@@ -269,47 +250,10 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
     };
     let model_parts = preflight
         .as_ref()
-        .map(|p| {
-            model_parts(
-                p,
-                bytes_of,
-                scaffold_value_bytes.unwrap_or(4),
-                context_weight_bytes,
-            )
-        })
+        .map(|p| model_parts(p, bytes_of, scaffold_value_bytes, context_weight_bytes))
         .unwrap_or_default();
-    // §7.4: the layer chunks repeat AFEA ASCL AOFF once per coded rate, rates ascending.
     let rates = head.as_ref().map_or(Vec::new(), |h| h.coded_rates.clone());
-    let layer_chunks: Vec<&ChunkInfo> = chunks
-        .iter()
-        .filter(|c| ["AFEA", "ASCL", "AOFF"].contains(&c.tag.as_str()))
-        .collect();
-    let all_layers: u64 = layer_chunks.iter().map(|c| c.total_bytes).sum();
-    let per_anchor = |bytes: u64| {
-        if anchors == 0 {
-            0.0
-        } else {
-            bytes as f64 * 8.0 / f64::from(anchors)
-        }
-    };
-    let layers = rates
-        .iter()
-        .zip(layer_chunks.chunks(3))
-        .filter_map(|(&rate, c)| match c {
-            [fe, sc, of] => {
-                let own = fe.total_bytes + sc.total_bytes + of.total_bytes;
-                Some(LayerInfo {
-                    rate,
-                    feat_bytes: fe.total_bytes,
-                    scaling_bytes: sc.total_bytes,
-                    offsets_bytes: of.total_bytes,
-                    symbol_bits_per_anchor: per_anchor(own),
-                    stream_bits_per_anchor: per_anchor(file_bytes - all_layers + own),
-                })
-            }
-            _ => None,
-        })
-        .collect();
+    let layers = layer_infos(&chunks, &rates, anchors, file_bytes);
     Ok(StreamInfo {
         model_parts,
         format_version: format!("{}.{}", sig.major, sig.minor),
@@ -324,13 +268,77 @@ pub fn inspect(data: &[u8], limits: &Limits) -> Result<StreamInfo> {
             model_bytes: model,
             anchor_bytes: anchor,
             other_bytes: other,
-            bits_per_anchor: if anchors == 0 {
-                0.0
-            } else {
-                file_bytes as f64 * 8.0 / f64::from(anchors)
-            },
+            bits_per_anchor: bits_per_anchor(file_bytes, anchors),
         },
     })
+}
+
+/// The bytes per context weight and per scaffold MLP value that an `MLPS` payload declares
+/// (§1.6.2: `context_precision` follows the method byte; `scaffold_precision` the context MLP).
+fn mlps_precisions(payload: &[u8], p: &Preflight) -> (u64, u64) {
+    let context = match payload.get(1) {
+        Some(1) => salvq_bitstream::container::payload::ContextPrecision::I8,
+        _ => salvq_bitstream::container::payload::ContextPrecision::I16,
+    };
+    let at = 1 + salvq_bitstream::container::payload::context_bytes(&p.dims, context);
+    let scaffold_value_bytes = match payload.get(at as usize) {
+        Some(1) => 2,
+        _ => 4,
+    };
+    (context.bytes(), scaffold_value_bytes)
+}
+
+/// The tile table of a `TILS` payload (§10.1), summarised.
+fn tiles_info(payload: &[u8], p: &Preflight) -> Result<TilesInfo> {
+    let t = salvq_bitstream::tiles::TileTable::parse(payload, p.dims.anchors, p.coord_bits)?;
+    let counts = (0..t.len()).map(|i| t.count(i));
+    Ok(TilesInfo {
+        count: t.len() as u64,
+        min_anchors: counts.clone().min().unwrap_or(0),
+        max_anchors: counts.max().unwrap_or(0),
+    })
+}
+
+/// `bytes` in bits per anchor (0 for a stream without anchors).
+fn bits_per_anchor(bytes: u64, anchors: u32) -> f64 {
+    if anchors == 0 {
+        0.0
+    } else {
+        bytes as f64 * 8.0 / f64::from(anchors)
+    }
+}
+
+/// The symbol bytes of each coded rate: §7.4's layer chunks repeat AFEA ASCL AOFF once per
+/// coded rate, rates ascending.
+fn layer_infos(
+    chunks: &[ChunkInfo],
+    rates: &[u8],
+    anchors: u32,
+    file_bytes: u64,
+) -> Vec<LayerInfo> {
+    let layer_chunks: Vec<&ChunkInfo> = chunks
+        .iter()
+        .filter(|c| ["AFEA", "ASCL", "AOFF"].contains(&c.tag.as_str()))
+        .collect();
+    let all_layers: u64 = layer_chunks.iter().map(|c| c.total_bytes).sum();
+    rates
+        .iter()
+        .zip(layer_chunks.chunks(3))
+        .filter_map(|(&rate, c)| match c {
+            [fe, sc, of] => {
+                let own = fe.total_bytes + sc.total_bytes + of.total_bytes;
+                Some(LayerInfo {
+                    rate,
+                    feat_bytes: fe.total_bytes,
+                    scaling_bytes: sc.total_bytes,
+                    offsets_bytes: of.total_bytes,
+                    symbol_bits_per_anchor: bits_per_anchor(own, anchors),
+                    stream_bits_per_anchor: bits_per_anchor(file_bytes - all_layers + own, anchors),
+                })
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 impl StreamInfo {
@@ -340,45 +348,7 @@ impl StreamInfo {
         let mut s = String::new();
         let _ = writeln!(s, "SALVQ stream, format {}", self.format_version);
         if let Some(h) = &self.head {
-            let d = &h.dims;
-            let _ = writeln!(
-                s,
-                "anchors {}  feat_dim {}  offsets {}  scaling_dim {}  coord_bits {}",
-                d.anchors, d.feat_dim, d.offsets, d.scaling_dim, h.coord_bits
-            );
-            let _ = writeln!(
-                s,
-                "origin ({}, {}, {})  voxel_size {}",
-                h.origin[0], h.origin[1], h.origin[2], h.voxel_size
-            );
-            let _ = writeln!(
-                s,
-                "hash grid: {} channels, 3D res {:?} (log2 {}), 2D res {:?} (log2 {})",
-                d.grid_channels, d.res_3d, d.log2_size_3d, d.res_2d, d.log2_size_2d
-            );
-            let _ = writeln!(
-                s,
-                "MLPs: context hidden {}, scaffold hidden {}, view dims {}",
-                d.context_hidden, d.scaffold_hidden, d.view_dims
-            );
-            if let Some(t) = &self.tiles {
-                let _ = writeln!(
-                    s,
-                    "tiles: {} ({} … {} anchors each)",
-                    t.count, t.min_anchors, t.max_anchors
-                );
-            }
-            let _ = writeln!(
-                s,
-                "quantizers: feature lattice {}, scaling lattice {}, offsets identity",
-                d.feat_lattice.name(),
-                d.scaling_lattice.name()
-            );
-            let _ = writeln!(
-                s,
-                "coded rates {:?} of the model's {} (rate 0 is the finest); decoded size {} bytes",
-                h.coded_rates, d.rates, h.decoded_bytes
-            );
+            self.write_head(h, &mut s);
         }
         let _ = writeln!(
             s,
@@ -397,38 +367,8 @@ impl StreamInfo {
                 c.tag, c.offset, c.payload_bytes, class, c.crc32c
             );
         }
-        if !self.model_parts.is_empty() {
-            // Subtotals per group, in order (`--json` lists every tensor).
-            let _ = writeln!(s, "model bytes by part (salvq info --json: per tensor):");
-            let mut groups: Vec<(&str, &str, u64)> = Vec::new();
-            for p in &self.model_parts {
-                match groups.last_mut() {
-                    Some(g) if g.0 == p.group => g.2 += p.bytes,
-                    _ => groups.push((&p.group, &p.chunk, p.bytes)),
-                }
-            }
-            for (group, chunk, bytes) in groups {
-                let _ = writeln!(s, "  {group:<36} {chunk:<5} {bytes:>10}");
-            }
-        }
-        if !self.layers.is_empty() {
-            let _ = writeln!(
-                s,
-                "symbol bytes by rate:  feature  scaling  offsets  symbol bits/anchor  stream bits/anchor (this rate alone)"
-            );
-            for l in &self.layers {
-                let _ = writeln!(
-                    s,
-                    "  rate {:>2} {:>15} {:>8} {:>8} {:>19.2} {:>19.2}",
-                    l.rate,
-                    l.feat_bytes,
-                    l.scaling_bytes,
-                    l.offsets_bytes,
-                    l.symbol_bits_per_anchor,
-                    l.stream_bits_per_anchor
-                );
-            }
-        }
+        self.write_model_parts(&mut s);
+        self.write_layers(&mut s);
         for r in &self.encoder {
             let _ = writeln!(s, "encoder statistics (ests), rate {}:", r.rate);
             s.push_str(&groups_text(r));
@@ -446,6 +386,93 @@ impl StreamInfo {
             t.bits_per_anchor
         );
         s
+    }
+
+    /// The report's preflight lines: the dimensions (§2.1), the tiles and the coded rates.
+    fn write_head(&self, h: &HeadInfo, s: &mut String) {
+        use std::fmt::Write;
+        let d = &h.dims;
+        let _ = writeln!(
+            s,
+            "anchors {}  feat_dim {}  offsets {}  scaling_dim {}  coord_bits {}",
+            d.anchors, d.feat_dim, d.offsets, d.scaling_dim, h.coord_bits
+        );
+        let _ = writeln!(
+            s,
+            "origin ({}, {}, {})  voxel_size {}",
+            h.origin[0], h.origin[1], h.origin[2], h.voxel_size
+        );
+        let _ = writeln!(
+            s,
+            "hash grid: {} channels, 3D res {:?} (log2 {}), 2D res {:?} (log2 {})",
+            d.grid_channels, d.res_3d, d.log2_size_3d, d.res_2d, d.log2_size_2d
+        );
+        let _ = writeln!(
+            s,
+            "MLPs: context hidden {}, scaffold hidden {}, view dims {}",
+            d.context_hidden, d.scaffold_hidden, d.view_dims
+        );
+        if let Some(t) = &self.tiles {
+            let _ = writeln!(
+                s,
+                "tiles: {} ({} … {} anchors each)",
+                t.count, t.min_anchors, t.max_anchors
+            );
+        }
+        let _ = writeln!(
+            s,
+            "quantizers: feature lattice {}, scaling lattice {}, offsets identity",
+            d.feat_lattice.name(),
+            d.scaling_lattice.name()
+        );
+        let _ = writeln!(
+            s,
+            "coded rates {:?} of the model's {} (rate 0 is the finest); decoded size {} bytes",
+            h.coded_rates, d.rates, h.decoded_bytes
+        );
+    }
+
+    /// The report's model bytes: subtotals per group, in order (`--json` lists every tensor).
+    fn write_model_parts(&self, s: &mut String) {
+        use std::fmt::Write;
+        if self.model_parts.is_empty() {
+            return;
+        }
+        let _ = writeln!(s, "model bytes by part (salvq info --json: per tensor):");
+        let mut groups: Vec<(&str, &str, u64)> = Vec::new();
+        for p in &self.model_parts {
+            match groups.last_mut() {
+                Some(g) if g.0 == p.group => g.2 += p.bytes,
+                _ => groups.push((&p.group, &p.chunk, p.bytes)),
+            }
+        }
+        for (group, chunk, bytes) in groups {
+            let _ = writeln!(s, "  {group:<36} {chunk:<5} {bytes:>10}");
+        }
+    }
+
+    /// The report's symbol bytes per coded rate (§7.4's layers).
+    fn write_layers(&self, s: &mut String) {
+        use std::fmt::Write;
+        if self.layers.is_empty() {
+            return;
+        }
+        let _ = writeln!(
+            s,
+            "symbol bytes by rate:  feature  scaling  offsets  symbol bits/anchor  stream bits/anchor (this rate alone)"
+        );
+        for l in &self.layers {
+            let _ = writeln!(
+                s,
+                "  rate {:>2} {:>15} {:>8} {:>8} {:>19.2} {:>19.2}",
+                l.rate,
+                l.feat_bytes,
+                l.scaling_bytes,
+                l.offsets_bytes,
+                l.symbol_bits_per_anchor,
+                l.stream_bits_per_anchor
+            );
+        }
     }
 }
 
