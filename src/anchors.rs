@@ -6,9 +6,9 @@
 use crate::par::*;
 
 use crate::attributes::{read_masks, Symbols};
-use crate::builder::DecodeOptions;
+use crate::options::DecodeOptions;
 #[cfg(feature = "test-hooks")]
-use crate::builder::Fault;
+use crate::options::Fault;
 use std::borrow::Cow;
 
 use crate::container::chunk::{peek_critical, ChunkReader, ChunkTag};
@@ -21,7 +21,6 @@ use crate::error::{Error, Result};
 use crate::hyperprior::{GridLayout, IntMlp};
 use crate::limits::Limits;
 use crate::model::{GroupQuantizer, HashGrid, Mlp, SceneModel};
-use crate::scene::Scene;
 use crate::tiles::TileTable;
 
 mod assemble;
@@ -68,7 +67,7 @@ pub(crate) fn decode_anchors(
     decode_stream(data, options, keep_symbols)
 }
 
-fn decode_stream(
+pub(crate) fn decode_stream(
     data: &[u8],
     options: &DecodeOptions,
     keep_symbols: bool,
@@ -202,14 +201,4 @@ impl<'a> Partial<'a> {
         }
         Ok(())
     }
-}
-
-/// Decodes a stream of either profile (§1.5, §3.7) with `options` on the caller's pool
-/// (region and part apply to both; `fault` to the anchors profile).
-pub(crate) fn decode_scene(data: &[u8], options: &DecodeOptions) -> Result<Scene> {
-    if crate::container::is_explicit(data) {
-        return crate::gaussians::decode_explicit(data, options)
-            .map(|d| Scene::Gaussians(Box::new(d)));
-    }
-    decode_stream(data, options, false).map(|(m, _)| Scene::Anchors(Box::new(m)))
 }

@@ -5,7 +5,7 @@
 #[cfg(feature = "parallel")]
 use std::sync::Arc;
 
-use crate::anchors::{decode_anchors, decode_scene};
+use crate::anchors::decode_anchors;
 use crate::attributes::Symbols;
 use crate::container::chunk::{ChunkReader, ChunkTag};
 use crate::container::is_explicit;
@@ -15,7 +15,10 @@ use crate::error::{Error, Result, Structure};
 use crate::explicit::GaussianHeader;
 use crate::limits::Limits;
 use crate::model::SceneModel;
-use crate::scene::Scene;
+use crate::options::DecodeOptions;
+#[cfg(feature = "test-hooks")]
+use crate::options::Fault;
+use crate::scene::{decode_scene, Scene};
 use crate::stream::StreamDecoder;
 use crate::tiles::{RegionBox, TilePart};
 
@@ -28,31 +31,6 @@ pub enum Header {
     Anchors(Box<Preflight>),
     /// An explicit-profile stream's `GHED`.
     Gaussians(GaussianHeader),
-}
-
-/// What one decode does, as the builder set it.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct DecodeOptions {
-    pub(crate) limits: Limits,
-    pub(crate) rate: Option<u8>,
-    pub(crate) region: Option<RegionBox>,
-    pub(crate) part: Option<TilePart>,
-    pub(crate) gaussians_only: bool,
-    pub(crate) accept_prefix: bool,
-    #[cfg(feature = "test-hooks")]
-    pub(crate) fault: Option<Fault>,
-}
-
-/// Deliberate decoder bugs ([`DecoderBuilder::fault`]) that prove the conformance vectors
-/// catch them (§11); only with the `test-hooks` feature, for the conformance tools.
-#[cfg(feature = "test-hooks")]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Fault {
-    /// One wrong entry in scale `scale`'s frequency table.
-    FrequencyTable {
-        /// The scale index whose table is wrong (§6.3).
-        scale: u8,
-    },
 }
 
 /// A configured decoder: limits, rate, region, part and threads, set once; cheap to clone.

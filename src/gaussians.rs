@@ -5,7 +5,6 @@ use std::cell::RefCell;
 
 use crate::par::*;
 
-use crate::builder::DecodeOptions;
 use crate::container::chunk::{peek_critical, ChunkReader, ChunkTag};
 use crate::container::payload::{apos_bodies, body, read_apos_of, read_apos_tile, METHOD_CODED};
 use crate::container::signature::{Signature, SIGNATURE_LEN};
@@ -21,6 +20,7 @@ use crate::explicit::refinement::{Precision, Refinement};
 use crate::explicit::Gaussians;
 use crate::geometry::WalkScratch;
 use crate::limits::{LimitKind, Limits};
+use crate::options::DecodeOptions;
 use crate::quantizer::LatticeMatrix;
 use crate::tiles::{split_bodies, TileTable};
 

@@ -30,16 +30,18 @@
 //!
 //! ## Map of `src/`
 //!
-//! `builder.rs` is the API ([`Decoder`], [`DecoderBuilder`], [`Header`], [`decode`]) and
-//! `scene.rs` what it returns ([`Scene`]). `anchors.rs` decodes an anchors-profile stream: the
-//! chunk walk and each model chunk (§1.5, §1.6), then `anchors/assemble.rs` the attributes of
-//! the selected tiles in parallel (§6.6, §10). `gaussians.rs`, with `gaussians/progressive.rs`,
-//! decodes an explicit-profile stream (§3.7, §3.8); `stream.rs` decodes either as its bytes
-//! arrive, and `extract.rs` cuts a stream down to one rate (§7.4, §7.5). `neural.rs` and
-//! `camera.rs` turn an anchors scene into the Gaussians a camera sees (Annex C.1, C.2). Every
-//! layer they read through (container and chunk order, ANS and tables, octree geometry,
-//! integer hyperprior, quantizers, tiles, errors and limits) is the `salvq-bitstream` crate,
-//! which the reference encoder shares.
+//! `builder.rs` is the API ([`Decoder`], [`DecoderBuilder`], [`Header`], [`decode`]), and
+//! `options.rs` what it hands the decoders below, so that none of them imports it. `scene.rs`
+//! is what a decode returns ([`Scene`]) and which profile's decoder makes it (the first chunk
+//! decides, §3.7). `anchors.rs` decodes an anchors-profile stream: the chunk walk and each
+//! model chunk (§1.5, §1.6), then `anchors/assemble.rs` the attributes of the selected tiles in
+//! parallel (§6.6, §10). `gaussians.rs`, with `gaussians/progressive.rs`, decodes an
+//! explicit-profile stream (§3.7, §3.8); `stream.rs` decodes either as its bytes arrive, and
+//! `extract.rs` cuts a stream down to one rate (§7.4, §7.5). `neural.rs` and `camera.rs` turn
+//! an anchors scene into the Gaussians a camera sees (Annex C.1, C.2). Every layer they read
+//! through (container and chunk order, ANS and tables, octree geometry, integer hyperprior,
+//! quantizers, tiles, errors and limits) is the `salvq-bitstream` crate, which the reference
+//! encoder shares.
 
 // No unsafe code here: the SIMD kernels are the layer crate's.
 #![forbid(unsafe_code)]
@@ -51,6 +53,7 @@ pub mod camera;
 mod extract;
 mod gaussians;
 pub mod neural;
+mod options;
 mod scene;
 mod stream;
 
@@ -60,11 +63,11 @@ use salvq_bitstream::{
     quantizer, tiles,
 };
 
-#[cfg(feature = "test-hooks")]
-pub use builder::Fault;
 pub use builder::{decode, Decoder, DecoderBuilder, Header};
 pub use extract::extract_rate;
 pub use gaussians::DecodedGaussians;
+#[cfg(feature = "test-hooks")]
+pub use options::Fault;
 pub use scene::Scene;
 pub use stream::{DecodedTile, StreamDecoder};
 

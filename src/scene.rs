@@ -1,11 +1,13 @@
 //! What a stream decodes to: the scene of either profile (§3: the first chunk decides).
 
+use crate::anchors::decode_stream;
 use crate::container::chunk::ChunkTag;
 use crate::error::{Error, Result};
 use crate::explicit::Gaussians;
-use crate::gaussians::DecodedGaussians;
+use crate::gaussians::{decode_explicit, DecodedGaussians};
 use crate::model::SceneModel;
 use crate::neural::{neural_gaussians, NeuralError};
+use crate::options::DecodeOptions;
 
 /// A decoded stream: anchors (§1 – §2) or explicit Gaussians (§3).
 ///
@@ -93,4 +95,13 @@ impl Scene {
             }),
         }
     }
+}
+
+/// Decodes a stream of either profile (§1.5, §3.7) with `options` on the caller's pool
+/// (region and part apply to both; `fault` to the anchors profile).
+pub(crate) fn decode_scene(data: &[u8], options: &DecodeOptions) -> Result<Scene> {
+    if crate::container::is_explicit(data) {
+        return decode_explicit(data, options).map(|d| Scene::Gaussians(Box::new(d)));
+    }
+    decode_stream(data, options, false).map(|(m, _)| Scene::Anchors(Box::new(m)))
 }

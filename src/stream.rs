@@ -20,8 +20,6 @@
 
 use std::ops::Range;
 
-use crate::anchors::decode_scene;
-use crate::builder::DecodeOptions;
 use crate::container::chunk::{Chunk, ChunkReader, ChunkTag, CHUNK_CRC_LEN, CHUNK_HEADER_LEN};
 use crate::container::method::METHOD_CODED;
 use crate::container::signature::{Signature, SIGNATURE_LEN};
@@ -32,7 +30,8 @@ use crate::explicit::gatt::decode_tile;
 use crate::explicit::Gaussians;
 use crate::gaussians::{Due, ExplicitDecoder};
 use crate::limits::LimitKind;
-use crate::scene::Scene;
+use crate::options::DecodeOptions;
+use crate::scene::{decode_scene, Scene};
 
 /// A decoder fed a stream in pieces ([`Self::feed`]); [`Self::finish`] gives what the
 /// whole-buffer decoder gives for the same bytes.

@@ -8,9 +8,10 @@ use std::time::Instant;
 
 use salvq_encoder::Error;
 
+use super::decode_explicit::{self, Decoded};
 use super::files::{self, Ctx, Output};
+use super::secs;
 use super::tools::parse_fault;
-use super::{decode_explicit, secs};
 
 /// `salvq decode`'s arguments.
 #[derive(clap::Args)]
@@ -51,18 +52,6 @@ pub(crate) struct DecodeArgs {
     /// note saying which (spec §3.8.4).
     #[arg(long)]
     pub(crate) strict: bool,
-}
-
-/// What `--json` prints.
-#[derive(serde::Serialize)]
-pub(crate) struct Decoded {
-    pub(crate) output: String,
-    pub(crate) profile: &'static str,
-    /// Gaussians (explicit profile) or anchors.
-    pub(crate) count: u64,
-    pub(crate) rate: Option<u8>,
-    pub(crate) rates: u8,
-    pub(crate) seconds: f64,
 }
 
 /// The output of a decode, checked before the work, with the extension the profile needs.

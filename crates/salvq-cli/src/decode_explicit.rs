@@ -4,9 +4,20 @@ use std::time::Instant;
 
 use salvq_encoder::Error;
 
-use super::decode::Decoded;
 use super::files::{self, Ctx, Output};
 use super::secs;
+
+/// What `decode --json` prints, for either profile.
+#[derive(serde::Serialize)]
+pub(crate) struct Decoded {
+    pub(crate) output: String,
+    pub(crate) profile: &'static str,
+    /// Gaussians (explicit profile) or anchors.
+    pub(crate) count: u64,
+    pub(crate) rate: Option<u8>,
+    pub(crate) rates: u8,
+    pub(crate) seconds: f64,
+}
 
 /// How the decode is written and reported.
 pub(crate) struct How {

@@ -5,7 +5,7 @@
 use crate::explicit::attributes::TileSymbolsRef;
 use crate::explicit::gaussians::GaussiansMut;
 use crate::explicit::groups::{Group, GroupKind};
-use crate::explicit::refinement::Precision;
+use crate::explicit::refinement::{pow2, Precision};
 use crate::hyperprior::step::canonical_nan;
 use crate::quantizer::LatticeMatrix;
 
@@ -19,12 +19,6 @@ pub fn position(origin: [f32; 3], voxel_size: f32, v: [u32; 3], e: u8, w: [u32; 
         let c = (v[a] << e) | w[a];
         canonical_nan(origin[a] + (c as f32 + 0.5) * h)
     })
-}
-
-/// 2^k as binary32, for |k| ≤ 126 (exact).
-#[inline]
-pub fn pow2(k: i32) -> f32 {
-    f32::from_bits(((127 + k) as u32) << 23)
 }
 
 /// §3.6 step 3: the quaternion (w, x, y, z) from its three smallest components `small` (in

@@ -17,10 +17,15 @@ use crate::explicit::layer::{
     read_prior, rest_count_bits, rest_count_nodes, rest_values, write_prior, Layer,
     CONTEXT_CLASSES, MAX_POSITION_BITS, MAX_SCALE_OFFSET, SIZE_CLASSES,
 };
-use crate::explicit::reconstruct::pow2;
 
 /// §3.8: the largest step factor of a refinement layer.
 pub const MAX_FACTOR: u8 = 255;
+
+/// 2^k as binary32, for |k| ≤ 126 (exact).
+#[inline]
+pub fn pow2(k: i32) -> f32 {
+    f32::from_bits(((127 + k) as u32) << 23)
+}
 
 /// The precision every Gaussian of a decoded layer is at (§3.6, §3.8): per size class, the
 /// position refinement bits below the voxel grid, and per group and size class, the step Δ.

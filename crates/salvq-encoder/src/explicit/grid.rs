@@ -70,7 +70,7 @@ pub fn group_coordinates(
     shift: &dyn Fn(usize) -> i8,
     order: &[usize],
 ) -> Vec<i32> {
-    let step = |k: usize| delta * salvq_bitstream::explicit::reconstruct::pow2(shift(k).into());
+    let step = |k: usize| delta * salvq_bitstream::explicit::refinement::pow2(shift(k).into());
     group_coordinates_at(values, g, &step, order)
 }
 
