@@ -199,7 +199,7 @@ impl Gatt {
         decoder: &mut ExplicitDecoder,
         chunk: Chunk<'_>,
         gaussians: &mut Gaussians,
-        tiles: &mut Vec<DecodedTile>,
+        ready: &mut Vec<DecodedTile>,
     ) -> Result<()> {
         if self.whole || self.next_tile < self.per_tile.len() {
             // The whole-chunk decoder gives the error, or (if the tiles could not be taken
@@ -208,7 +208,7 @@ impl Gatt {
             // The tiles handed out already are those `self.per_tile` holds: a prefix, in order.
             for (t, handed_out) in self.per_tile.iter().enumerate() {
                 if let (Some(s), None) = (decoder.tile_symbols(t), handed_out) {
-                    hand_out(decoder, t, s, gaussians, tiles)?;
+                    hand_out(decoder, t, s, gaussians, ready)?;
                 }
             }
         } else {
